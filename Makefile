@@ -1,0 +1,42 @@
+# Thin wrappers around the README's commands. `make setup` builds .venv from nothing.
+PYTHON ?= python3.11
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: setup demo test lint format benchmark clean
+
+setup: $(STAMP)
+
+# torch==2.13.0 first: it is the CPU build already on disk; any other spec pulls CUDA.
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet torch==2.13.0
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+# The main job on the built-in default (for now: describe and render the default rig).
+demo: setup
+	$(BIN)/rigmap rigs list
+	$(BIN)/rigmap rigs describe quadruped
+	$(BIN)/rigmap rigs render quadruped --out reports/figures/rigs/quadruped.png
+	$(BIN)/rigmap rigs render biped --out reports/figures/rigs/biped.png
+
+# pytest exits 5 when it collects nothing; that is a failure for us, not a pass.
+test: setup
+	$(BIN)/python -m pytest -q
+
+lint: setup
+	$(BIN)/ruff check src tests pipelines benchmarks
+	$(BIN)/ruff format --check src tests pipelines benchmarks
+
+format: setup
+	$(BIN)/ruff format src tests pipelines benchmarks
+	$(BIN)/ruff check --fix src tests pipelines benchmarks
+
+benchmark: setup
+	$(BIN)/python benchmarks/rig_eval.py
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -1,0 +1,91 @@
+"""Rig Jacobians ``∂x/∂y`` with respect to the used controls (paper §4.3-4.4).
+
+Finite differences treat the rig as a black box and work for any rig (one
+batched ``evaluate`` call holds every perturbation); autodiff needs a
+differentiable in-process rig and is exact.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from rigmap.rigs.base import Rig, RigInputError
+
+JacobianMethod = Literal["finite_difference", "autodiff"]
+JACOBIAN_METHODS = ("finite_difference", "autodiff")
+
+
+def jacobian(
+    rig: Rig,
+    Y,
+    method: JacobianMethod = "finite_difference",
+    *,
+    step: float | None = None,
+    chunk: int = 64,
+) -> np.ndarray:
+    """``(N, 3J, C_used)`` Jacobians of the COG-relative joint positions at ``Y``.
+
+    ``Y`` holds full control vectors ``(N, C)`` (or one ``(C,)``). Finite
+    differences are central with ``step`` (default 1e-6 in float64, 1e-3 in
+    float32), in the controls' own units.
+    """
+    Y = np.asarray(Y)
+    squeeze = Y.ndim == 1
+    Y2 = Y[None] if squeeze else Y
+    if Y2.ndim != 2 or Y2.shape[1] != rig.n_controls:
+        raise RigInputError(
+            f"jacobian of rig {rig.name!r}: expected controls of shape (N, {rig.n_controls}), "
+            f"got {Y.shape}"
+        )
+    if method == "finite_difference":
+        J = _finite_difference(rig, Y2, step, chunk)
+    elif method == "autodiff":
+        J = _autodiff(rig, Y2, chunk)
+    else:
+        raise ValueError(f"unknown Jacobian method {method!r}; choose one of {JACOBIAN_METHODS}")
+    return J[0] if squeeze else J
+
+
+def _finite_difference(rig: Rig, Y: np.ndarray, step: float | None, chunk: int) -> np.ndarray:
+    dtype = np.float32 if Y.dtype == np.float32 else np.float64
+    h = step if step is not None else (1e-3 if dtype == np.float32 else 1e-6)
+    used = rig.controls.used_indices
+    n_used = len(used)
+    blocks = []
+    for start in range(0, len(Y), chunk):
+        Yc = Y[start : start + chunk].astype(dtype)
+        n = len(Yc)
+        # rows: for each pose, +h on each used control, then -h on each
+        perturbed = np.repeat(Yc[:, None, :], 2 * n_used, axis=1)
+        k = np.arange(n_used)
+        perturbed[:, k, used] += h
+        perturbed[:, n_used + k, used] -= h
+        X = rig.evaluate(perturbed.reshape(n * 2 * n_used, -1)).reshape(n, 2 * n_used, -1)
+        blocks.append(((X[:, :n_used] - X[:, n_used:]) / (2 * h)).transpose(0, 2, 1))
+    return np.concatenate(blocks).astype(dtype, copy=False)
+
+
+def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
+    if not rig.differentiable:
+        raise ValueError(
+            f"rig {rig.name!r} is not differentiable (it runs outside this process); "
+            "use method='finite_difference'"
+        )
+    import torch
+
+    dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
+    used = torch.as_tensor(rig.controls.used_indices)
+    blocks = []
+    for start in range(0, len(Y), chunk):
+        full = torch.as_tensor(Y[start : start + chunk], dtype=dtype)
+
+        def positions_summed_over_batch(y_used, full=full):
+            # poses are independent, so d(sum_n x_n)/d y_m = d x_m / d y_m
+            x = rig.evaluate(full.index_copy(1, used, y_used))
+            return x.reshape(x.shape[0], -1).sum(0)
+
+        J = torch.func.jacrev(positions_summed_over_batch)(full[:, used])  # (3J, n, C_used)
+        blocks.append(J.permute(1, 0, 2).detach().numpy())
+    return np.concatenate(blocks)

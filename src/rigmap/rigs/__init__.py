@@ -1,0 +1,25 @@
+"""Rigs: the black-box function from controls to joint positions (paper §3)."""
+
+from rigmap.rigs.base import (
+    Control,
+    ControlTable,
+    Pose,
+    Rig,
+    RigInputError,
+    UnknownRigError,
+    check_positions,
+)
+from rigmap.rigs.registry import available, load, register
+
+__all__ = [
+    "Control",
+    "ControlTable",
+    "Pose",
+    "Rig",
+    "RigInputError",
+    "UnknownRigError",
+    "available",
+    "check_positions",
+    "load",
+    "register",
+]

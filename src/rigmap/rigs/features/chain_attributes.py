@@ -1,0 +1,76 @@
+"""Curl and wave attributes spread along a chain (tails, ears, fingers, toes).
+
+Production rigs let animators bend a whole chain with one number: ``curl``
+adds the same bend at every joint (so the chain coils), ``wave`` adds a
+travelling sine along it (``amplitude``, ``phase``), ``spread`` fans chains
+apart at their base. This layer gives the extra rotation for joint ``i``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from rigmap.rigs.engine.builder import Attribute, EvalContext, RigBuilder
+from rigmap.rigs.engine.transforms import axis_rotation
+
+
+@dataclass
+class ChainAttributes:
+    """Curl / side-curl / wave attributes and the bend axes they act on."""
+
+    curl: Attribute
+    side_curl: Attribute | None
+    wave_amplitude: Attribute | None
+    wave_phase: Attribute | None
+    bend_axis: str = "x"
+    side_axis: str = "y"
+    wavelength: float = 1.0  # in chains: one full wave along the chain
+
+    def rotation(self, ctx: EvalContext, index: int, count: int) -> torch.Tensor:
+        """Extra local rotation of joint ``index`` of ``count`` (``(N, 3, 3)``)."""
+        bend = self.curl(ctx) / count
+        side = self.side_curl(ctx) / count if self.side_curl is not None else None
+        if self.wave_amplitude is not None:
+            position = 2 * math.pi * index / (count * self.wavelength)
+            phase = self.wave_phase(ctx) if self.wave_phase is not None else 0.0
+            wave = self.wave_amplitude(ctx) * torch.sin(position + phase)
+            if side is None:
+                bend = bend + wave
+            else:
+                side = side + wave
+        R = axis_rotation(bend, self.bend_axis)
+        if side is not None:
+            R = axis_rotation(side, self.side_axis) @ R
+        return R
+
+
+def chain_attributes(
+    b: RigBuilder,
+    prefix: str,
+    *,
+    group: str,
+    curl_range: tuple[float, float] = (-math.pi, math.pi),
+    side_curl: bool = True,
+    wave: bool = True,
+    used: tuple[str, ...] = ("curl", "side_curl", "wave_amplitude", "wave_phase"),
+    bend_axis: str = "x",
+    side_axis: str = "y",
+) -> ChainAttributes:
+    """Add ``{prefix}.curl`` (total bend in radians along the chain) and friends."""
+
+    def attr(name, lower, upper):
+        return b.attribute(
+            f"{prefix}.{name}", default=0.0, lower=lower, upper=upper, used=name in used, group=group
+        )
+
+    return ChainAttributes(
+        curl=attr("curl", *curl_range),
+        side_curl=attr("side_curl", *curl_range) if side_curl else None,
+        wave_amplitude=attr("wave_amplitude", -0.6, 0.6) if wave else None,
+        wave_phase=attr("wave_phase", -math.pi, math.pi) if wave else None,
+        bend_axis=bend_axis,
+        side_axis=side_axis,
+    )

@@ -1,0 +1,80 @@
+"""Forward-kinematics chains: one rotate/translate/scale control per joint.
+
+Each joint's world transform is ``parent ∘ T(offset + t) ∘ R_layer ∘ R(r) ∘ S(s)``
+where the optional layer adds chain-wide curl/wave (see chain_attributes).
+Rest orientations are world-aligned, so a joint's rest offset is a world vector (cm).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from rigmap.rigs.engine.builder import EvalContext, RigBuilder, TransformControl
+from rigmap.rigs.engine.transforms import Transform
+from rigmap.rigs.features.chain_attributes import ChainAttributes
+
+
+def fk_chain(
+    b: RigBuilder,
+    joints: Sequence[str],
+    *,
+    parent: str,
+    positions: Sequence[Sequence[float]],
+    group: str,
+    used: str = "rx ry rz",
+    rotation_orders: str | Sequence[str] = "xyz",
+    rotate_range: float | dict = np.pi,
+    layer: ChainAttributes | None = None,
+    joint_parent: str | None = None,
+    control_suffix: str = "_fk",
+    declare_joints: bool = True,
+    xform_prefix: str = "",
+) -> list[TransformControl]:
+    """A chain of FK controls whose world transforms are the joints' transforms.
+
+    ``positions`` are the joints' rest world positions (cm). ``parent`` is the
+    transform the chain hangs from; ``joint_parent`` the joint recorded as the
+    first joint's parent (defaults to ``parent``). With ``xform_prefix`` the
+    chain writes ``prefix + joint`` transforms and declares no joints (a limb's
+    FK half, blended with its IK half later).
+    """
+    if len(positions) != len(joints):
+        raise ValueError(
+            f"fk_chain {joints[0]}: {len(joints)} joints but {len(positions)} positions"
+        )
+    orders = [rotation_orders] * len(joints) if isinstance(rotation_orders, str) else rotation_orders
+    controls: list[TransformControl] = []
+    previous = parent
+    for joint, position, order in zip(joints, positions, orders, strict=True):
+        ctrl = b.transform_control(
+            f"{joint}{control_suffix}",
+            parent=previous,
+            offset=b.offset_to(previous, position),
+            group=group,
+            used=used,
+            rotation_order=order,
+            rotate_range=rotate_range,
+            add_step=False,
+        )
+        controls.append(ctrl)
+        b.rest[xform_prefix + joint] = b.rest[ctrl.name]
+        if declare_joints:
+            first_parent = joint_parent if joint_parent is not None else parent
+            b.joint(joint, first_parent if previous == parent else previous.removeprefix(xform_prefix))
+        previous = xform_prefix + joint
+    count = len(joints)
+
+    def step(ctx: EvalContext) -> None:
+        world = ctx.xf[parent]
+        for index, (joint, ctrl) in enumerate(zip(joints, controls, strict=True)):
+            local = ctrl.local(ctx)
+            if layer is not None:
+                local = Transform(layer.rotation(ctx, index, count) @ local.R, local.t)
+            world = world.compose(local)
+            ctx.xf[xform_prefix + joint] = world
+            ctx.xf[ctrl.name] = world
+
+    b.step(step)
+    return controls
