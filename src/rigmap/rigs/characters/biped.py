@@ -39,10 +39,10 @@ def build_biped():
                         used="rx ry rz", rotate_range=0.8)
     b.transform_control("chest", parent="cog", offset=(0, 40, 0), group="torso",
                         used="tx ty tz rx ry rz", rotate_range=1.0)
-    b.transform_control("spine_mid", parent="cog", offset=(0, 20, 0), group="torso",
+    spine_mid = b.transform_control("spine_mid", parent="cog", offset=(0, 20, 0), group="torso",
                         used="tx ty tz", translate_range=15.0)
     spine = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_chest"]
-    spline_spine(b, spine, hips="hips", chest="chest", mid="spine_mid", parent_joint=None,
+    spline_spine(b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None,
                  group="torso")
 
     # neck and head: FK neck, head control following neck or world
@@ -121,7 +121,8 @@ def _arm(b: RigBuilder, side: str, sign: float) -> None:
                                  curl_range=(-0.5, 2.5), bend_axis="z" if finger != "thumb" else "y",
                                  side_axis="y" if finger != "thumb" else "z")
         fk_chain(b, names, parent=f"hand_{side}", positions=positions, group=f"hand_{side}",
-                 used="rx rz", rotate_range=1.6, layer=attrs)
+                 used="ry rz", rotate_range=1.6, layer=attrs,
+                 tip=_mirror(base + 3 * step * 0.8, sign), tip_name=f"{finger}_tip_{side}")
 
 
 def _leg(b: RigBuilder, side: str, sign: float) -> None:

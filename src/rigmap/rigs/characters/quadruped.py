@@ -35,10 +35,10 @@ def build_quadruped():
                         used="rx ry rz", rotate_range=0.8)
     b.transform_control("chest", parent="cog", offset=(0, 2, 25), group="torso",
                         used="tx ty tz rx ry rz", rotate_range=1.0)
-    b.transform_control("spine_mid", parent="cog", offset=(0, 1, -1), group="torso",
+    spine_mid = b.transform_control("spine_mid", parent="cog", offset=(0, 1, -1), group="torso",
                         used="tx ty tz", translate_range=15.0)
     spine = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "spine_chest"]
-    spline_spine(b, spine, hips="hips", chest="chest", mid="spine_mid", parent_joint=None,
+    spline_spine(b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None,
                  group="torso")
 
     fk_chain(b, ["neck_1", "neck_2", "neck_3"], parent="spine_chest",
@@ -64,12 +64,14 @@ def build_quadruped():
         ear = chain_attributes(b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5))
         fk_chain(b, [f"ear_{i}_{side}" for i in (1, 2, 3)], parent="head", joint_parent="head",
                  positions=[_mirror(p, sign) for p in ((5, 92, 45), (7, 97, 44), (9, 102, 43))],
-                 group="head", used="rx rz", rotate_range=1.2, layer=ear)
+                 group="head", used="rx rz", rotate_range=1.2, layer=ear,
+                 tip=_mirror((10, 107, 42), sign), tip_name=f"ear_tip_{side}")
 
     tail = chain_attributes(b, "tail", group="tail", curl_range=(-2.5, 2.5))
     fk_chain(b, [f"tail_{i}" for i in range(1, TAIL_JOINTS + 1)], parent="pelvis",
              positions=[(0, 62 + 1.2 * k, -34 - 4.0 * k) for k in range(TAIL_JOINTS)],
-             group="tail", used="rx ry", rotate_range=1.0, layer=tail)
+             group="tail", used="rx ry", rotate_range=1.0, layer=tail,
+             tip=(0, 62 + 1.2 * TAIL_JOINTS, -34 - 4.0 * TAIL_JOINTS), tip_name="tail_tip")
 
     for side, sign in SIDES:
         _front_leg(b, side, sign)
@@ -136,7 +138,11 @@ def _toes(b: RigBuilder, parent: str, parent_joint: str, side: str, sign: float,
                              used=("curl", "side_curl"), curl_range=(-0.8, 1.2))
     origin = np.asarray(origin, float)
     for k, lateral in enumerate(np.linspace(-2.4, 2.4, TOES)):
+        base = origin + np.array([lateral * 0.6, 0.0, 0.0])
         tip = origin + np.array([lateral, -1.0, 3.5 - 0.6 * abs(lateral)])
+        # the control pivots at the paw, the joint is the toe's tip
         fk_chain(b, [f"{prefix}_{k + 1}"], parent=parent, joint_parent=parent_joint,
-                 positions=[_mirror(tip, sign)], group=f"paws_{side}", used="rx",
-                 rotate_range=0.9, layer=attrs)
+                 positions=[_mirror(base, sign)], group=f"paws_{side}", used="rx",
+                 rotate_range=0.9, layer=attrs, declare_joints=False,
+                 xform_prefix="toe_base:", tip=_mirror(tip, sign),
+                 tip_name=f"{prefix}_{k + 1}")

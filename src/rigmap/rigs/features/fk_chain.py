@@ -31,6 +31,8 @@ def fk_chain(
     control_suffix: str = "_fk",
     declare_joints: bool = True,
     xform_prefix: str = "",
+    tip: Sequence[float] | None = None,
+    tip_name: str | None = None,
 ) -> list[TransformControl]:
     """A chain of FK controls whose world transforms are the joints' transforms.
 
@@ -38,7 +40,9 @@ def fk_chain(
     transform the chain hangs from; ``joint_parent`` the joint recorded as the
     first joint's parent (defaults to ``parent``). With ``xform_prefix`` the
     chain writes ``prefix + joint`` transforms and declares no joints (a limb's
-    FK half, blended with its IK half later).
+    FK half, blended with its IK half later). ``tip`` adds an end joint
+    (``tip_name``, default ``{last}_tip``) rigidly carried by the last control, so
+    the last control's rotation shows in joint positions.
     """
     if len(positions) != len(joints):
         raise ValueError(
@@ -65,6 +69,13 @@ def fk_chain(
             b.joint(joint, first_parent if previous == parent else previous.removeprefix(xform_prefix))
         previous = xform_prefix + joint
     count = len(joints)
+    tip_offset = None
+    if tip is not None:
+        tip_name = tip_name or f"{joints[-1]}_tip"
+        tip_offset = b.offset_to(previous, tip)
+        tip_parent = joints[-1] if declare_joints else (joint_parent or parent)
+        b.joint(tip_name, tip_parent)
+        b.set_rest(tip_name, tip)
 
     def step(ctx: EvalContext) -> None:
         world = ctx.xf[parent]
@@ -75,6 +86,8 @@ def fk_chain(
             world = world.compose(local)
             ctx.xf[xform_prefix + joint] = world
             ctx.xf[ctrl.name] = world
+        if tip_offset is not None:
+            ctx.xf[tip_name] = Transform(world.R, world.apply(ctx.const(tip_offset)))
 
     b.step(step)
     return controls

@@ -149,15 +149,17 @@ def limb(
     )
     hock_ctrl = None
     if digitigrade:
+        # pivots at the paw; rotating it swings the hock (and so the whole leg) about the paw
         hock_ctrl = b.transform_control(
             f"{name}_hock",
             parent=f"{name}_ik",
-            offset=points[hock] - points[end],
+            offset=(0.0, 0.0, 0.0),
             group=group,
             used=usage.hock,
             rotate_range=np.pi / 2,
             add_step=False,
         )
+        hock_offset = points[hock] - points[end]
     roll_attrs = pivots = None
     if foot is not None:
         roll_attrs = foot_roll_attributes(b, name, group=group, used=usage.foot)
@@ -210,7 +212,8 @@ def limb(
         else:
             end_world = ik_world
         if hock_ctrl is not None:
-            hock_world = end_world.compose(hock_ctrl.local(ctx))
+            hock_pivot = end_world.compose(hock_ctrl.local(ctx))
+            hock_world = Transform(hock_pivot.R, hock_pivot.apply(ctx.const(hock_offset)))
             target = hock_world.t
         else:
             target = end_world.t

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from rigmap.rigs.engine.builder import EvalContext, RigBuilder
+from rigmap.rigs.engine.builder import EvalContext, RigBuilder, TransformControl
 from rigmap.rigs.engine.transforms import Transform, blend_rotations, orthonormalize
 
 
@@ -25,7 +25,7 @@ def spline_spine(
     *,
     hips: str,
     chest: str,
-    mid: str,
+    mid: TransformControl,
     parent_joint: str | None,
     group: str,
     tweak_used: str = "",
@@ -33,14 +33,14 @@ def spline_spine(
     """Write ``joints`` (first at the hips control, last at the chest control).
 
     The hips, chest and mid controls must exist (with world steps) already; the
-    joints' rest positions are placed evenly on the straight rest curve.
+    joints' rest positions are placed evenly on the straight rest curve. The mid
+    control's own translation (in its parent's space) pushes the curve's middle.
     """
     start, end = b.rest[hips], b.rest[chest]
     rest_length = float(np.linalg.norm(end - start))
     direction = (end - start) / rest_length
     count = len(joints)
     params = np.linspace(0.0, 1.0, count)
-    rest_mid = b.rest[mid]
     stretch = b.attribute(
         f"{joints[0]}_spine.stretch", default=1.0, lower=0.0, upper=1.0, used=False, group=group
     )
@@ -64,7 +64,8 @@ def spline_spine(
         H, C = ctx.xf[hips], ctx.xf[chest]
         handle = ctx.const(direction * rest_length / 3.0)
         p0, p3 = H.t, C.t
-        pull = ctx.xf[mid].t - 0.5 * (p0 + p3) - ctx.const(rest_mid - 0.5 * (start + end))
+        mid_space = ctx.xf[mid.parent]
+        pull = ctx.xf[mid.name].t - mid_space.apply(ctx.const(mid.rest_offset))
         p1 = p0 + H.rotate(handle) + mid_gain * pull
         p2 = p3 - C.rotate(handle) + mid_gain * pull
         t = ctx.const(params)[None, :, None]

@@ -46,7 +46,7 @@ def solve_two_bone_ik(
     l2 = torch.full_like(distance, lower_length)
     if stretch is not None:
         # lengthen both bones by the factor needed to reach, scaled by `stretch`
-        needed = (distance / (upper_length + lower_length)).clamp_min(1.0)
+        needed = (distance / ((upper_length + lower_length) * MAX_REACH_FRACTION)).clamp_min(1.0)
         factor = 1.0 + stretch.clamp(0.0, 1.0) * (needed - 1.0)
         l1, l2 = l1 * factor, l2 * factor
     longest = (l1 + l2) * MAX_REACH_FRACTION
