@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from rigmap.refine import jacobian
-from rigmap.rigs import RigInputError, UnknownRigError, available, load
 
 from rig_poses import random_used_controls
+from rigmap.refine import jacobian
+from rigmap.rigs import RigInputError, UnknownRigError, available, load
 
 # (min joints, min controls, min used) from the issue; the paper: 78/642/218 and 48/697-804/204
 COUNTS = {"quadruped": (70, 600, 200), "biped": (45, 650, 190)}
@@ -54,8 +54,9 @@ def test_cog_translation_moves_cog_not_relative_positions(biped):
     np.testing.assert_allclose(moved.cog - base.cog, [[3.0, -6.0, 0]], atol=1e-9)
     # the feet are IK in root space: they stay, so COG-relative they move the other way
     foot = biped.joint_names.index("foot_l")
-    np.testing.assert_allclose(moved.positions[0, foot] - base.positions[0, foot], [-3, 6, 0],
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        moved.positions[0, foot] - base.positions[0, foot], [-3, 6, 0], atol=1e-9
+    )
 
 
 @pytest.mark.parametrize("name", sorted(COUNTS))
@@ -105,11 +106,11 @@ def test_bad_input_gets_clear_errors(quadruped):
         quadruped.evaluate(np.zeros((2, 10)))
     Y = quadruped.default_controls(3)
     Y[1, 5] = np.nan
-    with pytest.raises(RigInputError, match="NaN or infinity.*row 1"):
+    with pytest.raises(RigInputError, match=r"NaN or infinity.*row 1"):
         quadruped.evaluate(Y)
     Y[1, 5] = np.inf
     with pytest.raises(RigInputError, match=quadruped.control_names[5].replace(".", r"\.")):
         quadruped.evaluate(Y)
-    with pytest.raises(UnknownRigError, match="available rigs: .*biped.*quadruped"):
+    with pytest.raises(UnknownRigError, match=r"available rigs: .*biped.*quadruped"):
         load("dragon")
     assert {"quadruped", "biped"} <= set(available())

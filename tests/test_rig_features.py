@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -24,8 +26,9 @@ def _length(a, b):
 
 
 def test_ik_foot_reaches_its_control_when_reachable(biped):
-    joints, Y = _world(biped, {"leg_l_ik.tx": 6.0, "leg_l_ik.ty": 25.0, "leg_l_ik.tz": 15.0,
-                               "leg_l_ik.rx": -0.4})
+    joints, Y = _world(
+        biped, {"leg_l_ik.tx": 6.0, "leg_l_ik.ty": 25.0, "leg_l_ik.tz": 15.0, "leg_l_ik.rx": -0.4}
+    )
     xf = biped.world_transforms(Y)
     np.testing.assert_allclose(joints["foot_l"][0], xf["leg_l_ik"].t[0].numpy(), atol=1e-9)
 
@@ -33,21 +36,27 @@ def test_ik_foot_reaches_its_control_when_reachable(biped):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_bone_lengths_are_kept_under_ik_without_stretch(biped, seed):
     rng = np.random.default_rng(seed)
-    settings = {f"leg_l_ik.{c}": v for c, v in zip("tx ty tz".split(), rng.uniform(-40, 40, 3),
-                                                    strict=True)}
+    settings = {
+        f"leg_l_ik.{c}": v for c, v in zip("tx ty tz".split(), rng.uniform(-40, 40, 3), strict=True)
+    }
     settings |= {"arm_r_ik.tx": rng.uniform(-60, 60), "arm_r_ik.ty": rng.uniform(-60, 60)}
     joints, _ = _world(biped, settings)
     rest = dict(zip(biped.joint_names, biped.rest_positions, strict=True))
-    for a, b in [("thigh_l", "shin_l"), ("shin_l", "foot_l"), ("upper_arm_r", "forearm_r"),
-                 ("forearm_r", "hand_r")]:
-        np.testing.assert_allclose(_length(joints[a], joints[b]), _length(rest[a], rest[b]),
-                                   rtol=1e-9)
+    for a, b in [
+        ("thigh_l", "shin_l"),
+        ("shin_l", "foot_l"),
+        ("upper_arm_r", "forearm_r"),
+        ("forearm_r", "hand_r"),
+    ]:
+        np.testing.assert_allclose(
+            _length(joints[a], joints[b]), _length(rest[a], rest[b]), rtol=1e-9
+        )
 
 
 def test_stretch_lets_an_unreachable_foot_reach(biped):
     far = {"leg_l_ik.ty": -40.0, "leg_l_ik.tz": 30.0}  # below the floor and forward
     stiff, Y = _world(biped, far)
-    stretchy, Y2 = _world(biped, far | {"leg_l.stretch": 1.0})
+    stretchy, _ = _world(biped, far | {"leg_l.stretch": 1.0})
     target = biped.world_transforms(Y)["leg_l_ik"].t[0].numpy()
     assert _length(stiff["foot_l"][0], target) > 10.0  # cm short of the control
     np.testing.assert_allclose(stretchy["foot_l"][0], target, atol=1e-6)
@@ -55,8 +64,9 @@ def test_stretch_lets_an_unreachable_foot_reach(biped):
 
 def test_two_bone_ik_keeps_the_knee_in_the_pole_plane():
     root = torch.zeros(4, 3, dtype=torch.float64)
-    target = torch.tensor([[0, -50, 10], [5, -70, 0], [0, -30, 30], [10, -60, 5]],
-                          dtype=torch.float64)
+    target = torch.tensor(
+        [[0, -50, 10], [5, -70, 0], [0, -30, 30], [10, -60, 5]], dtype=torch.float64
+    )
     pole = torch.tensor([[0, -40, 50]] * 4, dtype=torch.float64)
     sol = solve_two_bone_ik(root, target, pole, 40.0, 40.0)
     np.testing.assert_allclose(torch.linalg.norm(sol.mid - root, dim=-1), 40.0, rtol=1e-9)
@@ -70,14 +80,24 @@ def test_two_bone_ik_keeps_the_knee_in_the_pole_plane():
 def test_foot_roll_pivots_about_heel_then_ball_then_toe():
     b = RigBuilder("foot")
     attrs = foot_roll_attributes(b, "foot", group="leg", used=("roll",))
-    pivots = FootPivots(ankle=(0, 0, 0), heel=(0, -9, -4), ball=(0, -7.5, 13),
-                        toe=(0, -7.5, 20), inner=(-4, -7.5, 13), outer=(4, -7.5, 13))
+    pivots = FootPivots(
+        ankle=(0, 0, 0),
+        heel=(0, -9, -4),
+        ball=(0, -7.5, 13),
+        toe=(0, -7.5, 20),
+        inner=(-4, -7.5, 13),
+        outer=(4, -7.5, 13),
+    )
     rolls = np.linspace(-0.7, 1.5, 45)
     Y = np.tile([c.default for c in b.controls], (len(rolls), 1))
     Y[:, attrs.roll.column] = rolls
     out = reverse_foot(EvalContext(torch.tensor(Y)), pivots, attrs)
-    heel, ball, toe, ankle = (out.heel.t.numpy(), out.ball.t.numpy(), out.toe.t.numpy(),
-                              out.ankle.t.numpy())
+    heel, ball, toe, ankle = (
+        out.heel.t.numpy(),
+        out.ball.t.numpy(),
+        out.toe.t.numpy(),
+        out.ankle.t.numpy(),
+    )
     back, peel, tip = rolls < 0, (rolls > 0) & (rolls < 0.6), rolls > 0.6
     np.testing.assert_allclose(heel[back], np.tile(pivots.heel, (back.sum(), 1)), atol=1e-12)
     np.testing.assert_allclose(ball[peel], np.tile(pivots.ball, (peel.sum(), 1)), atol=1e-12)
@@ -144,15 +164,16 @@ def test_spline_spine_bends_smoothly_and_can_preserve_length(biped):
     assert moved[-1] == pytest.approx(8.0)
     # tilting the chest in place turns the top of the curve with it, smoothly
     tilted, _ = _world(biped, {"chest.rx": 0.6})
-    leans = [np.arctan2(*(tilted[b][0] - tilted[a][0])[[2, 1]])
-             for a, b in zip(spine, spine[1:], strict=False)]
+    leans = [
+        np.arctan2(*(tilted[b][0] - tilted[a][0])[[2, 1]]) for a, b in itertools.pairwise(spine)
+    ]
     assert 0.2 < leans[-1] < 0.6
     assert np.abs(np.diff(leans)).max() < 0.4  # no kinks between vertebrae
     free, _ = _world(biped, {"chest.ty": 10.0})
     kept, _ = _world(biped, {"chest.ty": 10.0, "pelvis_spine.stretch": 0.0})
 
     def total(js):
-        return sum(_length(js[a][0], js[b][0]) for a, b in zip(spine, spine[1:], strict=False))
+        return sum(_length(js[a][0], js[b][0]) for a, b in itertools.pairwise(spine))
 
     assert total(free) == pytest.approx(50.0, abs=1e-6)  # stretched by the 10 cm
     assert total(kept) == pytest.approx(40.0, abs=1e-6)
@@ -166,5 +187,6 @@ def test_ik_fk_blend_switches_between_the_two_chains(biped):
     assert _length(joints_fk["hand_l"][0], rest["hand_l"]) > 20.0  # FK arm swung down
     np.testing.assert_allclose(joints_ik["hand_l"][0], rest["hand_l"], atol=1e-9)  # IK holds
     half, _ = _world(biped, fk_bent | {"arm_l.ik_fk": 0.5})
-    np.testing.assert_allclose(half["hand_l"][0],
-                               0.5 * (joints_fk["hand_l"][0] + joints_ik["hand_l"][0]), atol=1e-9)
+    np.testing.assert_allclose(
+        half["hand_l"][0], 0.5 * (joints_fk["hand_l"][0] + joints_ik["hand_l"][0]), atol=1e-9
+    )

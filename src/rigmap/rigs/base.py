@@ -194,7 +194,7 @@ class Rig(ABC):
     def _pose(self, Y) -> Pose:
         """Evaluate a validated ``(N, C)`` batch (numpy or torch)."""
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 - optional hook, deliberately not abstract
         """Release resources (worker processes); a no-op for in-process rigs."""
 
     def __enter__(self):

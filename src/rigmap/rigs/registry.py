@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable, Mapping
-from functools import lru_cache
+from functools import cache
 
 from rigmap.rigs.base import Rig, UnknownRigError
 
@@ -55,7 +55,7 @@ def load(name_or_config: str | Mapping | Rig, **overrides) -> Rig:
     return _resolve(name)(**_plain(options))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _cached_builtin(name: str) -> Rig:
     return _resolve(name)()
 

@@ -31,25 +31,53 @@ def _mirror(point, sign: float) -> np.ndarray:
 
 def build_biped():
     b = RigBuilder("biped")
-    b.transform_control("root", parent=None, group="root", used="tx tz ry",
-                        translate_range=300.0)
-    b.transform_control("cog", parent="root", offset=(0, 100, 0), group="torso",
-                        used="tx ty tz rx ry rz")
-    b.transform_control("hips", parent="cog", offset=(0, 0, 0), group="torso",
-                        used="rx ry rz", rotate_range=0.8)
-    b.transform_control("chest", parent="cog", offset=(0, 40, 0), group="torso",
-                        used="tx ty tz rx ry rz", rotate_range=1.0)
-    spine_mid = b.transform_control("spine_mid", parent="cog", offset=(0, 20, 0), group="torso",
-                        used="tx ty tz", translate_range=15.0)
+    b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
+    b.transform_control(
+        "cog", parent="root", offset=(0, 100, 0), group="torso", used="tx ty tz rx ry rz"
+    )
+    b.transform_control(
+        "hips", parent="cog", offset=(0, 0, 0), group="torso", used="rx ry rz", rotate_range=0.8
+    )
+    b.transform_control(
+        "chest",
+        parent="cog",
+        offset=(0, 40, 0),
+        group="torso",
+        used="tx ty tz rx ry rz",
+        rotate_range=1.0,
+    )
+    spine_mid = b.transform_control(
+        "spine_mid",
+        parent="cog",
+        offset=(0, 20, 0),
+        group="torso",
+        used="tx ty tz",
+        translate_range=15.0,
+    )
     spine = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_chest"]
-    spline_spine(b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None,
-                 group="torso")
+    spline_spine(
+        b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None, group="torso"
+    )
 
     # neck and head: FK neck, head control following neck or world
-    fk_chain(b, ["neck_1", "neck_2"], parent="spine_chest", positions=[(0, 148, 0), (0, 155, 1)],
-             group="head", used="rx ry rz", rotate_range=0.8)
-    space_blend_control(b, "head", parent="neck_2", world_space="root", position=(0, 162, 2),
-                        group="head", used="rx ry rz")
+    fk_chain(
+        b,
+        ["neck_1", "neck_2"],
+        parent="spine_chest",
+        positions=[(0, 148, 0), (0, 155, 1)],
+        group="head",
+        used="rx ry rz",
+        rotate_range=0.8,
+    )
+    space_blend_control(
+        b,
+        "head",
+        parent="neck_2",
+        world_space="root",
+        position=(0, 162, 2),
+        group="head",
+        used="rx ry rz",
+    )
     b.joint("head", "neck_2")
     b.joint("head_end", "head")
     b.set_rest("head_end", (0, 180, 2))
@@ -61,9 +89,16 @@ def build_biped():
         )
 
     b.step(head_joints)
-    fk_chain(b, ["jaw"], parent="head", positions=[(0, 163, 5)], group="head", used="rx",
-             rotate_range={"rx": (-0.1, 0.6), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
-             control_suffix="_ctrl")
+    fk_chain(
+        b,
+        ["jaw"],
+        parent="head",
+        positions=[(0, 163, 5)],
+        group="head",
+        used="rx",
+        rotate_range={"rx": (-0.1, 0.6), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
+        control_suffix="_ctrl",
+    )
     b.joint("jaw_end", "jaw")
     b.set_rest("jaw_end", (0, 156, 11))
     jaw_tip = b.offset_to("jaw", (0, 156, 11))
@@ -73,14 +108,33 @@ def build_biped():
         ctx.xf["jaw_end"] = type(jaw)(jaw.R, jaw.apply(ctx.const(jaw_tip)))
 
     b.step(jaw_end)
-    b.transform_control("eye_aim", parent="root", offset=(0, 168, 70), group="head",
-                        used="tx ty tz", translate_range=60.0)
+    b.transform_control(
+        "eye_aim",
+        parent="root",
+        offset=(0, 168, 70),
+        group="head",
+        used="tx ty tz",
+        translate_range=60.0,
+    )
     for side, sign in SIDES:
         eye = _mirror((3.2, 168, 8), sign)
-        b.transform_control(f"eye_{side}_aim", parent="eye_aim", offset=_mirror((3.2, 0, 0), sign),
-                            group="head", used="", translate_range=10.0)
-        aim_joint(b, f"eye_{side}", f"eye_end_{side}", parent="head", target=f"eye_{side}_aim",
-                  position=eye, end_position=eye + (0, 0, 1.2))
+        b.transform_control(
+            f"eye_{side}_aim",
+            parent="eye_aim",
+            offset=_mirror((3.2, 0, 0), sign),
+            group="head",
+            used="",
+            translate_range=10.0,
+        )
+        aim_joint(
+            b,
+            f"eye_{side}",
+            f"eye_end_{side}",
+            parent="head",
+            target=f"eye_{side}_aim",
+            position=eye,
+            end_position=eye + np.array([0.0, 0.0, 1.2]),
+        )
 
     for side, sign in SIDES:
         _arm(b, side, sign)
@@ -90,17 +144,32 @@ def build_biped():
 
 def _arm(b: RigBuilder, side: str, sign: float) -> None:
     group = f"arm_{side}"
-    fk_chain(b, [f"clavicle_{side}"], parent="spine_chest", positions=[_mirror((2, 145, 2), sign)],
-             group=group, used="ry rz", rotate_range=0.6, control_suffix="_ctrl")
+    fk_chain(
+        b,
+        [f"clavicle_{side}"],
+        parent="spine_chest",
+        positions=[_mirror((2, 145, 2), sign)],
+        group=group,
+        used="ry rz",
+        rotate_range=0.6,
+        control_suffix="_ctrl",
+    )
     rest = {
         f"upper_arm_{side}": _mirror((17, 146, -1), sign),
         f"forearm_{side}": _mirror((45, 146, -3), sign),
         f"hand_{side}": _mirror((70, 146, -1), sign),
     }
     limb(
-        b, f"arm_{side}", joints=list(rest), rest=rest, parent=f"clavicle_{side}",
-        parent_joint=f"clavicle_{side}", ik_space="root", pole_distance=40.0,
-        group=group, side_sign=sign,
+        b,
+        f"arm_{side}",
+        joints=list(rest),
+        rest=rest,
+        parent=f"clavicle_{side}",
+        parent_joint=f"clavicle_{side}",
+        ik_space="root",
+        pole_distance=40.0,
+        group=group,
+        side_sign=sign,
         usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",)),
     )
     # fingers: base positions on the hand, three joints each, curl + spread attributes
@@ -116,13 +185,29 @@ def _arm(b: RigBuilder, side: str, sign: float) -> None:
         step = np.asarray(step, float)
         names = [f"{finger}_{i}_{side}" for i in (1, 2, 3)]
         positions = [_mirror(base + k * step, sign) for k in range(3)]
-        attrs = chain_attributes(b, f"{finger}_{side}", group=f"hand_{side}", side_curl=True,
-                                 wave=False, used=("curl", "side_curl"),
-                                 curl_range=(-0.5, 2.5), bend_axis="z" if finger != "thumb" else "y",
-                                 side_axis="y" if finger != "thumb" else "z")
-        fk_chain(b, names, parent=f"hand_{side}", positions=positions, group=f"hand_{side}",
-                 used="ry rz", rotate_range=1.6, layer=attrs,
-                 tip=_mirror(base + 3 * step * 0.8, sign), tip_name=f"{finger}_tip_{side}")
+        attrs = chain_attributes(
+            b,
+            f"{finger}_{side}",
+            group=f"hand_{side}",
+            side_curl=True,
+            wave=False,
+            used=("curl", "side_curl"),
+            curl_range=(-0.5, 2.5),
+            bend_axis="z" if finger != "thumb" else "y",
+            side_axis="y" if finger != "thumb" else "z",
+        )
+        fk_chain(
+            b,
+            names,
+            parent=f"hand_{side}",
+            positions=positions,
+            group=f"hand_{side}",
+            used="ry rz",
+            rotate_range=1.6,
+            layer=attrs,
+            tip=_mirror(base + 3 * step * 0.8, sign),
+            tip_name=f"{finger}_tip_{side}",
+        )
 
 
 def _leg(b: RigBuilder, side: str, sign: float) -> None:
@@ -133,14 +218,28 @@ def _leg(b: RigBuilder, side: str, sign: float) -> None:
         f"foot_{side}": _mirror((9, 9, -1), sign),
     }
     foot = FootSpec(
-        heel=_mirror((9, 0, -5), sign), ball=_mirror((9, 1.5, 12), sign),
-        toe=_mirror((9, 1.5, 19), sign), half_width=4.5,
-        ball_joint=f"ball_{side}", toe_joint=f"toe_{side}",
+        heel=_mirror((9, 0, -5), sign),
+        ball=_mirror((9, 1.5, 12), sign),
+        toe=_mirror((9, 1.5, 19), sign),
+        half_width=4.5,
+        ball_joint=f"ball_{side}",
+        toe_joint=f"toe_{side}",
     )
     limb(
-        b, f"leg_{side}", joints=list(rest), rest=rest, parent="pelvis", parent_joint="pelvis",
-        ik_space="root", pole_distance=40.0, group=group, side_sign=sign,
+        b,
+        f"leg_{side}",
+        joints=list(rest),
+        rest=rest,
+        parent="pelvis",
+        parent_joint="pelvis",
+        ik_space="root",
+        pole_distance=40.0,
+        group=group,
+        side_sign=sign,
         foot=foot,
-        usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",),
-                        foot=("roll", "bank", "toe_tap", "heel_twist", "toe_twist")),
+        usage=LimbUsage(
+            fk="rx ry rz",
+            attributes=("ik_fk",),
+            foot=("roll", "bank", "toe_tap", "heel_twist", "toe_twist"),
+        ),
     )

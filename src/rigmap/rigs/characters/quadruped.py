@@ -27,51 +27,120 @@ TOES = 4
 
 def build_quadruped():
     b = RigBuilder("quadruped")
-    b.transform_control("root", parent=None, group="root", used="tx tz ry",
-                        translate_range=300.0)
-    b.transform_control("cog", parent="root", offset=(0, 60, -3), group="torso",
-                        used="tx ty tz rx ry rz")
-    b.transform_control("hips", parent="cog", offset=(0, 0, -27), group="torso",
-                        used="rx ry rz", rotate_range=0.8)
-    b.transform_control("chest", parent="cog", offset=(0, 2, 25), group="torso",
-                        used="tx ty tz rx ry rz", rotate_range=1.0)
-    spine_mid = b.transform_control("spine_mid", parent="cog", offset=(0, 1, -1), group="torso",
-                        used="tx ty tz", translate_range=15.0)
+    b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
+    b.transform_control(
+        "cog", parent="root", offset=(0, 60, -3), group="torso", used="tx ty tz rx ry rz"
+    )
+    b.transform_control(
+        "hips", parent="cog", offset=(0, 0, -27), group="torso", used="rx ry rz", rotate_range=0.8
+    )
+    b.transform_control(
+        "chest",
+        parent="cog",
+        offset=(0, 2, 25),
+        group="torso",
+        used="tx ty tz rx ry rz",
+        rotate_range=1.0,
+    )
+    spine_mid = b.transform_control(
+        "spine_mid",
+        parent="cog",
+        offset=(0, 1, -1),
+        group="torso",
+        used="tx ty tz",
+        translate_range=15.0,
+    )
     spine = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "spine_chest"]
-    spline_spine(b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None,
-                 group="torso")
+    spline_spine(
+        b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None, group="torso"
+    )
 
-    fk_chain(b, ["neck_1", "neck_2", "neck_3"], parent="spine_chest",
-             positions=[(0, 66, 28), (0, 72, 34), (0, 78, 39)], group="head",
-             used="rx ry rz", rotate_range=0.8)
-    space_blend_control(b, "head", parent="neck_3", world_space="root", position=(0, 83, 44),
-                        group="head", used="rx ry rz")
+    fk_chain(
+        b,
+        ["neck_1", "neck_2", "neck_3"],
+        parent="spine_chest",
+        positions=[(0, 66, 28), (0, 72, 34), (0, 78, 39)],
+        group="head",
+        used="rx ry rz",
+        rotate_range=0.8,
+    )
+    space_blend_control(
+        b,
+        "head",
+        parent="neck_3",
+        world_space="root",
+        position=(0, 83, 44),
+        group="head",
+        used="rx ry rz",
+    )
     b.joint("head", "neck_3")
     _fixed_joint(b, "head_end", parent="head", position=(0, 84, 63))
-    fk_chain(b, ["jaw"], parent="head", positions=[(0, 80, 47)], group="head", used="rx",
-             rotate_range={"rx": (-0.1, 0.7), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
-             control_suffix="_ctrl")
+    fk_chain(
+        b,
+        ["jaw"],
+        parent="head",
+        positions=[(0, 80, 47)],
+        group="head",
+        used="rx",
+        rotate_range={"rx": (-0.1, 0.7), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
+        control_suffix="_ctrl",
+    )
     _fixed_joint(b, "jaw_end", parent="jaw", position=(0, 76, 61))
-    b.transform_control("eye_aim", parent="root", offset=(0, 87, 110), group="head",
-                        used="tx ty tz", translate_range=60.0)
+    b.transform_control(
+        "eye_aim",
+        parent="root",
+        offset=(0, 87, 110),
+        group="head",
+        used="tx ty tz",
+        translate_range=60.0,
+    )
     for side, sign in SIDES:
         eye = _mirror((3.5, 87, 52), sign)
-        b.transform_control(f"eye_{side}_aim", parent="eye_aim",
-                            offset=_mirror((3.5, 0, 0), sign), group="head", used="",
-                            translate_range=10.0)
-        aim_joint(b, f"eye_{side}", f"eye_end_{side}", parent="head", target=f"eye_{side}_aim",
-                  position=eye, end_position=eye + (0, 0, 1.5))
+        b.transform_control(
+            f"eye_{side}_aim",
+            parent="eye_aim",
+            offset=_mirror((3.5, 0, 0), sign),
+            group="head",
+            used="",
+            translate_range=10.0,
+        )
+        aim_joint(
+            b,
+            f"eye_{side}",
+            f"eye_end_{side}",
+            parent="head",
+            target=f"eye_{side}_aim",
+            position=eye,
+            end_position=eye + np.array([0.0, 0.0, 1.5]),
+        )
         ear = chain_attributes(b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5))
-        fk_chain(b, [f"ear_{i}_{side}" for i in (1, 2, 3)], parent="head", joint_parent="head",
-                 positions=[_mirror(p, sign) for p in ((5, 92, 45), (7, 97, 44), (9, 102, 43))],
-                 group="head", used="rx rz", rotate_range=1.2, layer=ear,
-                 tip=_mirror((10, 107, 42), sign), tip_name=f"ear_tip_{side}")
+        fk_chain(
+            b,
+            [f"ear_{i}_{side}" for i in (1, 2, 3)],
+            parent="head",
+            joint_parent="head",
+            positions=[_mirror(p, sign) for p in ((5, 92, 45), (7, 97, 44), (9, 102, 43))],
+            group="head",
+            used="rx rz",
+            rotate_range=1.2,
+            layer=ear,
+            tip=_mirror((10, 107, 42), sign),
+            tip_name=f"ear_tip_{side}",
+        )
 
     tail = chain_attributes(b, "tail", group="tail", curl_range=(-2.5, 2.5))
-    fk_chain(b, [f"tail_{i}" for i in range(1, TAIL_JOINTS + 1)], parent="pelvis",
-             positions=[(0, 62 + 1.2 * k, -34 - 4.0 * k) for k in range(TAIL_JOINTS)],
-             group="tail", used="rx ry", rotate_range=1.0, layer=tail,
-             tip=(0, 62 + 1.2 * TAIL_JOINTS, -34 - 4.0 * TAIL_JOINTS), tip_name="tail_tip")
+    fk_chain(
+        b,
+        [f"tail_{i}" for i in range(1, TAIL_JOINTS + 1)],
+        parent="pelvis",
+        positions=[(0, 62 + 1.2 * k, -34 - 4.0 * k) for k in range(TAIL_JOINTS)],
+        group="tail",
+        used="rx ry",
+        rotate_range=1.0,
+        layer=tail,
+        tip=(0, 62 + 1.2 * TAIL_JOINTS, -34 - 4.0 * TAIL_JOINTS),
+        tip_name="tail_tip",
+    )
 
     for side, sign in SIDES:
         _front_leg(b, side, sign)
@@ -94,22 +163,52 @@ def _fixed_joint(b: RigBuilder, name: str, *, parent: str, position) -> None:
 
 def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
     group = f"front_leg_{side}"
-    fk_chain(b, [f"scapula_{side}"], parent="spine_chest", positions=[_mirror((6, 66, 20), sign)],
-             group=group, used="rx ry rz", rotate_range=0.5, control_suffix="_ctrl")
+    fk_chain(
+        b,
+        [f"scapula_{side}"],
+        parent="spine_chest",
+        positions=[_mirror((6, 66, 20), sign)],
+        group=group,
+        used="rx ry rz",
+        rotate_range=0.5,
+        control_suffix="_ctrl",
+    )
     rest = {
         f"upper_arm_{side}": _mirror((8, 52, 24), sign),
         f"forearm_{side}": _mirror((8, 36, 17), sign),
         f"wrist_{side}": _mirror((8, 12, 20), sign),
     }
-    foot = FootSpec(heel=_mirror((8, 1.0, 17), sign), ball=_mirror((8, 3, 24), sign),
-                    toe=_mirror((8, 0.5, 29), sign), half_width=3.0,
-                    ball_joint=f"front_paw_{side}", toe_joint=f"front_toe_{side}")
-    limb(b, f"front_leg_{side}", joints=list(rest), rest=rest, parent=f"scapula_{side}",
-         parent_joint=f"scapula_{side}", ik_space="root", pole_distance=40.0,
-         group=group, side_sign=sign, foot=foot,
-         usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",)))
-    _toes(b, f"front_paw_{side}", f"front_paw_{side}", side, sign, origin=(8, 2.0, 25),
-          prefix=f"front_toe_{side}")
+    foot = FootSpec(
+        heel=_mirror((8, 1.0, 17), sign),
+        ball=_mirror((8, 3, 24), sign),
+        toe=_mirror((8, 0.5, 29), sign),
+        half_width=3.0,
+        ball_joint=f"front_paw_{side}",
+        toe_joint=f"front_toe_{side}",
+    )
+    limb(
+        b,
+        f"front_leg_{side}",
+        joints=list(rest),
+        rest=rest,
+        parent=f"scapula_{side}",
+        parent_joint=f"scapula_{side}",
+        ik_space="root",
+        pole_distance=40.0,
+        group=group,
+        side_sign=sign,
+        foot=foot,
+        usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",)),
+    )
+    _toes(
+        b,
+        f"front_paw_{side}",
+        f"front_paw_{side}",
+        side,
+        sign,
+        origin=(8, 2.0, 25),
+        prefix=f"front_toe_{side}",
+    )
 
 
 def _hind_leg(b: RigBuilder, side: str, sign: float) -> None:
@@ -120,29 +219,68 @@ def _hind_leg(b: RigBuilder, side: str, sign: float) -> None:
         f"hock_{side}": _mirror((8, 18, -36), sign),
         f"hind_paw_{side}": _mirror((8, 4, -31), sign),
     }
-    foot = FootSpec(heel=_mirror((8, 0.5, -34), sign), ball=_mirror((8, 1.5, -28), sign),
-                    toe=_mirror((8, 0.5, -24), sign), half_width=3.0,
-                    toe_joint=f"hind_toe_{side}")
-    limb(b, f"hind_leg_{side}", joints=list(rest), rest=rest, parent="pelvis",
-         parent_joint="pelvis", ik_space="root", pole_distance=40.0, group=group,
-         side_sign=sign, foot=foot, digitigrade=True,
-         usage=LimbUsage(fk="rx ry rz", hock="rx", attributes=("ik_fk",)))
-    _toes(b, f"hind_leg_{side}:ball", f"hind_paw_{side}", side, sign, origin=(8, 1.5, -28),
-          prefix=f"hind_toe_{side}")
+    foot = FootSpec(
+        heel=_mirror((8, 0.5, -34), sign),
+        ball=_mirror((8, 1.5, -28), sign),
+        toe=_mirror((8, 0.5, -24), sign),
+        half_width=3.0,
+        toe_joint=f"hind_toe_{side}",
+    )
+    limb(
+        b,
+        f"hind_leg_{side}",
+        joints=list(rest),
+        rest=rest,
+        parent="pelvis",
+        parent_joint="pelvis",
+        ik_space="root",
+        pole_distance=40.0,
+        group=group,
+        side_sign=sign,
+        foot=foot,
+        digitigrade=True,
+        usage=LimbUsage(fk="rx ry rz", hock="rx", attributes=("ik_fk",)),
+    )
+    _toes(
+        b,
+        f"hind_leg_{side}:ball",
+        f"hind_paw_{side}",
+        side,
+        sign,
+        origin=(8, 1.5, -28),
+        prefix=f"hind_toe_{side}",
+    )
 
 
-def _toes(b: RigBuilder, parent: str, parent_joint: str, side: str, sign: float, *,
-          origin, prefix: str) -> None:
+def _toes(
+    b: RigBuilder, parent: str, parent_joint: str, side: str, sign: float, *, origin, prefix: str
+) -> None:
     """Four toes fanned across the paw, one FK control each, curl/spread per paw."""
-    attrs = chain_attributes(b, f"{prefix}s", group=f"paws_{side}", wave=False,
-                             used=("curl", "side_curl"), curl_range=(-0.8, 1.2))
+    attrs = chain_attributes(
+        b,
+        f"{prefix}s",
+        group=f"paws_{side}",
+        wave=False,
+        used=("curl", "side_curl"),
+        curl_range=(-0.8, 1.2),
+    )
     origin = np.asarray(origin, float)
     for k, lateral in enumerate(np.linspace(-2.4, 2.4, TOES)):
         base = origin + np.array([lateral * 0.6, 0.0, 0.0])
         tip = origin + np.array([lateral, -1.0, 3.5 - 0.6 * abs(lateral)])
         # the control pivots at the paw, the joint is the toe's tip
-        fk_chain(b, [f"{prefix}_{k + 1}"], parent=parent, joint_parent=parent_joint,
-                 positions=[_mirror(base, sign)], group=f"paws_{side}", used="rx",
-                 rotate_range=0.9, layer=attrs, declare_joints=False,
-                 xform_prefix="toe_base:", tip=_mirror(tip, sign),
-                 tip_name=f"{prefix}_{k + 1}")
+        fk_chain(
+            b,
+            [f"{prefix}_{k + 1}"],
+            parent=parent,
+            joint_parent=parent_joint,
+            positions=[_mirror(base, sign)],
+            group=f"paws_{side}",
+            used="rx",
+            rotate_range=0.9,
+            layer=attrs,
+            declare_joints=False,
+            xform_prefix="toe_base:",
+            tip=_mirror(tip, sign),
+            tip_name=f"{prefix}_{k + 1}",
+        )

@@ -6,7 +6,7 @@ import numpy as np
 import torch
 
 from rigmap.rigs.base import ControlTable, Pose, Rig, _is_torch
-from rigmap.rigs.engine.builder import EvalContext, RigBuilder
+from rigmap.rigs.engine.builder import EvalContext, RigBuilder, batched_locals
 
 # Large batches are evaluated in chunks so memory stays bounded (~100 MB a chunk).
 DEFAULT_CHUNK = 16_384
@@ -28,7 +28,7 @@ class TorchRig(Rig):
         )
         # rest (default-control) world positions, for checks and drawing
         self.rest_positions = np.stack([builder.rest[j] for j in self.joint_names])
-        self._steps = list(builder.steps)
+        self._steps = [batched_locals(builder.transform_controls), *builder.steps]
         self._cog = builder.cog
         self._chunk = chunk
 
@@ -38,7 +38,9 @@ class TorchRig(Rig):
         dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
         with torch.no_grad():
             parts = [
-                self._pose_torch(torch.from_numpy(np.ascontiguousarray(Y[i : i + self._chunk])).to(dtype))
+                self._pose_torch(
+                    torch.from_numpy(np.ascontiguousarray(Y[i : i + self._chunk])).to(dtype)
+                )
                 for i in range(0, max(len(Y), 1), self._chunk)
             ]
         return Pose(*(np.concatenate([p[k].numpy() for p in parts]) for k in range(3)))
@@ -55,7 +57,7 @@ class TorchRig(Rig):
         return Pose(world - cog.t[:, None, :], cog.t, cog.R)
 
     def world_transforms(self, Y) -> dict:
-        """Every named transform of one evaluation (controls, pivots, joints); for tests and drawing."""
+        """Every named world transform of one evaluation (controls, joints); for tests."""
         Y, _ = self._check_controls(Y)
         Yt = Y if _is_torch(Y) else torch.as_tensor(Y)
         ctx = EvalContext(Yt)

@@ -63,7 +63,12 @@ def chain_attributes(
 
     def attr(name, lower, upper):
         return b.attribute(
-            f"{prefix}.{name}", default=0.0, lower=lower, upper=upper, used=name in used, group=group
+            f"{prefix}.{name}",
+            default=0.0,
+            lower=lower,
+            upper=upper,
+            used=name in used,
+            group=group,
         )
 
     return ChainAttributes(

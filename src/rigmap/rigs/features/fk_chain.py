@@ -48,7 +48,9 @@ def fk_chain(
         raise ValueError(
             f"fk_chain {joints[0]}: {len(joints)} joints but {len(positions)} positions"
         )
-    orders = [rotation_orders] * len(joints) if isinstance(rotation_orders, str) else rotation_orders
+    orders = (
+        [rotation_orders] * len(joints) if isinstance(rotation_orders, str) else rotation_orders
+    )
     controls: list[TransformControl] = []
     previous = parent
     for joint, position, order in zip(joints, positions, orders, strict=True):
@@ -66,7 +68,9 @@ def fk_chain(
         b.rest[xform_prefix + joint] = b.rest[ctrl.name]
         if declare_joints:
             first_parent = joint_parent if joint_parent is not None else parent
-            b.joint(joint, first_parent if previous == parent else previous.removeprefix(xform_prefix))
+            b.joint(
+                joint, first_parent if previous == parent else previous.removeprefix(xform_prefix)
+            )
         previous = xform_prefix + joint
     count = len(joints)
     tip_offset = None

@@ -136,16 +136,28 @@ def limb(
         add_step=True,
     )
     ik_fk = b.attribute(
-        f"{name}.ik_fk", default=1.0, lower=0.0, upper=1.0,
-        used="ik_fk" in usage.attributes, group=group,
+        f"{name}.ik_fk",
+        default=1.0,
+        lower=0.0,
+        upper=1.0,
+        used="ik_fk" in usage.attributes,
+        group=group,
     )
     stretch = b.attribute(
-        f"{name}.stretch", default=0.0, lower=0.0, upper=1.0,
-        used="stretch" in usage.attributes, group=group,
+        f"{name}.stretch",
+        default=0.0,
+        lower=0.0,
+        upper=1.0,
+        used="stretch" in usage.attributes,
+        group=group,
     )
     twist = b.attribute(
-        f"{name}.twist", default=0.0, lower=-np.pi, upper=np.pi,
-        used="twist" in usage.attributes, group=group,
+        f"{name}.twist",
+        default=0.0,
+        lower=-np.pi,
+        upper=np.pi,
+        used="twist" in usage.attributes,
+        group=group,
     )
     hock_ctrl = None
     if digitigrade:
@@ -177,7 +189,9 @@ def limb(
     l2 = float(np.linalg.norm(points[ik_chain_end] - points[mid]))
     rest_axis = points[ik_chain_end] - points[upper]
     rest_side = pole - points[upper]
-    rest_normal = np.cross(rest_axis, rest_side - rest_side @ rest_axis / (rest_axis @ rest_axis) * rest_axis)
+    rest_normal = np.cross(
+        rest_axis, rest_side - rest_side @ rest_axis / (rest_axis @ rest_axis) * rest_axis
+    )
     if np.linalg.norm(rest_normal) < 1e-6:
         raise ValueError(f"limb {name!r}: pole lies on the limb's axis at rest")
     root_offset = b.offset_to(parent, points[upper])
@@ -200,9 +214,7 @@ def limb(
         if foot is not None
         else None
     )
-    fk_ball_offset = (
-        np.asarray(foot.ball, float) - points[end] if foot is not None else None
-    )
+    fk_ball_offset = np.asarray(foot.ball, float) - points[end] if foot is not None else None
 
     def step(ctx: EvalContext) -> None:
         ik_world = ctx.xf[ik_ctrl.name]
@@ -219,16 +231,23 @@ def limb(
             target = end_world.t
         root = ctx.xf[parent].apply(ctx.const(root_offset))
         solution = solve_two_bone_ik(
-            root, target, ctx.xf[pole_ctrl.name].t, l1, l2,
-            stretch=stretch(ctx), twist=twist(ctx),
+            root,
+            target,
+            ctx.xf[pole_ctrl.name].t,
+            l1,
+            l2,
+            stretch=stretch(ctx),
+            twist=twist(ctx),
         )
         normal0 = ctx.const(rest_normal).expand_as(root)
         R_upper = rotation_between(
             ctx.const(rest_upper_dir).expand_as(root), normal0, solution.mid - root, solution.normal
         )
         R_lower = rotation_between(
-            ctx.const(rest_lower_dir).expand_as(root), normal0,
-            solution.end - solution.mid, solution.normal,
+            ctx.const(rest_lower_dir).expand_as(root),
+            normal0,
+            solution.end - solution.mid,
+            solution.normal,
         )
         ik = {
             upper: Transform(R_upper, root),
@@ -253,7 +272,10 @@ def limb(
                 toe_parent = fk[f"{name}:ball"]
             else:
                 fk[f"{name}:ball"] = fk[end].compose(
-                    Transform(torch.eye(3, dtype=ctx.dtype).expand(ctx.n, 3, 3), ctx.const(fk_ball_offset).expand(ctx.n, 3))
+                    Transform(
+                        torch.eye(3, dtype=ctx.dtype).expand(ctx.n, 3, 3),
+                        ctx.const(fk_ball_offset).expand(ctx.n, 3),
+                    )
                 )
                 toe_parent = fk[end]
             fk[toe_joint] = Transform(toe_parent.R, toe_parent.apply(ctx.const(fk_toe_offset)))

@@ -52,8 +52,12 @@ def spline_spine(
         if 0 < i < count - 1:
             tweaks.append(
                 b.transform_control(
-                    f"{joint}_tweak", parent=joint, offset=(0, 0, 0), group=group,
-                    used=tweak_used, add_step=False,
+                    f"{joint}_tweak",
+                    parent=joint,
+                    offset=(0, 0, 0),
+                    group=group,
+                    used=tweak_used,
+                    add_step=False,
                 )
             )
     weights = params[1:-1]

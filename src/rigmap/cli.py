@@ -1,0 +1,182 @@
+"""``rigmap`` command line: inspect rigs now; fit, corpus and reproduce as they land.
+
+Subcommands take plain flags (argparse); experiment commands pass Hydra
+overrides (``key=value``) straight to the pipeline apps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 2
+    try:
+        return args.run(args) or 0
+    except (KeyError, ValueError, FileNotFoundError) as error:
+        # KeyError's str() wraps the message in quotes; show it plain
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(f"rigmap: error: {message}", file=sys.stderr)
+        return 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rigmap",
+        description="Learning inverse rig mappings: joint positions -> animation-rig controls.",
+    )
+    commands = parser.add_subparsers(title="commands", metavar="COMMAND")
+
+    rigs = commands.add_parser("rigs", help="list, describe and render rigs")
+    rig_commands = rigs.add_subparsers(title="rig commands", metavar="RIG_COMMAND")
+
+    listing = rig_commands.add_parser("list", help="names of the rigs rigmap can load")
+    listing.set_defaults(run=_rigs_list)
+
+    describe = rig_commands.add_parser(
+        "describe", help="joints and controls (total, used, by kind, by group)"
+    )
+    describe.add_argument("name", help="rig name, see `rigmap rigs list`")
+    describe.add_argument("--json", action="store_true", help="print JSON instead of text")
+    describe.add_argument(
+        "--controls", action="store_true", help="also list every control (name, kind, range, used)"
+    )
+    describe.set_defaults(run=_rigs_describe)
+
+    render = rig_commands.add_parser(
+        "render", help="draw a pose from front, side and top into a PNG"
+    )
+    render.add_argument("name", help="rig name, see `rigmap rigs list`")
+    source = render.add_mutually_exclusive_group()
+    source.add_argument(
+        "--random",
+        type=int,
+        metavar="SEED",
+        help="a random pose: used controls (but the placement) drawn 40%% into their soft range",
+    )
+    source.add_argument(
+        "--controls",
+        type=Path,
+        metavar="FILE",
+        help="a JSON object {control name: value}; other controls keep their defaults",
+    )
+    render.add_argument("--out", type=Path, required=True, help="PNG to write")
+    render.set_defaults(run=_rigs_render)
+    return parser
+
+
+def _rigs_list(args) -> int:
+    from rigmap.rigs import available
+
+    for name in available():
+        print(name)
+    return 0
+
+
+def describe_rig(rig) -> dict:
+    """The facts `rigs describe` prints: counts, groups, kinds, joints."""
+    summary = rig.controls.summary()
+    return {
+        "name": rig.name,
+        "description": rig.description,
+        "length_unit": rig.length_unit,
+        "differentiable": rig.differentiable,
+        "joints": rig.n_joints,
+        "joint_dofs": 3 * rig.n_joints,
+        "controls": summary["total"],
+        "used_controls": summary["used"],
+        "controls_by_kind": summary["by_kind"],
+        "controls_by_group": summary["by_group"],
+        "joint_names": list(rig.joint_names),
+    }
+
+
+def _rigs_describe(args) -> int:
+    from rigmap.rigs import load
+
+    rig = load(args.name)
+    facts = describe_rig(rig)
+    if args.controls:
+        facts["control_table"] = rig.controls.records()
+    if args.json:
+        print(json.dumps(facts, indent=2))
+        return 0
+    print(f"{rig.name}: {rig.description}")
+    print(f"  joints:   {facts['joints']} ({facts['joint_dofs']} numbers, {rig.length_unit})")
+    print(f"  controls: {facts['controls']} total, {facts['used_controls']} used by animators")
+    print("  by kind:")
+    for kind, count in facts["controls_by_kind"].items():
+        print(f"    {kind:10s} {count['total']:5d} total {count['used']:5d} used")
+    print("  by group:")
+    for group, count in facts["controls_by_group"].items():
+        print(f"    {group:14s} {count['total']:5d} total {count['used']:5d} used")
+    if args.controls:
+        print("  controls (name, kind, default, soft range, used):")
+        for c in rig.controls:
+            mark = "used" if c.used else ""
+            print(
+                f"    {c.name:32s} {c.kind:9s} {c.default:8.3f} "
+                f"[{c.lower:8.3f}, {c.upper:8.3f}] {mark}"
+            )
+    return 0
+
+
+def pose_controls(rig, *, seed: int | None = None, controls_file: Path | None = None):
+    """Full control vector for `rigs render`: defaults, a seeded random pose, or a file."""
+    Y = rig.controls.defaults.copy()
+    if seed is not None:
+        rng = np.random.default_rng(seed)
+        # the placement control would only slide the character out of frame
+        used = [i for i in rig.controls.used_indices if rig.controls.groups[i] != "root"]
+        lo, hi = rig.controls.lower[used], rig.controls.upper[used]
+        Y[used] += 0.4 * (rng.uniform(lo, hi) - Y[used])
+    if controls_file is not None:
+        values = json.loads(Path(controls_file).read_text())
+        if not isinstance(values, dict):
+            raise ValueError(f"{controls_file}: expected a JSON object {{control: value}}")
+        for name, value in values.items():
+            try:
+                column = rig.controls.index(name)
+            except KeyError as error:
+                raise KeyError(f"{controls_file}: rig {rig.name!r}: {error.args[0]}") from None
+            Y[column] = float(value)
+    return Y
+
+
+def _rigs_render(args) -> int:
+    from rigmap.rigs import load
+
+    rig = load(args.name)
+    Y = pose_controls(rig, seed=args.random, controls_file=args.controls)
+    if rig.faces is not None:
+        from rigmap.viz.mesh import render_mesh_views
+
+        out = render_mesh_views(rig, Y, args.out)
+    else:
+        from rigmap.viz.skeleton import render_skeleton_views
+
+        label = (
+            "rest pose"
+            if args.random is None and args.controls is None
+            else (
+                f"random pose (seed {args.random})"
+                if args.random is not None
+                else str(args.controls)
+            )
+        )
+        out = render_skeleton_views(rig, Y, args.out, title=f"{rig.name} — {label}")
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
