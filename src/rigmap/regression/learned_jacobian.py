@@ -1,0 +1,181 @@
+"""The rig's Jacobian learned by GPR, for refinement without rig evaluations (§4.3-4.4).
+
+Finite-difference Jacobians need ``2 C`` rig evaluations per pose, far too many
+for whole clips in a DCC. The paper computes them once at the subsampled poses
+and regresses the flattened matrices with the same GPR as the controls, then
+predicts and reshapes them at run time. The caller computes the training
+Jacobians (``rigmap.refine.jacobian``) at the poses it chooses — typically the
+inverse-mapping GPR's support points, ``gpr.support_points()`` with controls
+``Y[gpr.support_indices_]``.
+
+Predicting a derivative of the learned inverse instead would be less accurate:
+kernel methods approximate values much better than derivatives (§7.1).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigmap.regression.gpr import (
+    GaussianProcessRegressor,
+    ModelFileError,
+    ModelFingerprint,
+    RegressionInputError,
+    arrays_from_bytes,
+    arrays_to_bytes,
+    as_float_array,
+    check_finite,
+    read_model_files,
+    write_model_files,
+)
+from rigmap.regression.kernels import Kernel
+
+
+class LearnedJacobian:
+    """GPR from poses ``(N, D)`` to Jacobians ``(N, R, C)`` (R = 3 x joints, C = used controls).
+
+    Every given pose is a support point (no subsampling: the poses are already
+    the subsample). All Jacobian entries share one output scale, since they are
+    the same kind of quantity; the length scale is searched as in §4.1.1 on a
+    seeded random subset of ``cv_max_outputs`` varying entries, or taken from
+    ``kernel`` when ``search_length_scale`` is false (e.g. the inverse-mapping
+    GPR's ``kernel_``).
+    """
+
+    kind = "learned_jacobian"
+    file_stem = "learned_jacobian"
+
+    def __init__(
+        self,
+        kernel: Kernel | None = None,
+        regularization: float = 1e-5,
+        search_length_scale: bool = True,
+        length_scale_range: Sequence[float] = (1e-4, 1e2),
+        n_length_scales: int = 25,
+        cv_splits: int = 10,
+        cv_max_outputs: int | None = 256,
+        normalize: bool = True,
+        seed: int = 0,
+    ):
+        self.kernel = kernel
+        self.regularization = regularization
+        self.search_length_scale = search_length_scale
+        self.length_scale_range = length_scale_range
+        self.n_length_scales = n_length_scales
+        self.cv_splits = cv_splits
+        self.cv_max_outputs = cv_max_outputs
+        self.normalize = normalize
+        self.seed = seed
+
+    def _regressor(self) -> GaussianProcessRegressor:
+        return GaussianProcessRegressor(
+            kernel=self.kernel,
+            regularization=self.regularization,
+            n_points=None,
+            search_length_scale=self.search_length_scale,
+            length_scale_range=self.length_scale_range,
+            n_length_scales=self.n_length_scales,
+            cv_splits=self.cv_splits,
+            cv_max_outputs=self.cv_max_outputs,
+            normalize=self.normalize,
+            output_scale="shared",
+            seed=self.seed,
+        )
+
+    def fit(
+        self,
+        X: Any,
+        jacobians: Any,
+        *,
+        rig_name: str | None = None,
+        control_names: Sequence[str] | None = None,
+    ) -> LearnedJacobian:
+        """Learn ``jacobians[i]`` (``(R, C)``, ``dx/dy``) at pose ``X[i]``.
+
+        ``control_names`` names the ``C`` columns (the rig's used controls).
+        """
+        X = as_float_array(X, "LearnedJacobian.fit: poses X")
+        J = as_float_array(jacobians, "LearnedJacobian.fit: jacobians")
+        if X.ndim != 2:
+            raise RegressionInputError(
+                f"LearnedJacobian.fit: expected poses X of shape (N, D), got {X.shape}"
+            )
+        if J.ndim != 3 or len(J) != len(X):
+            raise RegressionInputError(
+                f"LearnedJacobian.fit: expected jacobians of shape ({len(X)}, R, C) — one "
+                f"(rows, controls) matrix per pose — got {J.shape}"
+            )
+        check_finite(J.reshape(len(J), -1), "LearnedJacobian.fit: jacobians")
+        self.jacobian_shape_ = (int(J.shape[1]), int(J.shape[2]))
+        self.fingerprint_ = ModelFingerprint.build(X.shape[1], J.shape[2], rig_name, control_names)
+        self.regressor_ = self._regressor().fit(X, J.reshape(len(J), -1), rig_name=rig_name)
+        return self
+
+    @property
+    def length_scale_(self) -> float:
+        return self.regressor_.length_scale_
+
+    def predict(self, X: Any) -> np.ndarray:
+        """Jacobians ``(M, R, C)`` at poses ``(M, D)`` (or ``(R, C)`` for one ``(D,)`` pose)."""
+        if not hasattr(self, "regressor_"):
+            raise RuntimeError("LearnedJacobian is not fitted: call fit(X, jacobians) first")
+        X, squeeze = self.fingerprint_.check_inputs(X, "LearnedJacobian")
+        flat = self.regressor_.predict(X)
+        J = flat.reshape(len(X), *self.jacobian_shape_)
+        return J[0] if squeeze else J
+
+    def save(self, folder: str | os.PathLike) -> Path:
+        """Write ``learned_jacobian.json`` and ``.npz`` into ``folder`` (beside a ``gpr`` model)."""
+        if not hasattr(self, "regressor_"):
+            raise RuntimeError("LearnedJacobian is not fitted: nothing to save")
+        gpr_meta, arrays = self.regressor_.state()
+        meta = {
+            "kind": self.kind,
+            "format_version": 1,
+            "fingerprint": self.fingerprint_.to_dict(),
+            "jacobian_shape": list(self.jacobian_shape_),
+            "params": {
+                "regularization": self.regularization,
+                "search_length_scale": self.search_length_scale,
+                "length_scale_range": [float(v) for v in self.length_scale_range],
+                "n_length_scales": self.n_length_scales,
+                "cv_splits": self.cv_splits,
+                "cv_max_outputs": self.cv_max_outputs,
+                "normalize": self.normalize,
+                "seed": self.seed,
+            },
+            "gpr": gpr_meta,
+        }
+        return write_model_files(folder, self.file_stem, arrays_to_bytes(arrays), ".npz", meta)
+
+    @classmethod
+    def load(cls, folder: str | os.PathLike, rig: Any = None) -> LearnedJacobian:
+        """Read a saved model; with ``rig`` (a Rig or its name), refuse a model of another rig."""
+        meta, payload = read_model_files(folder, cls.file_stem, cls.kind)
+        source = f"learned Jacobian in {folder}"
+        try:
+            fingerprint = ModelFingerprint.from_dict(meta["fingerprint"])
+            shape = tuple(int(v) for v in meta["jacobian_shape"])
+            gpr_meta = meta["gpr"]
+            model = cls(kernel=None, **meta["params"])
+        except (KeyError, TypeError, ValueError) as error:
+            raise ModelFileError(
+                f"{source}: metadata is incomplete or invalid ({error!r})"
+            ) from None
+        fingerprint.check_rig(rig, source)
+        arrays = arrays_from_bytes(payload, source, GaussianProcessRegressor._ARRAY_NAMES)
+        model.regressor_ = GaussianProcessRegressor.from_state(gpr_meta, arrays, source)
+        model.kernel = model.regressor_.kernel_
+        if model.regressor_.fingerprint_.output_dim != shape[0] * shape[1]:
+            raise ModelFileError(
+                f"{source}: the GPR predicts {model.regressor_.fingerprint_.output_dim} numbers, "
+                f"expected {shape[0]} x {shape[1]} from jacobian_shape"
+            )
+        model.jacobian_shape_ = (shape[0], shape[1])
+        model.fingerprint_ = fingerprint
+        return model
