@@ -28,6 +28,8 @@ class TorchRig(Rig):
         )
         # rest (default-control) world positions, for checks and drawing
         self.rest_positions = np.stack([builder.rest[j] for j in self.joint_names])
+        # Euler order of every control object (name -> "xyz" …), for scripts that set rotations
+        self.rotation_orders = {c.name: c.rotation_order for c in builder.transform_controls}
         self._steps = [batched_locals(builder.transform_controls), *builder.steps]
         self._cog = builder.cog
         self._chunk = chunk

@@ -1,0 +1,18 @@
+"""Retargeting without learning: the paper's hand-written "Maya script" baseline (§6.1)."""
+
+from rigmap.retarget.euler import euler_to_matrix, matrix_to_euler
+from rigmap.retarget.script import (
+    SCRIPTS,
+    NoRetargetScriptError,
+    ScriptResult,
+    script_retarget,
+)
+
+__all__ = [
+    "SCRIPTS",
+    "NoRetargetScriptError",
+    "ScriptResult",
+    "euler_to_matrix",
+    "matrix_to_euler",
+    "script_retarget",
+]

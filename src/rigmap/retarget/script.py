@@ -1,0 +1,99 @@
+"""The "Maya script" baseline (paper §6.1): a rig-specific heuristic retarget, no learning.
+
+``script_retarget`` takes target joint positions (COG-relative) and the COG's
+world placement, runs the hand-written script for the rig, and returns the
+used controls plus the rig evaluations the script spent reading back parents'
+world transforms. Each built-in articulated rig has its own script; a rig
+without one is refused (Blender rigs have their constraint-based retarget in
+``rigmap.rigs.blender.retarget``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigmap.retarget.biped_script import retarget_biped
+from rigmap.retarget.quadruped_script import retarget_quadruped
+from rigmap.retarget.scene import ScriptScene
+from rigmap.rigs.base import Pose, RigInputError, check_positions
+
+Script = Callable[[ScriptScene, np.ndarray, np.ndarray], None]
+
+SCRIPTS: dict[str, Script] = {"quadruped": retarget_quadruped, "biped": retarget_biped}
+# frames per batch: bounds the memory of the rig's read-backs (every named transform)
+DEFAULT_CHUNK = 2048
+# how far a COG rotation may be from orthonormal before it is refused
+_ROTATION_TOLERANCE = 1e-4
+
+
+class NoRetargetScriptError(LookupError):
+    """The rig has no hand-written retarget script."""
+
+
+@dataclass(frozen=True)
+class ScriptResult:
+    """Values of the rig's used controls ``(N, C_used)`` and what the script cost."""
+
+    Y_used: np.ndarray
+    rig_evaluations: int  # poses the rig evaluated (read-backs, plus one rest pose per batch)
+
+
+def script_retarget(rig, positions, cog=None, cog_rotation=None, *, chunk: int = DEFAULT_CHUNK):
+    """Run the rig's retarget script on ``(N, J, 3)`` COG-relative targets (cm).
+
+    ``cog`` ``(N, 3)`` and ``cog_rotation`` ``(N, 3, 3)`` are the COG's world
+    placement; a :class:`~rigmap.rigs.base.Pose` may be passed as ``positions``
+    instead of all three. Returns a :class:`ScriptResult`.
+    """
+    script = SCRIPTS.get(rig.name)
+    if script is None:
+        raise NoRetargetScriptError(
+            f"no retarget script for rig {rig.name!r}; scripts exist for "
+            f"{', '.join(sorted(SCRIPTS))} (Blender rigs: "
+            "rigmap.rigs.blender.retarget.constraint_retarget)"
+        )
+    if isinstance(positions, Pose):
+        positions, cog, cog_rotation = positions
+    where = f"script_retarget on rig {rig.name!r}"
+    X = check_positions(positions, rig.n_joints, where)
+    cog, cog_rotation = _check_placement(cog, cog_rotation, len(X), where)
+    if chunk < 1:
+        raise ValueError(f"{where}: chunk must be a positive number of frames, got {chunk}")
+    world = X + cog[:, None, :]
+    used = rig.controls.used_indices
+    parts, evaluations = [], 0
+    for start in range(0, len(X), chunk):
+        frames = slice(start, start + chunk)
+        scene = ScriptScene(rig, world[frames])
+        script(scene, cog[frames], cog_rotation[frames])
+        parts.append(scene.controls[:, used])
+        evaluations += scene.evaluations
+    Y_used = np.concatenate(parts) if parts else np.zeros((0, len(used)))
+    return ScriptResult(Y_used, evaluations)
+
+
+def _check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    if cog is None or cog_rotation is None:
+        raise RigInputError(
+            f"{where}: needs the COG placement: cog (N, 3) and cog_rotation (N, 3, 3)"
+        )
+    cog = np.asarray(cog, dtype=np.float64)
+    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
+    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
+        raise RigInputError(
+            f"{where}: expected cog ({n}, 3) and cog_rotation ({n}, 3, 3) for {n} frames, "
+            f"got {cog.shape} and {cog_rotation.shape}"
+        )
+    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
+        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    drift = np.abs(np.swapaxes(cog_rotation, -1, -2) @ cog_rotation - np.eye(3)).max(axis=(1, 2))
+    bad = np.flatnonzero((drift > _ROTATION_TOLERANCE) | (np.linalg.det(cog_rotation) <= 0))
+    if bad.size:
+        raise RigInputError(
+            f"{where}: cog_rotation must be rotation matrices (orthonormal, det +1); "
+            f"frame {bad[0]} is not (|RᵀR − I| = {drift[bad[0]]:.3g})"
+        )
+    return cog, cog_rotation
