@@ -1,0 +1,58 @@
+"""MLflow tracking for rigmap: the one package that talks to MLflow.
+
+``Tracker.open()`` resolves and checks the store (local SQLite by default),
+``start_parent_run`` opens a sweep's run in the rig's experiment,
+``log_method_run`` adds one method's child run, and ``log_inverse_mapping``
+stores a fitted mapping as a pyfunc model registered as ``rigmap-<rig>-<regressor>``.
+"""
+
+from rigmap.tracking.keys import TrackingKeyError, flatten_config, method_metrics, safe_name
+from rigmap.tracking.pyfunc_model import (
+    InverseMappingModel,
+    LoggedMapping,
+    MappingLoggingError,
+    joint_columns,
+    log_inverse_mapping,
+    registered_model_name,
+)
+from rigmap.tracking.runs import (
+    MappingToLog,
+    MethodRun,
+    ParentRun,
+    Tracker,
+    experiment_name,
+    log_method_run,
+    start_parent_run,
+)
+from rigmap.tracking.store import (
+    TrackingUnavailableError,
+    check_reachable,
+    default_tracking_uri,
+    find_project_root,
+    resolve_tracking_uri,
+)
+
+__all__ = [
+    "InverseMappingModel",
+    "LoggedMapping",
+    "MappingLoggingError",
+    "MappingToLog",
+    "MethodRun",
+    "ParentRun",
+    "Tracker",
+    "TrackingKeyError",
+    "TrackingUnavailableError",
+    "check_reachable",
+    "default_tracking_uri",
+    "experiment_name",
+    "find_project_root",
+    "flatten_config",
+    "joint_columns",
+    "log_inverse_mapping",
+    "log_method_run",
+    "method_metrics",
+    "registered_model_name",
+    "resolve_tracking_uri",
+    "safe_name",
+    "start_parent_run",
+]

@@ -1,0 +1,252 @@
+"""A fitted inverse mapping as an MLflow pyfunc model, registered as ``rigmap-<rig>-<regressor>``.
+
+Any scikit-learn-style mapping works: ``predict(X (N, D)) -> (N, C)``,
+``save(path)`` and a ``load(path)`` classmethod. The model is stored through
+its own ``save`` (no pickling of the object), and rebuilt at load time from an
+importable class path ``"package.module:Class"``, so ``mlflow.pyfunc.load_model``
+in a fresh process gives the same controls. The pyfunc wrapper itself is
+logged as *models from code* (``pyfunc_entry.py``), so nothing is cloudpickled.
+
+Input: joint positions as a DataFrame with columns ``<joint>.x``, ``<joint>.y``,
+``<joint>.z`` (any extra columns are ignored, order does not matter); output: a
+DataFrame of controls named by the rig's control names.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import json
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mlflow
+import numpy as np
+import pandas as pd
+from mlflow.models import ModelSignature
+from mlflow.pyfunc import PythonModel
+from mlflow.types import ColSpec, Schema
+
+from rigmap.tracking.keys import safe_name
+
+ENTRY_FILE = Path(__file__).with_name("pyfunc_entry.py")
+MAPPING_ARTIFACT = "mapping"
+INTERFACE_ARTIFACT = "interface"
+INTERFACE_FORMAT = "rigmap.pyfunc_interface/1"
+
+
+class MappingLoggingError(ValueError):
+    """A mapping that cannot be logged as a pyfunc model (no save/load, not importable...)."""
+
+
+def joint_columns(joint_names: Sequence[str]) -> list[str]:
+    """``["<joint>.x", "<joint>.y", "<joint>.z", ...]`` in joint order (the flattened ``x``)."""
+    return [f"{joint}.{axis}" for joint in joint_names for axis in "xyz"]
+
+
+def registered_model_name(rig: str, regressor: str) -> str:
+    return f"rigmap-{safe_name(rig)}-{safe_name(regressor)}"
+
+
+def class_path(cls: type) -> str:
+    """``"module:QualName"`` of a class that a fresh process can import."""
+    if cls.__module__ == "__main__" or "<locals>" in cls.__qualname__:
+        raise MappingLoggingError(
+            f"mapping class {cls.__qualname__!r} (module {cls.__module__!r}) cannot be imported "
+            "by another process; define it at the top level of an importable module"
+        )
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+def import_class(path: str) -> type:
+    module_name, _, qualname = path.partition(":")
+    target: Any = importlib.import_module(module_name)
+    for part in qualname.split("."):
+        target = getattr(target, part)
+    return target
+
+
+class InverseMappingModel(PythonModel):
+    """Pyfunc wrapper: joint-position DataFrame in, control DataFrame out."""
+
+    def load_context(self, context: Any) -> None:
+        interface = json.loads(Path(context.artifacts[INTERFACE_ARTIFACT]).read_text("utf-8"))
+        mapping_class = import_class(interface["mapping_class"])
+        self._mapping = mapping_class.load(context.artifacts[MAPPING_ARTIFACT])
+        self._inputs = list(interface["input_columns"])
+        self._outputs = list(interface["output_columns"])
+
+    # MLflow reads this hint: a DataFrame means "no schema from hints" (the signature has it)
+    def predict(self, context: Any, model_input: pd.DataFrame, params: Any = None) -> Any:
+        if not isinstance(model_input, pd.DataFrame):
+            raise TypeError(
+                "inverse mapping: expected joint positions as a pandas DataFrame with columns "
+                f"'<joint>.x/.y/.z', got {type(model_input).__name__}"
+            )
+        missing = [c for c in self._inputs if c not in model_input.columns]
+        if missing:
+            raise ValueError(
+                f"inverse mapping: input lacks {len(missing)} of {len(self._inputs)} joint "
+                f"columns, first {missing[:5]}"
+            )
+        X = model_input[self._inputs].to_numpy(dtype=np.float64)
+        Y = np.asarray(self._mapping.predict(X), dtype=np.float64).reshape(len(X), -1)
+        if Y.shape[1] != len(self._outputs):
+            raise ValueError(
+                f"inverse mapping: model gave {Y.shape[1]} controls per frame, "
+                f"expected {len(self._outputs)}"
+            )
+        return pd.DataFrame(Y, columns=self._outputs, index=model_input.index)
+
+
+@dataclass(frozen=True)
+class LoggedMapping:
+    """Where a logged mapping lives: its model URI, and its registry name and version."""
+
+    model_uri: str
+    registered_name: str | None
+    version: str | None
+
+    @property
+    def registered_uri(self) -> str | None:
+        if self.registered_name is None:
+            return None
+        return f"models:/{self.registered_name}/{self.version}"
+
+
+def log_inverse_mapping(
+    tracking_uri: str,
+    run_id: str,
+    mapping: Any,
+    *,
+    rig: str,
+    regressor: str,
+    input_columns: Sequence[str],
+    output_columns: Sequence[str],
+    register: bool = True,
+    code_paths: Sequence[str | os.PathLike] | None = None,
+    pip_requirements: Sequence[str] | None = None,
+    input_example: pd.DataFrame | None = None,
+    name: str = "inverse_mapping",
+) -> LoggedMapping:
+    """Log ``mapping`` into run ``run_id`` as a pyfunc model; register it unless told not to.
+
+    Before logging, the mapping is saved and reloaded, and both copies must
+    predict the same controls on a probe input of the declared width, so a
+    model whose ``save``/``load`` loses state is refused here, not found later.
+    ``code_paths`` ships source files of a mapping class that is not installed
+    (MLflow puts them on ``sys.path`` at load time). ``input_example`` (a few rows
+    of joint positions) is stored with the model and MLflow runs the logged model
+    on it once, as a check that the stored model loads and predicts.
+    """
+    input_columns, output_columns = (
+        [str(c) for c in input_columns],
+        [str(c) for c in output_columns],
+    )
+    mapping_class = _check_mapping(mapping)
+    for what, columns in (("input", input_columns), ("output", output_columns)):
+        if not columns or len(set(columns)) != len(columns):
+            raise MappingLoggingError(f"{what}_columns: expected unique, non-empty column names")
+    with tempfile.TemporaryDirectory(prefix="rigmap-pyfunc-") as scratch:
+        saved = Path(scratch) / MAPPING_ARTIFACT
+        mapping.save(str(saved))
+        if not saved.exists():
+            raise MappingLoggingError(
+                f"{type(mapping).__name__}.save({str(saved)!r}) wrote nothing at that path"
+            )
+        _check_round_trip(
+            mapping, mapping_class.load(str(saved)), len(input_columns), output_columns
+        )
+        interface = Path(scratch) / "interface.json"
+        interface.write_text(
+            json.dumps(
+                {
+                    "format": INTERFACE_FORMAT,
+                    "mapping_class": class_path(mapping_class),
+                    "rig": rig,
+                    "regressor": regressor,
+                    "input_columns": input_columns,
+                    "output_columns": output_columns,
+                },
+                indent=1,
+            ),
+            encoding="utf-8",
+        )
+        signature = ModelSignature(
+            inputs=Schema([ColSpec("double", c) for c in input_columns]),
+            outputs=Schema([ColSpec("double", c) for c in output_columns]),
+        )
+        registered = registered_model_name(rig, regressor) if register else None
+        mlflow.set_tracking_uri(tracking_uri)
+        with mlflow.start_run(run_id=run_id, nested=mlflow.active_run() is not None):
+            info = mlflow.pyfunc.log_model(
+                name=name,
+                python_model=str(ENTRY_FILE),
+                artifacts={MAPPING_ARTIFACT: str(saved), INTERFACE_ARTIFACT: str(interface)},
+                code_paths=[str(p) for p in code_paths] if code_paths else None,
+                signature=signature,
+                input_example=input_example,
+                pip_requirements=list(pip_requirements or _requirements(mapping_class)),
+                registered_model_name=registered,
+                await_registration_for=60,
+            )
+    version = info.registered_model_version
+    return LoggedMapping(info.model_uri, registered, None if version is None else str(version))
+
+
+def _check_mapping(mapping: Any) -> type:
+    cls = type(mapping)
+    missing = [m for m in ("predict", "save") if not callable(getattr(mapping, m, None))]
+    if not callable(getattr(cls, "load", None)):
+        missing.append("load (classmethod)")
+    if missing:
+        raise MappingLoggingError(
+            f"{cls.__name__} cannot be logged as an inverse mapping: it lacks {missing}; "
+            "expected predict(X), save(path) and a load(path) classmethod"
+        )
+    path = class_path(cls)
+    try:
+        found = import_class(path)
+    except (ImportError, AttributeError) as error:
+        raise MappingLoggingError(f"mapping class {path} is not importable ({error})") from None
+    if found is not cls:
+        raise MappingLoggingError(f"importing {path} gives another class than the mapping's")
+    return cls
+
+
+def _check_round_trip(
+    mapping: Any, reloaded: Any, input_width: int, output_columns: list[str]
+) -> None:
+    probe = np.linspace(-1.0, 1.0, 2 * input_width).reshape(2, input_width)
+    before = np.asarray(mapping.predict(probe), dtype=np.float64).reshape(2, -1)
+    after = np.asarray(reloaded.predict(probe), dtype=np.float64).reshape(2, -1)
+    if before.shape[1] != len(output_columns):
+        raise MappingLoggingError(
+            f"{type(mapping).__name__}.predict gives {before.shape[1]} outputs per row, but "
+            f"{len(output_columns)} output columns were declared"
+        )
+    if not np.allclose(before, after, rtol=1e-6, atol=1e-9):
+        worst = float(np.abs(before - after).max())
+        raise MappingLoggingError(
+            f"{type(mapping).__name__}: save() then load() predicts differently "
+            f"(largest difference {worst:.3g}); the saved model would not be the fitted one"
+        )
+
+
+def _requirements(mapping_class: type) -> list[str]:
+    """Pinned versions of what loading needs: mlflow, numpy, pandas, rigmap, the mapping's package.
+
+    rigmap is always needed (the pyfunc wrapper lives in it); a package that is
+    not an installed distribution (e.g. code shipped with ``code_paths``) adds nothing.
+    """
+    pins = [f"mlflow=={mlflow.__version__}", f"numpy=={np.__version__}"]
+    pins.append(f"pandas=={pd.__version__}")
+    distributions = importlib.metadata.packages_distributions()
+    for top_level in dict.fromkeys(["rigmap", mapping_class.__module__.split(".")[0]]):
+        for dist in distributions.get(top_level, []):
+            pins.append(f"{dist}=={importlib.metadata.version(dist)}")
+    return pins

@@ -1,0 +1,342 @@
+"""Experiments, parent runs and method runs: how rigmap lays its results out in MLflow.
+
+One experiment per rig (``rigmap-<rig>``); one parent run per sweep or
+pipeline run; under it one child run per (method, sampler, kernel) with the
+flattened config as params, the metrics JSON as metrics (average and per
+clip), tags a lead filters on, and the files a person opens: the composed
+config, the predicted control curves, the per-frame errors (CSV and plot).
+
+Runs are written through an explicit ``MlflowClient``; only model logging goes
+through MLflow's fluent API (the one thing it requires), pointed at the same URI.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from mlflow import MlflowClient
+from mlflow.entities import Metric, Param, RunStatus
+from mlflow.exceptions import MlflowException
+from mlflow.utils.mlflow_tags import MLFLOW_PARENT_RUN_ID, MLFLOW_RUN_NAME
+
+from rigmap.evaluation.metrics import MethodResult, write_text_atomically
+from rigmap.tracking import artifacts
+from rigmap.tracking.keys import (
+    MAX_TAG_VALUE_LENGTH,
+    flatten_config,
+    method_metrics,
+    safe_name,
+    truncate,
+)
+from rigmap.tracking.pyfunc_model import LoggedMapping, log_inverse_mapping
+from rigmap.tracking.store import (
+    DEFAULT_PROBE_TIMEOUT_S,
+    bound_http_retries,
+    check_reachable,
+    find_project_root,
+    is_http_uri,
+    local_artifact_root,
+    resolve_tracking_uri,
+)
+
+EXPERIMENT_PREFIX = "rigmap"
+_BATCH = 100  # MLflow accepts at most 100 params or tags per log_batch call
+
+
+def experiment_name(rig: str, prefix: str = EXPERIMENT_PREFIX) -> str:
+    return f"{prefix}-{safe_name(rig)}"
+
+
+class Tracker:
+    """A checked connection to one tracking store; build with ``open`` or ``from_config``."""
+
+    def __init__(
+        self,
+        uri: str,
+        *,
+        root: Path,
+        experiment_prefix: str = EXPERIMENT_PREFIX,
+        register_models: bool = True,
+    ):
+        self.uri = uri
+        self.experiment_prefix = experiment_prefix
+        self.register_models = register_models
+        self.root = root
+        self.client = MlflowClient(tracking_uri=uri, registry_uri=uri)
+
+    @classmethod
+    def open(
+        cls,
+        uri: str | None = None,
+        *,
+        root: str | os.PathLike | None = None,
+        probe_timeout_s: float = DEFAULT_PROBE_TIMEOUT_S,
+        experiment_prefix: str = EXPERIMENT_PREFIX,
+        register_models: bool = True,
+    ) -> Tracker:
+        """Resolve the URI (argument > ``$MLFLOW_TRACKING_URI`` > local store) and check it."""
+        project = Path(root).resolve() if root is not None else find_project_root()
+        resolved = resolve_tracking_uri(uri, root=project)
+        check_reachable(resolved, probe_timeout_s)
+        if is_http_uri(resolved):
+            bound_http_retries()
+        return cls(
+            resolved,
+            root=project,
+            experiment_prefix=experiment_prefix,
+            register_models=register_models,
+        )
+
+    @classmethod
+    def from_config(cls, config: Mapping | None, *, root: str | os.PathLike | None = None):
+        """From the Hydra ``tracking`` group (see conf/tracking/local.yaml for the fields)."""
+        config = dict(config or {})
+        unknown = sorted(
+            set(config) - {"uri", "probe_timeout_s", "experiment_prefix", "register_models"}
+        )
+        if unknown:
+            raise ValueError(
+                f"tracking config: unknown fields {unknown}; expected uri, probe_timeout_s, "
+                "experiment_prefix, register_models"
+            )
+        return cls.open(
+            config.get("uri"),
+            root=root,
+            probe_timeout_s=float(config.get("probe_timeout_s", DEFAULT_PROBE_TIMEOUT_S)),
+            experiment_prefix=str(config.get("experiment_prefix", EXPERIMENT_PREFIX)),
+            register_models=bool(config.get("register_models", True)),
+        )
+
+    def experiment_id(self, rig: str) -> str:
+        """The id of experiment ``<prefix>-<rig>``, created on first use."""
+        name = experiment_name(rig, self.experiment_prefix)
+        found = self.client.get_experiment_by_name(name)
+        if found is not None:
+            return found.experiment_id
+        artifact_root = local_artifact_root(self.uri)
+        location = (artifact_root / name).as_uri() if artifact_root is not None else None
+        try:
+            return self.client.create_experiment(name, artifact_location=location)
+        except MlflowException:  # created by a concurrent process since we looked
+            found = self.client.get_experiment_by_name(name)
+            if found is None:
+                raise
+            return found.experiment_id
+
+    def __repr__(self) -> str:
+        return f"<Tracker {self.uri}>"
+
+
+@dataclass
+class ParentRun:
+    """A sweep or pipeline run that method runs nest under. Use as a context manager."""
+
+    tracker: Tracker
+    rig: str
+    run_id: str
+    experiment_id: str
+    children: list[str] = field(default_factory=list)
+
+    def end(self, status: str = "FINISHED") -> None:
+        self.tracker.client.set_terminated(self.run_id, status=status)
+
+    def __enter__(self) -> ParentRun:
+        return self
+
+    def __exit__(self, exc_type: object, *rest: object) -> None:
+        self.end("FAILED" if exc_type is not None else "FINISHED")
+
+
+def start_parent_run(
+    tracker: Tracker,
+    rig: str,
+    *,
+    name: str | None = None,
+    config: Any = None,
+    tags: Mapping[str, str] | None = None,
+) -> ParentRun:
+    """Open a parent run in the rig's experiment, with the sweep's config as params."""
+    experiment = tracker.experiment_id(rig)
+    all_tags = {"rig": rig, "kind": "sweep", **_git_tags(tracker.root), **(tags or {})}
+    run = tracker.client.create_run(
+        experiment, run_name=name or f"{rig}-{time.strftime('%Y%m%d-%H%M%S')}", tags=_tags(all_tags)
+    )
+    parent = ParentRun(tracker, rig, run.info.run_id, experiment)
+    try:
+        if config is not None:
+            _log_params(tracker.client, parent.run_id, flatten_config(config))
+    except BaseException:
+        parent.end("FAILED")
+        raise
+    return parent
+
+
+@dataclass(frozen=True)
+class MappingToLog:
+    """A fitted inverse mapping to attach to a method run as a pyfunc model (see pyfunc_model)."""
+
+    mapping: Any
+    regressor: str
+    input_columns: Sequence[str]
+    output_columns: Sequence[str]
+    register: bool = True
+    code_paths: Sequence[str | os.PathLike] | None = None
+    input_example: pd.DataFrame | None = None
+
+
+@dataclass(frozen=True)
+class MethodRun:
+    run_id: str
+    metrics: dict[str, float]
+    model: LoggedMapping | None
+
+
+def log_method_run(
+    parent: ParentRun,
+    *,
+    rig: str,
+    method: str,
+    sampler: str,
+    kernel: str | None,
+    refine: str | None,
+    config: Any,
+    result: MethodResult | Mapping[str, Any],
+    per_frame: pd.DataFrame | None = None,
+    predicted_controls: pd.DataFrame | None = None,
+    model: MappingToLog | None = None,
+    tags: Mapping[str, str] | None = None,
+    run_name: str | None = None,
+) -> MethodRun:
+    """One method's child run: params, metrics, tags, artifacts and (optionally) its model.
+
+    ``result`` is a ``MethodResult`` or its metrics JSON as a dict; with a dict,
+    pass ``per_frame`` (the per-frame CSV as a DataFrame) to get the error plot.
+    ``predicted_controls`` (clip, frame, one column per control) is stored as parquet.
+    The run ends FINISHED, or FAILED if any step raised (and the error propagates).
+    """
+    if rig != parent.rig:
+        raise ValueError(
+            f"log_method_run: rig {rig!r} differs from the parent run's rig {parent.rig!r}; "
+            "each rig has its own experiment and parent run"
+        )
+    client = parent.tracker.client
+    summary = result.to_dict() if isinstance(result, MethodResult) else dict(result)
+    if summary.get("rig", rig) != rig:
+        raise ValueError(f"log_method_run: the metrics are for rig {summary['rig']!r}, not {rig!r}")
+    if isinstance(result, MethodResult) and per_frame is None:
+        per_frame = result.per_frame_table()
+    metrics = method_metrics(summary)
+    run_tags = {
+        MLFLOW_PARENT_RUN_ID: parent.run_id,
+        "rig": rig,
+        "method": method,
+        "sampler": sampler,
+        "kernel": kernel or "none",
+        "refine": refine or "none",
+        **_git_tags(parent.tracker.root),
+        **(tags or {}),
+    }
+    name = run_name or "-".join(part for part in (method, sampler, kernel) if part)
+    run = client.create_run(parent.experiment_id, run_name=name, tags=_tags(run_tags))
+    run_id = run.info.run_id
+    parent.children.append(run_id)
+    try:
+        _log_params(client, run_id, flatten_config(config) if config is not None else {})
+        _log_metrics(client, run_id, metrics)
+        with tempfile.TemporaryDirectory(prefix="rigmap-run-") as scratch:
+            folder = Path(scratch)
+            write_text_atomically(folder / "metrics.json", _json(summary))
+            if config is not None:
+                artifacts.write_config_yaml(config, folder / "config.yaml")
+            if per_frame is not None:
+                write_text_atomically(folder / "per_frame.csv", per_frame.to_csv(index=False))
+                artifacts.plot_per_frame_errors(
+                    per_frame,
+                    folder / "per_frame_error.png",
+                    title=f"{rig} · {name}",
+                    length_unit=str(summary.get("length_unit", "cm")),
+                )
+            if predicted_controls is not None:
+                artifacts.write_control_curves(
+                    predicted_controls, folder / "predicted_controls.parquet"
+                )
+            client.log_artifacts(run_id, str(folder))
+        logged = None
+        if model is not None:
+            logged = log_inverse_mapping(
+                parent.tracker.uri,
+                run_id,
+                model.mapping,
+                rig=rig,
+                regressor=model.regressor,
+                input_columns=model.input_columns,
+                output_columns=model.output_columns,
+                register=model.register and parent.tracker.register_models,
+                code_paths=model.code_paths,
+                input_example=model.input_example,
+            )
+    except BaseException:
+        client.set_terminated(run_id, status=RunStatus.to_string(RunStatus.FAILED))
+        raise
+    client.set_terminated(run_id, status=RunStatus.to_string(RunStatus.FINISHED))
+    return MethodRun(run_id, metrics, logged)
+
+
+# --------------------------------------------------------------------------- helpers
+def _log_params(client: MlflowClient, run_id: str, params: Mapping[str, str]) -> None:
+    items = [Param(k, v) for k, v in params.items()]
+    for start in range(0, len(items), _BATCH):
+        client.log_batch(run_id, params=items[start : start + _BATCH])
+
+
+def _log_metrics(client: MlflowClient, run_id: str, metrics: Mapping[str, float]) -> None:
+    now = int(time.time() * 1000)
+    items = [Metric(k, v, now, 0) for k, v in metrics.items()]
+    for start in range(0, len(items), 1000):  # MLflow's limit per batch
+        client.log_batch(run_id, metrics=items[start : start + 1000])
+
+
+def _tags(tags: Mapping[str, Any]) -> dict[str, str]:
+    out = {str(k): truncate(str(v), MAX_TAG_VALUE_LENGTH) for k, v in tags.items()}
+    if MLFLOW_RUN_NAME in out:
+        raise ValueError(
+            f"tags: set the run name with name=/run_name=, not the {MLFLOW_RUN_NAME} tag"
+        )
+    return out
+
+
+def _git_tags(root: Path) -> dict[str, str]:
+    """``git_commit`` (``unknown`` outside a checkout) and ``git_dirty`` (tracked files changed)."""
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(
+                ["git", "--no-optional-locks", *args],
+                cwd=root,
+                capture_output=True,
+                text=True,
+                timeout=10,
+                check=True,
+            )
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return done.stdout.strip()
+
+    commit = git("rev-parse", "HEAD")
+    if commit is None:
+        return {"git_commit": "unknown"}
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"git_commit": commit, "git_dirty": "unknown" if status is None else str(bool(status))}
+
+
+def _json(summary: Mapping[str, Any]) -> str:
+    return json.dumps(summary, indent=2, allow_nan=False) + "\n"

@@ -1,0 +1,165 @@
+"""Where runs go: the tracking URI, the local default store, and a fast reachability check.
+
+Precedence, most specific first: an explicit URI (argument or config
+``tracking.uri``), then the ``MLFLOW_TRACKING_URI`` environment variable, then
+the project's own SQLite store ``sqlite:///<project root>/mlruns.db`` with
+artifacts in ``<project root>/mlartifacts`` — so ``mlflow ui`` on that file
+shows every run made in the checkout.
+
+MLflow's HTTP client retries a dead server with exponential backoff for
+minutes. ``check_reachable`` instead asks ``GET <uri>/health`` with a short
+timeout and fails at once with an error that names the URI.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Mapping
+from pathlib import Path
+from urllib.parse import urlsplit
+
+TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
+DEFAULT_STORE_FILE = "mlruns.db"
+DEFAULT_ARTIFACT_DIR = "mlartifacts"
+DEFAULT_PROBE_TIMEOUT_S = 3.0
+
+#: bounds on MLflow's own HTTP retries once a server answered the probe (env wins if set)
+HTTP_RETRY_DEFAULTS = {
+    "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "3",
+    "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+    "MLFLOW_HTTP_REQUEST_TIMEOUT": "60",
+}
+
+
+class TrackingUnavailableError(RuntimeError):
+    """The tracking store named by a URI cannot be used (server down, folder not writable)."""
+
+
+def find_project_root(start: str | os.PathLike | None = None) -> Path:
+    """The checkout holding rigmap's ``pyproject.toml``, searched upward from ``start``.
+
+    Without ``start``: from the working directory, then from this package's
+    location (an editable install); falls back to the working directory.
+    """
+    starts = [Path(start)] if start is not None else [Path.cwd(), Path(__file__)]
+    for origin in starts:
+        for folder in [origin.resolve(), *origin.resolve().parents]:
+            if _is_rigmap_project(folder / "pyproject.toml"):
+                return folder
+    return Path(start).resolve() if start is not None else Path.cwd().resolve()
+
+
+def _is_rigmap_project(pyproject: Path) -> bool:
+    try:
+        return 'name = "rigmap"' in pyproject.read_text(encoding="utf-8")
+    except OSError:
+        return False
+
+
+def default_tracking_uri(root: str | os.PathLike | None = None) -> str:
+    """``sqlite:///<project root>/mlruns.db`` (an absolute path, so any working directory works)."""
+    project = Path(root).resolve() if root is not None else find_project_root()
+    return f"sqlite:///{project / DEFAULT_STORE_FILE}"
+
+
+def resolve_tracking_uri(
+    uri: str | None = None,
+    *,
+    root: str | os.PathLike | None = None,
+    environ: Mapping[str, str] | None = None,
+) -> str:
+    """The URI to log to: ``uri`` if given, else ``$MLFLOW_TRACKING_URI``, else the local store."""
+    environ = os.environ if environ is None else environ
+    for candidate in (uri, environ.get(TRACKING_URI_ENV)):
+        if candidate is not None and str(candidate).strip():
+            return _absolute_local_uri(str(candidate).strip())
+    return default_tracking_uri(root)
+
+
+def _absolute_local_uri(uri: str) -> str:
+    """Make a relative ``sqlite:///file.db`` absolute, so artifacts land beside the file."""
+    if uri.startswith("sqlite:///") and not uri.startswith("sqlite:////"):
+        path = uri.removeprefix("sqlite:///")
+        if path and path != ":memory:":
+            return f"sqlite:///{Path(path).resolve()}"
+    return uri
+
+
+def local_artifact_root(uri: str) -> Path | None:
+    """Where a local SQLite store keeps artifacts (``mlartifacts`` beside the database file).
+
+    ``None`` for stores that decide themselves: a server (``mlflow-artifacts:/``),
+    a file store (artifacts inside it), or a remote database.
+    """
+    if uri.startswith("sqlite:///"):
+        path = uri.removeprefix("sqlite:///")
+        if path and path != ":memory:":
+            return Path(path).parent / DEFAULT_ARTIFACT_DIR
+    return None
+
+
+def is_http_uri(uri: str) -> bool:
+    return urlsplit(uri).scheme in ("http", "https")
+
+
+def check_reachable(uri: str, timeout_s: float = DEFAULT_PROBE_TIMEOUT_S) -> None:
+    """Fail fast, naming ``uri``, if the store cannot be used.
+
+    HTTP(S): ``GET <uri>/health`` must answer 200 within ``timeout_s``. SQLite:
+    the database's folder must exist or be creatable, and be writable.
+    """
+    scheme = urlsplit(uri).scheme
+    if scheme in ("http", "https"):
+        _probe_server(uri, timeout_s)
+    elif scheme == "sqlite":
+        path = uri.removeprefix("sqlite:///")
+        if path and path != ":memory:" and uri.startswith("sqlite:///"):
+            _check_writable_folder(Path(path).parent, uri)
+    elif scheme in ("", "file"):
+        _check_writable_folder(Path(urlsplit(uri).path or uri), uri)
+
+
+def _probe_server(uri: str, timeout_s: float) -> None:
+    health = uri.rstrip("/") + "/health"
+    started = time.perf_counter()
+    try:
+        with urllib.request.urlopen(health, timeout=timeout_s) as response:
+            status = response.status
+    except urllib.error.HTTPError as error:
+        status, reason = error.code, f"HTTP {error.code}"
+    except (urllib.error.URLError, OSError) as error:
+        status, reason = None, str(getattr(error, "reason", error))
+    else:
+        reason = f"HTTP {status}"
+    if status == 200:
+        return
+    waited = time.perf_counter() - started
+    raise TrackingUnavailableError(
+        f"MLflow tracking server {uri} is unreachable: GET {health} failed after {waited:.1f} s "
+        f"({reason}). Start it (e.g. `mlflow server --host 127.0.0.1 --port <port>`), or log "
+        f"to the local store instead: unset {TRACKING_URI_ENV} and leave tracking.uri null "
+        f"(default {default_tracking_uri()})."
+    )
+
+
+def _check_writable_folder(folder: Path, uri: str) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise TrackingUnavailableError(
+            f"tracking store {uri}: cannot create folder {folder} ({error.strerror})"
+        ) from None
+    if not os.access(folder, os.W_OK):
+        raise TrackingUnavailableError(f"tracking store {uri}: folder {folder} is not writable")
+
+
+def bound_http_retries() -> None:
+    """Cap MLflow's HTTP retries so a server that dies mid-run fails in about a minute.
+
+    Sets only variables the user has not set (``HTTP_RETRY_DEFAULTS``).
+    """
+    for name, value in HTTP_RETRY_DEFAULTS.items():
+        os.environ.setdefault(name, value)
