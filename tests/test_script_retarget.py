@@ -216,4 +216,6 @@ def test_eyes_look_the_right_way_when_their_lines_meet_behind_the_head(biped):
     pose = biped.pose(Y)
     error = _joint_error(biped, script_retarget(biped, pose), pose)
     pupils = [biped.joint_names.index(j) for j in ("eye_end_l", "eye_end_r")]
-    assert np.sqrt(error[:, pupils]).max() < 0.1  # cm; the pupils are 1.2 cm from the eyes
+    # cm; the pupils are 1.2 cm from the eyes, so an eye looking backwards misses by ~2.4 cm,
+    # while the head's frame estimate leaves a few millimetres on the widest poses
+    assert np.sqrt(error[:, pupils]).max() < 0.5

@@ -33,7 +33,12 @@ def build_biped():
     b = RigBuilder("biped")
     b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
     b.transform_control(
-        "cog", parent="root", offset=(0, 100, 0), group="torso", used="tx ty tz rx ry rz"
+        "cog",
+        parent="root",
+        offset=(0, 100, 0),
+        group="torso",
+        used="tx ty tz rx ry rz",
+        translate_range=60.0,  # crouching and kneeling lower the hips ~50 cm
     )
     b.transform_control(
         "hips", parent="cog", offset=(0, 0, 0), group="torso", used="rx ry rz", rotate_range=0.8
@@ -170,7 +175,7 @@ def _arm(b: RigBuilder, side: str, sign: float) -> None:
         pole_distance=40.0,
         group=group,
         side_sign=sign,
-        usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",)),
+        usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",), ik_range=90.0),
     )
     # fingers: base positions on the hand, three joints each, curl + spread attributes
     bases = {
@@ -195,6 +200,9 @@ def _arm(b: RigBuilder, side: str, sign: float) -> None:
             curl_range=(-0.5, 2.5),
             bend_axis="z" if finger != "thumb" else "y",
             side_axis="y" if finger != "thumb" else "z",
+            # positive curl closes both hands towards the palm (down in the T-pose)
+            bend_sign=-sign,
+            side_sign=-sign,
         )
         fk_chain(
             b,

@@ -29,7 +29,12 @@ def build_quadruped():
     b = RigBuilder("quadruped")
     b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
     b.transform_control(
-        "cog", parent="root", offset=(0, 60, -3), group="torso", used="tx ty tz rx ry rz"
+        "cog",
+        parent="root",
+        offset=(0, 60, -3),
+        group="torso",
+        used="tx ty tz rx ry rz",
+        translate_range=60.0,  # lying down lowers the body ~42 cm
     )
     b.transform_control(
         "hips", parent="cog", offset=(0, 0, -27), group="torso", used="rx ry rz", rotate_range=0.8
@@ -113,7 +118,9 @@ def build_quadruped():
             position=eye,
             end_position=eye + np.array([0.0, 0.0, 1.5]),
         )
-        ear = chain_attributes(b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5))
+        ear = chain_attributes(
+            b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5), side_sign=sign
+        )
         fk_chain(
             b,
             [f"ear_{i}_{side}" for i in (1, 2, 3)],
@@ -261,6 +268,7 @@ def _toes(
         f"{prefix}s",
         group=f"paws_{side}",
         wave=False,
+        side_sign=sign,
         used=("curl", "side_curl"),
         curl_range=(-0.8, 1.2),
     )

@@ -28,6 +28,9 @@ class ChainAttributes:
     bend_axis: str = "x"
     side_axis: str = "y"
     wavelength: float = 1.0  # in chains: one full wave along the chain
+    # +1 or -1: mirrored chains (left/right) bend the mirrored way for the same value
+    bend_sign: float = 1.0
+    side_sign: float = 1.0
 
     def rotation(self, ctx: EvalContext, index: int, count: int) -> torch.Tensor:
         """Extra local rotation of joint ``index`` of ``count`` (``(N, 3, 3)``)."""
@@ -41,9 +44,9 @@ class ChainAttributes:
                 bend = bend + wave
             else:
                 side = side + wave
-        R = axis_rotation(bend, self.bend_axis)
+        R = axis_rotation(self.bend_sign * bend, self.bend_axis)
         if side is not None:
-            R = axis_rotation(side, self.side_axis) @ R
+            R = axis_rotation(self.side_sign * side, self.side_axis) @ R
         return R
 
 
@@ -58,8 +61,15 @@ def chain_attributes(
     used: tuple[str, ...] = ("curl", "side_curl", "wave_amplitude", "wave_phase"),
     bend_axis: str = "x",
     side_axis: str = "y",
+    bend_sign: float = 1.0,
+    side_sign: float = 1.0,
 ) -> ChainAttributes:
-    """Add ``{prefix}.curl`` (total bend in radians along the chain) and friends."""
+    """Add ``{prefix}.curl`` (total bend in radians along the chain) and friends.
+
+    Rest frames are world-aligned, so a rotation about y or z is mirrored between
+    the left and right side: pass ``bend_sign``/``side_sign`` = -1 on one side to
+    make the same attribute value bend both sides the mirrored (symmetric) way.
+    """
 
     def attr(name, lower, upper):
         return b.attribute(
@@ -78,4 +88,6 @@ def chain_attributes(
         wave_phase=attr("wave_phase", -math.pi, math.pi) if wave else None,
         bend_axis=bend_axis,
         side_axis=side_axis,
+        bend_sign=bend_sign,
+        side_sign=side_sign,
     )

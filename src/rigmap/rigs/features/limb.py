@@ -62,6 +62,8 @@ class LimbUsage:
     hock: str = "rx"
     attributes: tuple[str, ...] = ("ik_fk",)
     foot: tuple[str, ...] = ("roll", "bank", "toe_tap")
+    # soft range of the IK and pole controls' translation around their rest place (cm)
+    ik_range: float = 30.0
 
 
 def limb(
@@ -125,6 +127,7 @@ def limb(
         offset=b.offset_to(ik_space, points[end]),
         group=group,
         used=usage.ik,
+        translate_range=usage.ik_range,
         add_step=True,
     )
     pole_ctrl = b.transform_control(
@@ -133,6 +136,7 @@ def limb(
         offset=b.offset_to(ik_space, pole),
         group=group,
         used=usage.pole,
+        translate_range=usage.ik_range,
         add_step=True,
     )
     ik_fk = b.attribute(
