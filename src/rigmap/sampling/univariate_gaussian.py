@@ -1,0 +1,35 @@
+"""``univariate_gaussian``: each used control from its own normal distribution (Table 2).
+
+Per-control mean and standard deviation of the corpus, no correlation between
+controls, so poses look unnatural (paper §6.2, Fig. 4 second row).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigmap.sampling.base import Sampler
+
+
+class UnivariateGaussianSampler(Sampler):
+    """Independent ``N(mean_c, std_c²)`` per control; ``std`` uses ``ddof=1``.
+
+    ``ddof=1`` makes ``std_**2`` the diagonal of the multivariate strategy's
+    covariance, so the two differ only in the off-diagonal terms.
+    """
+
+    name = "univariate_gaussian"
+    min_corpus_frames = 2
+
+    def __init__(self):
+        pass
+
+    def _fit(self, corpus: np.ndarray) -> None:
+        self.mean_ = corpus.mean(axis=0)
+        self.std_ = corpus.std(axis=0, ddof=1)
+
+    def _sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        samples = rng.standard_normal((n, self.mean_.size))
+        samples *= self.std_
+        samples += self.mean_
+        return samples
