@@ -1,0 +1,181 @@
+"""The animator's motion library: per-rig keyframed clips, split into train and test (§6.1).
+
+Each built-in rig has a module here that keys its *used* controls the way an
+animator would (key poses, plants, overlap), with seeded variation of timing and
+values. Training clips are everyday motions; test clips are held out and chosen to
+be large, fast or extreme, as in the paper's Table 1.
+
+``build_clips(rig, split, seed=...)`` gives the clips; ``build_corpus`` plays them on
+the rig's used controls into a :class:`~rigmap.animation.corpus.Corpus`. The same
+seed always gives the same clips; each clip draws from its own generator, seeded by
+``(seed, rig, clip name)``, so adding a clip never changes the others.
+"""
+
+from __future__ import annotations
+
+import importlib
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigmap.animation.clip import CLIP_FPS, Clip
+from rigmap.animation.corpus import Corpus
+from rigmap.animation.library.clip_builder import (
+    AUTHORED_FPS,
+    DEFAULT_VARIATION,
+    ClipBuilder,
+    Variation,
+)
+
+SPLITS: tuple[str, str] = ("train", "test")
+
+# rig name -> module holding its LIBRARY
+_LIBRARY_MODULES: dict[str, str] = {
+    "quadruped": "rigmap.animation.library.quadruped",
+    "biped": "rigmap.animation.library.biped",
+    "face": "rigmap.animation.library.face",
+    "squirrel": "rigmap.animation.library.squirrel",
+}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One clip recipe: a name, a description, and the function that keys it."""
+
+    name: str
+    keyframe: Callable[[ClipBuilder], None]
+    description: str
+
+
+@dataclass(frozen=True)
+class MotionLibrary:
+    """A rig's training motions and its held-out test motions."""
+
+    rig: str
+    train: tuple[Motion, ...]
+    test: tuple[Motion, ...]
+
+    def motions(self, split: str) -> tuple[Motion, ...]:
+        _check_split(split)
+        return self.train if split == "train" else self.test
+
+    def find(self, clip_name: str) -> tuple[str, Motion]:
+        """``(split, motion)`` for a clip name."""
+        for split in SPLITS:
+            for motion in self.motions(split):
+                if motion.name == clip_name:
+                    return split, motion
+        names = [m.name for split in SPLITS for m in self.motions(split)]
+        raise KeyError(f"rig {self.rig!r} has no clip named {clip_name!r}; clips: {names}")
+
+
+def libraries() -> list[str]:
+    """Rig names that have a motion library."""
+    return sorted(_LIBRARY_MODULES)
+
+
+def motion_library(rig_name: str) -> MotionLibrary:
+    """The motion library of a built-in rig."""
+    if rig_name not in _LIBRARY_MODULES:
+        raise KeyError(f"no motion library for rig {rig_name!r}; libraries exist for {libraries()}")
+    return importlib.import_module(_LIBRARY_MODULES[rig_name]).LIBRARY
+
+
+def clip_rng(seed: int, rig_name: str, clip_name: str) -> np.random.Generator:
+    """The generator one clip draws from: depends on the seed, the rig and the clip only."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    return np.random.default_rng(
+        [int(seed), zlib.crc32(rig_name.encode()), zlib.crc32(clip_name.encode())]
+    )
+
+
+def build_clip(
+    rig_name: str,
+    motion: Motion,
+    *,
+    seed: int,
+    fps: int = AUTHORED_FPS,
+    variation: Variation = DEFAULT_VARIATION,
+) -> Clip:
+    """Key one motion with its seeded variation; retimed if ``fps`` is not 24."""
+    if fps not in CLIP_FPS:
+        raise ValueError(f"fps must be one of {CLIP_FPS}, got {fps!r}")
+    builder = ClipBuilder(
+        motion.name,
+        clip_rng(seed, rig_name, motion.name),
+        variation=variation,
+        description=motion.description,
+    )
+    motion.keyframe(builder)
+    clip = builder.build()
+    return clip if fps == AUTHORED_FPS else clip.retimed(fps)
+
+
+def build_clips(
+    rig_name: str,
+    split: str,
+    *,
+    seed: int,
+    fps: int = AUTHORED_FPS,
+    variation: Variation = DEFAULT_VARIATION,
+) -> list[Clip]:
+    """Every clip of one split of a rig's library."""
+    library = motion_library(rig_name)
+    return [
+        build_clip(rig_name, motion, seed=seed, fps=fps, variation=variation)
+        for motion in library.motions(split)
+    ]
+
+
+def build_corpus(
+    rig,
+    split: str,
+    *,
+    seed: int,
+    fps: int = AUTHORED_FPS,
+    variation: Variation = DEFAULT_VARIATION,
+) -> Corpus:
+    """Play a split of the rig's library on its used controls (unkeyed ones at default)."""
+    clips = build_clips(rig.name, split, seed=seed, fps=fps, variation=variation)
+    used = rig.controls.used_indices
+    return Corpus.from_clips(
+        clips,
+        rig.used_controls,
+        rig.controls.defaults[used],
+        rig=rig.name,
+        split=split,
+        seed=seed,
+        lower=rig.controls.lower[used],
+        upper=rig.controls.upper[used],
+        extra={
+            "variation": {
+                "tempo": variation.tempo,
+                "timing": variation.timing,
+                "values": variation.values,
+            },
+            "authored_fps": AUTHORED_FPS,
+        },
+    )
+
+
+def _check_split(split: str) -> None:
+    if split not in SPLITS:
+        raise ValueError(f"split must be one of {SPLITS}, got {split!r}")
+
+
+__all__ = [
+    "SPLITS",
+    "ClipBuilder",
+    "Motion",
+    "MotionLibrary",
+    "Variation",
+    "build_clip",
+    "build_clips",
+    "build_corpus",
+    "clip_rng",
+    "libraries",
+    "motion_library",
+]
