@@ -14,7 +14,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from hydra.utils import instantiate
-from omegaconf import OmegaConf
 
 from rigmap.regression import (
     GaussianKernel,
@@ -299,15 +298,10 @@ def test_save_leaves_no_temporary_files(fitted, tmp_path):
 # ----------------------------------------------------------------------------- configs
 @pytest.mark.parametrize("kernel", ["multiquadric", "gaussian", "linear", "polynomial"])
 def test_hydra_configs_build_the_regressor_with_the_papers_defaults(kernel):
-    from pathlib import Path
+    from hydra import compose, initialize
 
-    conf = Path(__file__).resolve().parents[1] / "conf"
-    cfg = OmegaConf.create(
-        {
-            "kernel": OmegaConf.load(conf / "kernel" / f"{kernel}.yaml"),
-            "regressor": OmegaConf.load(conf / "regressor" / "gpr.yaml"),
-        }
-    )
+    with initialize(config_path="../conf", version_base="1.3"):
+        cfg = compose("config", overrides=["regressor=gpr", f"kernel={kernel}", "experiment=paper"])
     model = instantiate(cfg.regressor)
     assert isinstance(model, GaussianProcessRegressor)
     assert model.kernel.name == kernel

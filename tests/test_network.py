@@ -5,13 +5,10 @@ Small hidden layers and few samples keep every test well under a second or two.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
 from hydra.utils import instantiate
-from omegaconf import OmegaConf
 
 from rigmap.regression import (
     FeedForwardRegressor,
@@ -173,8 +170,10 @@ def test_loading_for_another_rig_or_corrupt_files_fails(trained, tmp_path):
 
 
 def test_hydra_config_has_the_papers_defaults():
-    conf = Path(__file__).resolve().parents[1] / "conf"
-    cfg = OmegaConf.create({"seed": 4, "regressor": OmegaConf.load(conf / "regressor" / "nn.yaml")})
+    from hydra import compose, initialize
+
+    with initialize(config_path="../conf", version_base="1.3"):
+        cfg = compose("config", overrides=["regressor=nn", "experiment=paper", "seed=4"])
     model = instantiate(cfg.regressor)
     assert isinstance(model, FeedForwardRegressor)
     assert (model.hidden, model.alpha, model.batch_size, model.epochs) == (2048, 0.1, 8, 20)
