@@ -1,0 +1,53 @@
+"""What the inverse mapping sees: COG-relative joint positions plus the COG placement.
+
+The paper regresses controls from joint positions relative to the centre of
+gravity (§3.2). Those are blind to where the character stands, so root
+controls (placement, COG translation) could never be recovered; rigmap
+appends the COG's world position (3 numbers, cm) and rotation (9 numbers) as
+extra inputs. Refinement still works on the joint positions alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rigmap.rigs.base import RigInputError, check_positions
+
+PLACEMENT_WIDTH = 12  # cog x, y, z + the 3x3 rotation, row-major
+
+
+def inverse_features(positions, cog, cog_rotation, *, n_joints: int, where: str) -> np.ndarray:
+    """``(N, 3J + 12)`` regression inputs from a pose (see :class:`rigmap.rigs.Pose`)."""
+    X = check_positions(positions, n_joints, where)
+    n = len(X)
+    cog = np.asarray(cog, dtype=np.float64)
+    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
+    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
+        raise RigInputError(
+            f"{where}: expected cog (N, 3) and cog_rotation (N, 3, 3) with N = {n}, "
+            f"got {cog.shape} and {cog_rotation.shape}"
+        )
+    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
+        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    return np.concatenate([X.reshape(n, -1), cog, cog_rotation.reshape(n, 9)], axis=1)
+
+
+def feature_names(joint_names: list[str]) -> list[str]:
+    """Column names matching :func:`inverse_features` (``<joint>.x`` …, ``cog.x`` …)."""
+    names = [f"{joint}.{axis}" for joint in joint_names for axis in "xyz"]
+    names += [f"cog.{axis}" for axis in "xyz"]
+    names += [f"cog_rot.{i}{j}" for i in range(3) for j in range(3)]
+    return names
+
+
+def split_features(X: np.ndarray, n_joints: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Back from features to ``(positions (N, J, 3), cog (N, 3), cog_rotation (N, 3, 3))``."""
+    X = np.asarray(X, dtype=np.float64)
+    width = 3 * n_joints + PLACEMENT_WIDTH
+    if X.ndim != 2 or X.shape[1] != width:
+        raise RigInputError(f"expected features of shape (N, {width}), got {X.shape}")
+    n = len(X)
+    positions = X[:, : 3 * n_joints].reshape(n, n_joints, 3)
+    cog = X[:, 3 * n_joints : 3 * n_joints + 3]
+    rotation = X[:, 3 * n_joints + 3 :].reshape(n, 3, 3)
+    return positions, cog, rotation
