@@ -81,3 +81,29 @@ def test_unknown_rig_is_a_clear_error(capsys):
     assert main(["rigs", "describe", "dragon"]) == 2
     err = capsys.readouterr().err
     assert "unknown rig 'dragon'" in err and "quadruped" in err
+
+
+def test_corpus_show_writes_a_sheet_and_a_gif(tmp_path, capsys):
+    out = tmp_path / "tai_chi.png"
+    assert (
+        main(
+            [
+                "corpus",
+                "show",
+                "rig=face",
+                "clip=Shouting",
+                "--out",
+                str(out),
+                "--panels",
+                "4",
+                "--columns",
+                "2",
+            ]
+        )
+        == 0
+    )
+    assert out.exists() and out.with_suffix(".gif").exists()
+    with Image.open(out.with_suffix(".gif")) as gif:
+        assert gif.n_frames > 10
+    assert main(["corpus", "show", "rig=face", "clap=Shouting", "--out", str(out)]) == 2
+    assert "expected rig=… clip=…" in capsys.readouterr().err

@@ -71,7 +71,60 @@ def _parser() -> argparse.ArgumentParser:
     )
     render.add_argument("--out", type=Path, required=True, help="PNG to write")
     render.set_defaults(run=_rigs_render)
+
+    corpus = commands.add_parser("corpus", help="look at the animator corpus")
+    corpus_commands = corpus.add_subparsers(title="corpus commands", metavar="CORPUS_COMMAND")
+    show = corpus_commands.add_parser(
+        "show",
+        help="draw a clip as a contact sheet PNG and an animated GIF",
+        description="Example: rigmap corpus show rig=quadruped clip='Turning & Galloping' "
+        "--out dog.png (writes dog.png and dog.gif; an --out ending in .gif writes only the GIF)",
+    )
+    show.add_argument("selection", nargs=2, metavar="KEY=VALUE", help="rig=NAME clip=NAME")
+    show.add_argument("--out", type=Path, required=True, help="PNG (plus a GIF beside it) or GIF")
+    show.add_argument("--seed", type=int, default=0, help="corpus seed (default 0)")
+    show.add_argument(
+        "--split",
+        choices=["train", "test"],
+        default=None,
+        help="where to look for the clip (default: both)",
+    )
+    show.add_argument("--panels", type=int, default=12, help="frames on the contact sheet")
+    show.add_argument("--columns", type=int, default=6, help="contact-sheet columns")
+    show.set_defaults(run=_corpus_show)
     return parser
+
+
+def _key_values(pairs: list[str], required: tuple[str, ...]) -> dict[str, str]:
+    """``["rig=biped", "clip=Tai Chi"]`` -> dict, with a clear error for anything else."""
+    values = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or key not in required:
+            raise ValueError(f"expected {' '.join(k + '=…' for k in required)}, got {pair!r}")
+        values[key] = value
+    missing = [k for k in required if k not in values]
+    if missing:
+        raise ValueError(f"missing {', '.join(k + '=…' for k in missing)}")
+    return values
+
+
+def _corpus_show(args) -> int:
+    from rigmap.animation.contact_sheet import show_clip
+
+    chosen = _key_values(args.selection, ("rig", "clip"))
+    written = show_clip(
+        chosen["rig"],
+        chosen["clip"],
+        args.out,
+        split=args.split,
+        seed=args.seed,
+        panels=args.panels,
+        columns=args.columns,
+    )
+    for path in written:
+        print(path)
+    return 0
 
 
 def _rigs_list(args) -> int:
