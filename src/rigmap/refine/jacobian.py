@@ -86,6 +86,9 @@ def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
             x = rig.evaluate(full.index_copy(1, used, y_used))
             return x.reshape(x.shape[0], -1).sum(0)
 
-        J = torch.func.jacrev(positions_summed_over_batch)(full[:, used])  # (3J, n, C_used)
+        # reverse mode costs one pass per output, forward mode one per input: pick the fewer
+        n_outputs = 3 * rig.n_joints
+        transform = torch.func.jacfwd if n_outputs > len(used) else torch.func.jacrev
+        J = transform(positions_summed_over_batch)(full[:, used])  # (3J, n, C_used)
         blocks.append(J.permute(1, 0, 2).detach().numpy())
     return np.concatenate(blocks)
