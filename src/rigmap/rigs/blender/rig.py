@@ -1,0 +1,257 @@
+"""A rig that lives in a .blend file and is evaluated by Blender worker processes.
+
+The rig is a black box here, as in the paper (§3.2, §4.4): controls go to the
+workers, deform-bone heads come back; no gradients (``differentiable=False``).
+The control table is discovered by a worker once and cached next to the rig
+cache, so listing or describing a rig does not start Blender the second time.
+
+Units and axes: centimetres (Blender metres x ``length_scale`` = 100) and
+radians; positions in rigmap's axes like the other built-in rigs (Y up, the
+character facing +Z, +X its left), converted from Blender's Z-up world
+(``up_axis="Z"`` keeps Blender's). Translation controls are in the bone's own
+space, in centimetres. Rotation controls are Euler angles: control bones that
+rotate by quaternion are switched to Euler (``euler_order``, default XYZ) when
+the file is opened, so every rotation channel is one angle an animator keys.
+Custom properties are clamped to their hard range, as Blender clamps keyframes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from fnmatch import fnmatchcase
+from pathlib import Path
+
+import numpy as np
+
+from rigmap.rigs.base import Control, ControlTable, Pose, Rig, _is_torch
+from rigmap.rigs.blender.cache import cache_dir, read_json, write_json_atomic
+from rigmap.rigs.blender.environment import BlenderCommand, find_blender
+from rigmap.rigs.blender.in_blender.protocol import PROTOCOL_VERSION
+from rigmap.rigs.blender.pool import DEFAULT_CHUNK_ROWS, WorkerPool, default_worker_count
+
+# Bumped when what a worker reports about a rig changes, so stale descriptions are ignored.
+DESCRIPTION_FORMAT = 5
+RIGIFY_HELPER_BONES = ["DEF-*", "MCH-*", "ORG-*", "VIS_*"]
+
+
+def _patterns(selection, where: str) -> tuple[list[str], list[str]]:
+    """``include``/``exclude`` glob lists from a list (include only) or a mapping."""
+    if selection is None:
+        return ["*"], []
+    if isinstance(selection, str):
+        return [selection], []
+    if isinstance(selection, Mapping):
+        unknown = set(selection) - {"include", "exclude"}
+        if unknown:
+            raise ValueError(f"{where}: unknown keys {sorted(unknown)}; expected include/exclude")
+        return list(selection.get("include") or ["*"]), list(selection.get("exclude") or [])
+    if isinstance(selection, Sequence):
+        return list(selection), []
+    raise TypeError(
+        f"{where}: expected a list of patterns or {{include, exclude}}, got {selection!r}"
+    )
+
+
+def select_names(names: list[str], selection, where: str) -> list[bool]:
+    """Which ``names`` the glob selection picks; an include pattern that picks none is an error."""
+    include, exclude = _patterns(selection, where)
+    dead = [p for p in include if not any(fnmatchcase(n, p) for n in names)]
+    if dead:
+        raise ValueError(f"{where}: patterns {dead} match no name (names look like {names[:6]})")
+    return [
+        any(fnmatchcase(n, p) for p in include) and not any(fnmatchcase(n, p) for p in exclude)
+        for n in names
+    ]
+
+
+class BlenderRig(Rig):
+    """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
+
+    differentiable = False
+    length_unit = "cm"
+
+    def __init__(
+        self,
+        name: str,
+        path: str | Path,
+        *,
+        armature: str = "rig",
+        joints=None,
+        cog_bone: str = "torso",
+        used=None,
+        control_bones=None,
+        exclude_bones: list[str] | None = None,
+        euler_order: str = "XYZ",
+        length_scale: float = 100.0,
+        up_axis: str = "Y",
+        translate_range: float = 30.0,
+        scale_range: Sequence[float] = (0.25, 3.0),
+        prune: bool = True,
+        use_scripts: bool = False,
+        workers: int | None = None,
+        timeout: float = 120.0,
+        chunk_rows: int = DEFAULT_CHUNK_ROWS,
+        pin_cpus: bool | str = "auto",
+        blender: str | None = None,
+        retarget: list[dict] | None = None,
+        description: str = "",
+    ):
+        path = Path(path).expanduser().resolve()
+        if not path.is_file():
+            raise FileNotFoundError(f"rig {name!r}: blend file {path} does not exist")
+        include, exclude = _patterns(joints, f"rig {name!r} joints")
+        self.name = name
+        self.path = path
+        self.description = description or f"{armature!r} in {path.name}, evaluated by Blender"
+        self.session_options = {
+            "path": str(path),
+            "armature": armature,
+            "control_bones": _patterns(control_bones, f"rig {name!r} control_bones")[0],
+            "exclude_bones": list(RIGIFY_HELPER_BONES if exclude_bones is None else exclude_bones),
+            "joints": {"include": include, "exclude": exclude},
+            "cog_bone": cog_bone,
+            "euler_order": euler_order,
+            "length_scale": float(length_scale),
+            "up_axis": str(up_axis),
+            "translate_range": float(translate_range),
+            "scale_range": [float(s) for s in scale_range],
+            "prune": bool(prune),
+            "use_scripts": bool(use_scripts),
+        }
+        self.command: BlenderCommand = find_blender(blender)
+        self.workers = workers
+        self.timeout = float(timeout)
+        self.chunk_rows = int(chunk_rows)
+        self.pin_cpus = pin_cpus
+        self.retarget_mapping = list(retarget or [])
+        self._pool: WorkerPool | None = None
+
+        try:  # a rig that fails to build leaves no worker behind
+            info = self._describe()
+            controls = info["controls"]
+            used_flags = select_names([c["name"] for c in controls], used, f"rig {name!r} used")
+        except BaseException:
+            self.close()
+            raise
+        self.controls = ControlTable(
+            [
+                Control(
+                    c["name"], c["kind"], c["default"], c["lower"], c["upper"], flag, c["group"]
+                )
+                for c, flag in zip(controls, used_flags, strict=True)
+            ]
+        )
+        self.channels = controls  # per control: bone, attribute/axis or property (for export)
+        self.joint_names = list(info["joint_names"])
+        self.parents = np.asarray(info["parents"], dtype=np.int64)
+        self.stats = dict(info["stats"])
+        self.blender_version = info["blender_version"]
+
+    # --- workers --------------------------------------------------------------
+    def _argv(self, slot: int) -> list[str]:
+        return self.command.argv(*(["--pin-cpu", str(slot)] if self._pinned() else []))
+
+    def _pinned(self) -> bool:
+        """Give each worker a core of its own when there are as many workers as cores.
+
+        Blender then runs its depsgraph on one thread per worker instead of every
+        worker's threads fighting over all cores ("auto"); fewer workers than
+        cores keep Blender's own threading.
+        """
+        if self.pin_cpus == "auto":
+            return (self.workers or default_worker_count()) >= default_worker_count()
+        return bool(self.pin_cpus)
+
+    @property
+    def pool(self) -> WorkerPool:
+        """The rig's workers, started on first use."""
+        if self._pool is None:
+            self._pool = self.make_pool(self.session_options, workers=self.workers)
+        return self._pool
+
+    def make_pool(self, session_options: dict, *, workers: int | None) -> WorkerPool:
+        return WorkerPool(
+            self._argv,
+            setup=[("load", {"options": session_options})],
+            workers=workers,
+            timeout=self.timeout,
+            log_dir=cache_dir() / "logs",
+        )
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    # --- description ----------------------------------------------------------
+    def _description_path(self) -> Path:
+        stat = self.path.stat()
+        key = json.dumps(
+            [
+                self.session_options,
+                stat.st_size,
+                stat.st_mtime_ns,
+                self.command.cache_tag,
+                PROTOCOL_VERSION,
+                DESCRIPTION_FORMAT,
+            ],
+            sort_keys=True,
+        )
+        digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+        return cache_dir() / "describe" / f"{self.path.stem}-{digest}.json"
+
+    def _describe(self) -> dict:
+        cached_path = self._description_path()
+        cached = read_json(cached_path)
+        if cached is not None:
+            return cached
+        self.pool.start()
+        info = self.pool.setup_replies[0]["description"]
+        write_json_atomic(cached_path, info)
+        return info
+
+    def describe(self) -> dict:
+        """Counts a person reads: controls by kind and group, joints, bones, Blender."""
+        return {
+            "name": self.name,
+            "backend": "blender",
+            "blend_file": str(self.path),
+            "armature": self.session_options["armature"],
+            "blender_version": self.blender_version,
+            "length_unit": self.length_unit,
+            "rotation_unit": "rad (Euler " + self.session_options["euler_order"] + ")",
+            "controls": self.controls.summary(),
+            "joints": self.n_joints,
+            "bones": self.stats,
+        }
+
+    # --- evaluation -----------------------------------------------------------
+    def _pose(self, Y) -> Pose:
+        torch_like = Y if _is_torch(Y) else None
+        if torch_like is not None:
+            Y = Y.detach().cpu().numpy()
+        pose = self._run(Y, None)
+        if torch_like is not None:
+            import torch
+
+            return Pose(*(torch.as_tensor(p, dtype=torch_like.dtype) for p in pose))
+        return Pose(*(p.astype(Y.dtype, copy=False) for p in pose))
+
+    def evaluate_with_progress(self, Y, on_chunk_done) -> Pose:
+        """Like :meth:`pose`, calling ``on_chunk_done(rows)`` as chunks finish (progress bars)."""
+        Y, squeeze = self._check_controls(Y)
+        if _is_torch(Y):
+            Y = Y.detach().cpu().numpy()
+        pose = self._run(Y, on_chunk_done)
+        return Pose(*(p[0] for p in pose)) if squeeze else pose
+
+    def _run(self, Y: np.ndarray, on_chunk_done) -> Pose:
+        out = self.pool.map_rows(
+            "evaluate",
+            {"controls": np.asarray(Y, dtype=np.float64)},
+            chunk_rows=self.chunk_rows,
+            on_chunk_done=on_chunk_done,
+        )
+        return Pose(out["positions"], out["cog"], out["cog_rotation"])

@@ -1,0 +1,37 @@
+"""The Hydra rig configs of the Blender rigs say what the code's presets say (no Blender needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rigmap.rigs.blender.rig import select_names
+from rigmap.rigs.blender.rigify import RIGIFY_HUMAN, RIGIFY_WOLF
+
+CONF = Path(__file__).resolve().parents[1] / "conf" / "rig"
+
+
+@pytest.mark.parametrize(
+    ("name", "preset"), [("rigify_human", RIGIFY_HUMAN), ("rigify_wolf", RIGIFY_WOLF)]
+)
+def test_yaml_matches_the_preset(name, preset):
+    config = yaml.safe_load((CONF / f"{name}.yaml").read_text())
+    assert config == {"name": name, **preset}
+
+
+def test_used_selection_globs_and_excludes():
+    names = ["hand_ik.L.tx", "hand_ik.R.tx", "hand_ik.L.sx", "torso.IK_FK", "chin.rx"]
+    picked = select_names(
+        names, {"include": ["hand_ik.[LR].t[xyz]", "torso.*"], "exclude": ["*.R.*"]}, "test"
+    )
+    assert picked == [True, False, False, True, False]
+    assert select_names(names, None, "test") == [True] * 5
+
+
+def test_used_pattern_that_matches_nothing_is_an_error():
+    with pytest.raises(ValueError, match=r"\['hnd_ik\.\*'\] match no name"):
+        select_names(["hand_ik.L.tx"], ["hnd_ik.*"], "rig 'x' used")
+    with pytest.raises(ValueError, match="unknown keys"):
+        select_names(["a"], {"includ": ["a"]}, "rig 'x' used")
