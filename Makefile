@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup demo test lint format benchmark clean
+.PHONY: setup blender demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -18,6 +18,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
+
+# Blender (bpy 5.0.1 pins numpy<2) gets its own environment, .venv-blender, for the
+# worker processes that evaluate Rigify and user .blend rigs.
+blender:
+	bash scripts/setup_blender_env.sh
 
 # The main job on the built-in default (for now: describe and render the default rig).
 demo: setup

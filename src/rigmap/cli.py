@@ -92,7 +92,35 @@ def _parser() -> argparse.ArgumentParser:
     show.add_argument("--panels", type=int, default=12, help="frames on the contact sheet")
     show.add_argument("--columns", type=int, default=6, help="contact-sheet columns")
     show.set_defaults(run=_corpus_show)
+
+    export = commands.add_parser(
+        "export-blend",
+        help="write predicted controls as keyframes on a Blender rig (.blend for animators)",
+    )
+    export.add_argument("--rig", required=True, help="a Blender rig: rigify_human, rigify_wolf")
+    export.add_argument(
+        "--controls",
+        type=Path,
+        required=True,
+        help="parquet with a `frame` column and one column per control",
+    )
+    export.add_argument("--out", type=Path, required=True, help=".blend file to write")
+    export.set_defaults(run=_export_blend)
     return parser
+
+
+def _export_blend(args) -> int:
+    import pandas as pd
+
+    from rigmap.rigs import load
+    from rigmap.rigs.blender.export import export_blend
+
+    if not args.controls.exists():
+        raise FileNotFoundError(f"controls file {args.controls} does not exist")
+    with load(args.rig) as rig:
+        out = export_blend(rig, pd.read_parquet(args.controls), args.out)
+    print(out)
+    return 0
 
 
 def _key_values(pairs: list[str], required: tuple[str, ...]) -> dict[str, str]:
@@ -150,6 +178,8 @@ def describe_rig(rig) -> dict:
         "controls_by_kind": summary["by_kind"],
         "controls_by_group": summary["by_group"],
         "joint_names": list(rig.joint_names),
+        # Blender rigs also say how many bones and transform channels they expose
+        **({"bones": rig.stats} if hasattr(rig, "stats") else {}),
     }
 
 
