@@ -45,6 +45,8 @@ def measure(rig, repeats: int, big_batch: int) -> dict:
         "controls": rig.n_controls,
         "used_controls": len(rig.used_controls),
     }
+    # mesh rigs return every vertex: 100 000 squirrel poses would be 2.7 GB of output alone
+    big_batch = big_batch if rig.n_joints <= 500 else min(big_batch, 10_000)
     for batch in (1, 1000, big_batch):
         Y = random_controls(rig, batch)
         rig.evaluate(Y[: min(batch, 8)])  # warm-up

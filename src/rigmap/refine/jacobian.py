@@ -67,6 +67,12 @@ def _finite_difference(rig: Rig, Y: np.ndarray, step: float | None, chunk: int) 
     return np.concatenate(blocks).astype(dtype, copy=False)
 
 
+# Autodiff batches every output (reverse) or input (forward) direction through the
+# whole rig at once; these bounds keep that under ~1 GB on the built-in rigs.
+AUTODIFF_POSES_PER_PASS = 8
+AUTODIFF_DIRECTIONS_PER_PASS = 32
+
+
 def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
     if not rig.differentiable:
         raise ValueError(
@@ -78,6 +84,7 @@ def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
     dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
     used = torch.as_tensor(rig.controls.used_indices)
     blocks = []
+    chunk = min(chunk, AUTODIFF_POSES_PER_PASS)
     for start in range(0, len(Y), chunk):
         full = torch.as_tensor(Y[start : start + chunk], dtype=dtype)
 
@@ -88,7 +95,11 @@ def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
 
         # reverse mode costs one pass per output, forward mode one per input: pick the fewer
         n_outputs = 3 * rig.n_joints
-        transform = torch.func.jacfwd if n_outputs > len(used) else torch.func.jacrev
-        J = transform(positions_summed_over_batch)(full[:, used])  # (3J, n, C_used)
+        if n_outputs > len(used):
+            J = torch.func.jacfwd(positions_summed_over_batch)(full[:, used])
+        else:
+            J = torch.func.jacrev(
+                positions_summed_over_batch, chunk_size=AUTODIFF_DIRECTIONS_PER_PASS
+            )(full[:, used])  # (3J, n, C_used)
         blocks.append(J.permute(1, 0, 2).detach().numpy())
     return np.concatenate(blocks)
