@@ -114,3 +114,16 @@ def test_bad_input_gets_clear_errors(quadruped):
     with pytest.raises(UnknownRigError, match=r"available rigs: .*biped.*quadruped"):
         load("dragon")
     assert {"quadruped", "biped"} <= set(available())
+
+
+def test_expand_used_fills_defaults_and_checks_shape(biped):
+    used = biped.controls.used_indices
+    values = np.arange(len(used), dtype=float)
+    one = biped.expand_used(values)
+    assert one.shape == (biped.n_controls,)
+    np.testing.assert_array_equal(one[used], values)
+    unused = np.setdiff1d(np.arange(biped.n_controls), used)
+    np.testing.assert_array_equal(one[unused], biped.controls.defaults[unused])
+    assert biped.expand_used(np.stack([values, values])).shape == (2, biped.n_controls)
+    with pytest.raises(RigInputError, match=r"shape \(N, 211\)"):
+        biped.expand_used(np.zeros((2, 5)))

@@ -213,9 +213,19 @@ class Rig(ABC):
     def expand_used(self, Y_used):
         """Full control vectors from values of the used controls only.
 
-        Unused controls stay at their defaults (§6.1).
+        Unused controls stay at their defaults (§6.1). ``(N, C_used)`` gives
+        ``(N, C)``; one ``(C_used,)`` vector gives one ``(C,)`` vector.
         """
         used = self.controls.used_indices
+        if not _is_torch(Y_used):
+            Y_used = np.asarray(Y_used, dtype=np.float64)
+        if Y_used.ndim == 1:
+            return self.expand_used(Y_used[None])[0]
+        if Y_used.ndim != 2 or Y_used.shape[1] != len(used):
+            raise RigInputError(
+                f"rig {self.name!r}: expected used-control values of shape (N, {len(used)}), "
+                f"got {tuple(Y_used.shape)}"
+            )
         if _is_torch(Y_used):
             import torch
 
