@@ -40,6 +40,7 @@ def save_npz_atomically(path: str | os.PathLike, arrays: Mapping[str, object]) -
                         np.lib.format.write_array(out, np.asanyarray(value), allow_pickle=False)
             file.flush()
             os.fsync(file.fileno())
+        os.chmod(temporary, 0o644)  # mkstemp makes 0600; sample files are for everyone
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

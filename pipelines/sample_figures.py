@@ -1,0 +1,72 @@
+"""DVC stage ``sample_figures``: the paper's Fig. 4 for one rig, from the supersample files.
+
+Reads ``<paths.data>/<rig>/samples/<sampler>.npz`` for every strategy and the train
+corpus, and writes ``<paths.reports>/figures/samples_<rig>.png``: one row per strategy
+(the corpus first, standing for ``none``), a few random samples each, drawn as poses.
+
+    python pipelines/sample_figures.py rig=quadruped
+    python pipelines/sample_figures.py rig=face figures.per_row=8 figures.view=side
+"""
+
+from __future__ import annotations
+
+from contextlib import ExitStack
+from pathlib import Path
+
+import hydra
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from animate import rig_from_config
+from rigmap.animation.corpus import Corpus
+from rigmap.sampling import available
+from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
+
+# The view each rig's poses read best in; other rigs are drawn from the side.
+# A face's expressions show from the front. Override with figures.view=...
+VIEWS = {"face": "front"}
+
+
+def run(cfg: DictConfig) -> SampleFigure:
+    rig = rig_from_config(cfg.rig)
+    data = Path(cfg.paths.data) / rig.name
+    corpus = Corpus.read(
+        data / "corpus" / "train.parquet",
+        rig=rig.name,
+        control_names=rig.used_controls,
+        split="train",
+    )
+    paths = {name: data / "samples" / f"{name}.npz" for name in available()}
+    for name, path in paths.items():
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"{path} does not exist; run `python pipelines/supersample.py rig={rig.name} "
+                f"sampler={name}` (or `dvc repro supersample`) first"
+            )
+    with ExitStack() as files:
+        # opened lazily: only the arrays a row needs are read (paper-size files are GBs)
+        samples = {name: files.enter_context(np.load(path)) for name, path in paths.items()}
+        rows = sample_rows(
+            rig,
+            samples,
+            corpus.values(),
+            per_row=int(OmegaConf.select(cfg, "figures.per_row", default=6)),
+            rng=np.random.default_rng(int(cfg.seed)),
+        )
+    figure = draw_sample_figure(
+        rig,
+        rows,
+        Path(cfg.paths.reports) / "figures" / f"samples_{rig.name}.png",
+        view=OmegaConf.select(cfg, "figures.view", default=VIEWS.get(rig.name, "side")),
+    )
+    print(f"{rig.name}: {len(figure.rows)} rows ({figure.view} view) -> {figure.path}")
+    return figure
+
+
+@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    run(cfg)
+
+
+if __name__ == "__main__":
+    main()
