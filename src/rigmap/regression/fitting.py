@@ -1,0 +1,583 @@
+"""Fitting an inverse rig mapping from a rig's training data (the ``fit`` stage, ``rigmap fit``).
+
+The training rows, in this order:
+
+1. every frame of the train corpus — keys and the frames interpolated between them (§6.1) —
+   with its posed joint positions as inputs and its used controls as targets;
+2. the rig's default (rest) pose, as one more row, when no corpus frame is that pose: the
+   GPR's greedy subsampling starts from the rest pose (§4.2);
+3. the sampler's extra samples (§5.2, ``data/<rig>/samples/<sampler>.npz``); sampler
+   ``none`` adds nothing. The paper fits the GPR on the corpus alone (sampler ``none``)
+   and the network on the corpus plus samples; other pairings are allowed and named by
+   the model folder.
+
+Inputs are :func:`~rigmap.regression.features.inverse_features` (COG-relative joints plus
+the COG placement), targets the rig's used controls. A multiquadric GPR also gets the
+learned Jacobian of §4.3-4.4: finite-difference Jacobians at its support poses, regressed
+by a GPR of the same settings, saved in ``learned_jacobian/`` inside the model folder.
+
+The model folder ``<paths.models>/<rig>/<regressor>-<sampler>-<kernel>/`` (kernel
+``none`` for the network) is filled in a hidden sibling folder and renamed into place, so
+a killed fit never leaves a half-written model behind.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import os
+import re
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from rigmap.animation.corpus import Corpus
+from rigmap.animation.posing import PoseTable
+from rigmap.evaluation.metrics import control_std, ground_truth_error, joint_error
+from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
+from rigmap.regression.gpr import GaussianProcessRegressor
+from rigmap.regression.kernels import MultiquadricKernel
+from rigmap.regression.learned_jacobian import LearnedJacobian
+from rigmap.sampling.supersample import load_samples
+
+FIT_FORMAT = "rigmap.fit/1"
+TRAIN_SPLIT = "train"
+LEARNED_JACOBIAN_FOLDER = "learned_jacobian"
+NO_KERNEL = "none"  # the kernel label of regressors that have none (the network)
+# a corpus frame counts as the rest pose when every used control is within this of its default
+_REST_TOLERANCE = 1e-9
+
+Log = Callable[[str], None]
+
+
+class FitInputError(ValueError):
+    """The training files of a fit are missing, of another rig, or do not line up."""
+
+
+def _print(message: str) -> None:
+    print(message, flush=True)
+
+
+# --------------------------------------------------------------------------- training data
+@dataclass
+class TrainingData:
+    """Regression inputs and targets of one rig, with where each row came from."""
+
+    features: np.ndarray  # (N, 3J + 12)
+    controls: np.ndarray  # (N, C_used), in rig.used_controls order
+    corpus_rows: int  # rows [0, corpus_rows) are corpus frames
+    rest_index: int  # the row holding the rest pose
+    rest_pose_added: bool  # True: row ``corpus_rows`` is the rig's default pose, added
+    rest_pose: str  # a sentence saying which row is the rest pose and why
+    sample_rows: int  # the last ``sample_rows`` rows are the sampler's samples
+    sources: dict[str, str | None] = field(default_factory=dict)
+
+    @property
+    def rows(self) -> int:
+        return len(self.features)
+
+
+def training_files(data_dir: str | os.PathLike, rig_name: str, sampler: str) -> dict[str, Path]:
+    """The files a fit reads: train corpus, train poses and the sampler's samples."""
+    rig_data = Path(data_dir) / rig_name
+    return {
+        "corpus": rig_data / "corpus" / f"{TRAIN_SPLIT}.parquet",
+        "poses": rig_data / "poses" / f"{TRAIN_SPLIT}.parquet",
+        "samples": rig_data / "samples" / f"{sampler}.npz",
+    }
+
+
+def load_training_data(rig, data_dir: str | os.PathLike, sampler: str) -> TrainingData:
+    """Corpus frames, the rest pose if the corpus lacks it, then ``sampler``'s samples.
+
+    Sampler ``none`` draws nothing, so its samples file is not read (nor needed).
+    """
+    files = training_files(data_dir, rig.name, sampler)
+    for role, stage in (("corpus", "animate"), ("poses", "pose")):
+        if not files[role].is_file():
+            raise FileNotFoundError(
+                f"{files[role]}: the train {role} of rig {rig.name!r} does not exist (it is "
+                f"the {stage} stage's output: run `python pipelines/{stage}.py rig={rig.name}` "
+                f"or `dvc repro {stage}`)"
+            )
+    corpus = Corpus.read(
+        files["corpus"], rig=rig.name, control_names=rig.used_controls, split=TRAIN_SPLIT
+    )
+    poses = PoseTable.read(files["poses"], rig=rig.name, n_joints=rig.n_joints, split=TRAIN_SPLIT)
+    if list(poses.joint_names) != list(rig.joint_names):
+        raise FitInputError(
+            f"{files['poses']}: joint names differ from rig {rig.name!r}'s (same count, "
+            "another order or naming); re-run the pose stage"
+        )
+    corpus_keys = corpus.table[["clip", "frame"]].to_numpy()
+    pose_keys = poses.table[["clip", "frame"]].to_numpy()
+    if corpus_keys.shape != pose_keys.shape or not (corpus_keys == pose_keys).all():
+        raise FitInputError(
+            f"{files['poses']} ({len(pose_keys)} rows) does not hold the frames of "
+            f"{files['corpus']} ({len(corpus_keys)} rows) in the same order; the poses are "
+            "stale: re-run the pose stage"
+        )
+    where = str(files["poses"])
+    features = [
+        inverse_features(
+            poses.positions(), poses.cog(), poses.cog_rotation(), n_joints=rig.n_joints, where=where
+        )
+    ]
+    controls = [corpus.values()]
+    corpus_rows = len(controls[0])
+
+    defaults = rig.controls.defaults[rig.controls.used_indices]
+    distance = np.abs(controls[0] - defaults).max(axis=1)
+    matches = np.flatnonzero(distance <= _REST_TOLERANCE)
+    if len(matches):
+        rest_index, added = int(matches[0]), False
+        clip, frame = corpus_keys[rest_index]
+        rest_pose = (
+            f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
+        )
+    else:
+        rest_index, added = corpus_rows, True
+        pose = rig.pose(rig.default_controls(1))
+        features.append(
+            inverse_features(
+                np.asarray(pose.positions),
+                np.asarray(pose.cog),
+                np.asarray(pose.cog_rotation),
+                n_joints=rig.n_joints,
+                where=f"rig {rig.name!r} default pose",
+            )
+        )
+        controls.append(defaults[None])
+        rest_pose = (
+            f"no corpus frame is the rig's default pose (closest differs by "
+            f"{distance.min():.3g} in some used control), so the default pose was added as "
+            f"row {rest_index}"
+        )
+
+    samples_source = None
+    sample_rows = 0
+    if sampler != "none":
+        sample_features, sample_controls = _read_samples(rig, files["samples"], sampler)
+        features.append(sample_features)
+        controls.append(sample_controls)
+        sample_rows = len(sample_controls)
+        samples_source = str(files["samples"])
+    return TrainingData(
+        features=np.concatenate(features),
+        controls=np.concatenate(controls),
+        corpus_rows=corpus_rows,
+        rest_index=rest_index,
+        rest_pose_added=added,
+        rest_pose=rest_pose,
+        sample_rows=sample_rows,
+        sources={
+            "corpus": str(files["corpus"]),
+            "poses": str(files["poses"]),
+            "samples": samples_source,
+        },
+    )
+
+
+def _read_samples(rig, path: Path, sampler: str) -> tuple[np.ndarray, np.ndarray]:
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path}: the {sampler!r} samples of rig {rig.name!r} do not exist (the "
+            f"supersample stage's output: run `python pipelines/supersample.py rig={rig.name} "
+            f"sampler={sampler}`), or fit with sampler=none"
+        )
+    try:
+        samples = load_samples(path)
+    except (OSError, ValueError, KeyError) as error:
+        raise FitInputError(f"{path}: not a readable samples file ({error})") from None
+    needed = ("controls", "positions", "cog", "cog_rotation", "control_names", "joint_names")
+    missing = [key for key in needed if key not in samples]
+    if missing:
+        raise FitInputError(f"{path}: arrays {missing} are missing (have {sorted(samples)})")
+    meta = samples.get("meta", {})
+    if meta.get("rig") != rig.name:
+        raise FitInputError(
+            f"{path}: samples are for rig {meta.get('rig')!r}, expected {rig.name!r}"
+        )
+    if meta.get("sampler") not in (None, sampler):
+        raise FitInputError(
+            f"{path}: samples were drawn by sampler {meta.get('sampler')!r}, expected {sampler!r}"
+        )
+    if list(samples["control_names"]) != list(rig.used_controls):
+        raise FitInputError(
+            f"{path}: control_names differ from rig {rig.name!r}'s used controls "
+            f"({len(samples['control_names'])} vs {len(rig.used_controls)}); re-run supersample"
+        )
+    if list(samples["joint_names"]) != list(rig.joint_names):
+        raise FitInputError(
+            f"{path}: joint_names differ from rig {rig.name!r}'s joints "
+            f"({len(samples['joint_names'])} vs {rig.n_joints}); re-run supersample"
+        )
+    controls = np.asarray(samples["controls"], dtype=np.float64)
+    if controls.ndim != 2 or controls.shape[1] != len(rig.used_controls):
+        raise FitInputError(
+            f"{path}: controls have shape {controls.shape}, expected (n, {len(rig.used_controls)})"
+        )
+    features = inverse_features(
+        samples["positions"],
+        samples["cog"],
+        samples["cog_rotation"],
+        n_joints=rig.n_joints,
+        where=str(path),
+    )
+    if not np.isfinite(controls).all():
+        raise FitInputError(f"{path}: controls contain NaN or infinity")
+    return features, controls
+
+
+# --------------------------------------------------------------------------- the fit
+@dataclass
+class FitResult:
+    """What a fit produced: the folder written, the models and the ``fit.json`` record."""
+
+    folder: Path
+    model: Any
+    learned_jacobian: LearnedJacobian | None
+    record: dict[str, Any]
+
+
+def model_folder_name(regressor: str, sampler: str, kernel: str) -> str:
+    """``<regressor>-<sampler>-<kernel>``, e.g. ``gpr-none-multiquadric``, ``nn-uniform-none``."""
+    return f"{regressor}-{sampler}-{kernel}"
+
+
+def rig_from_config(rig_cfg: DictConfig):
+    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's)."""
+    from rigmap.rigs import load
+
+    options = OmegaConf.to_container(rig_cfg, resolve=True)
+    options.pop("corpus", None)
+    return load(options)
+
+
+def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
+    """Read the training data ``cfg`` names, fit ``cfg.regressor``, write the model folder."""
+    started = time.perf_counter()
+    with rig_from_config(cfg.rig) as rig:  # a DCC rig's worker processes end with the fit
+        return _fit_with_rig(cfg, rig, started, log)
+
+
+def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
+    import hydra.utils
+
+    sampler = str(cfg.sampler.name)
+    model = hydra.utils.instantiate(cfg.regressor, _convert_="all")
+    regressor = str(getattr(model, "name", type(model).__name__))
+    kernel = getattr(model, "kernel", None)
+    kernel_label = kernel.name if kernel is not None else NO_KERNEL
+    folder = Path(cfg.paths.models) / rig.name / model_folder_name(regressor, sampler, kernel_label)
+    log(f"fit {rig.name}: {regressor} (kernel {kernel_label}, sampler {sampler}) -> {folder}")
+
+    data = load_training_data(rig, cfg.paths.data, sampler)
+    log(
+        f"  training rows: {data.rows} = {data.corpus_rows} corpus frames"
+        f"{' + 1 rest pose' if data.rest_pose_added else ''} + {data.sample_rows} samples; "
+        f"{data.features.shape[1]} inputs -> {data.controls.shape[1]} used controls"
+    )
+    log(f"  rest pose: {data.rest_pose}")
+
+    seconds: dict[str, float] = {}
+    clock = time.perf_counter()
+    fitted = fit_regressor(model, rig, data, log=log)
+    seconds["model"] = time.perf_counter() - clock
+    details = describe_fitted(fitted)
+
+    learned = None
+    if isinstance(fitted, GaussianProcessRegressor) and isinstance(
+        fitted.kernel_, MultiquadricKernel
+    ):
+        learned, jacobian_details = fit_learned_jacobian(fitted, rig, data, log=log)
+        details["learned_jacobian"] = jacobian_details
+        seconds["jacobians"] = jacobian_details["seconds"]["finite_differences"]
+        seconds["learned_jacobian"] = jacobian_details["seconds"]["fit"]
+
+    clock = time.perf_counter()
+    error = training_error(fitted, rig, data)
+    seconds["training_error"] = time.perf_counter() - clock
+    seconds["total"] = time.perf_counter() - started
+    log(
+        f"  training error on {error['rows']} corpus frames: ground truth "
+        f"{error['ground_truth_error']:.4g} (std units; the mean predictor scores 1), joint "
+        f"{error['joint_error_cm2']:.4g} cm² (mean controls: "
+        f"{error['joint_error_cm2_mean_controls']:.4g} cm²)"
+    )
+
+    record = {
+        "format": FIT_FORMAT,
+        "rig": rig.name,
+        "regressor": regressor,
+        "sampler": sampler,
+        "kernel": kernel_label,
+        "model_file": f"{fitted.file_stem}.json",
+        "rows": {
+            "total": data.rows,
+            "corpus": data.corpus_rows,
+            "rest_pose_added": int(data.rest_pose_added),
+            "samples": data.sample_rows,
+        },
+        "rest_pose": {
+            "index": data.rest_index,
+            "added": data.rest_pose_added,
+            "note": data.rest_pose,
+        },
+        "seconds": seconds,
+        "features": feature_layout(rig),
+        "outputs": {"count": len(rig.used_controls), "controls": list(rig.used_controls)},
+        "inputs": data.sources,
+        "training_error": error,
+        **details,
+        "config": OmegaConf.to_container(cfg, resolve=True),
+    }
+
+    def fill(staging: Path) -> None:
+        fitted.save(staging)
+        if learned is not None:
+            learned.save(staging / LEARNED_JACOBIAN_FOLDER)
+        text = json.dumps(_json_ready(record), indent=2, allow_nan=False) + "\n"
+        (staging / "fit.json").write_text(text)
+
+    write_model_folder(folder, fill)
+    log(f"  wrote {folder} in {seconds['total']:.1f} s")
+    return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
+
+
+def fit_regressor(model, rig, data: TrainingData, *, log: Log = _print):
+    """``model.fit`` on the training rows; a GPR also gets the rest-pose row."""
+    options: dict[str, Any] = {"rig_name": rig.name, "control_names": list(rig.used_controls)}
+    if "rest_index" in inspect.signature(model.fit).parameters:
+        options["rest_index"] = data.rest_index
+    if isinstance(model, GaussianProcessRegressor):
+        _announce_gpr(model, data.rows, log)
+    else:
+        log(f"  training {model!r} on {data.rows} rows")
+    model.fit(data.features, data.controls, **options)
+    if isinstance(model, GaussianProcessRegressor):
+        phases = model.fit_seconds_
+        log(
+            f"  GPR length-scale search {phases['length_scale_search']:.1f} s -> "
+            f"{model.length_scale_:.3g}; subsampling {phases['subsampling']:.1f} s -> "
+            f"{len(model.support_indices_)} support points; solve {phases['solve']:.1f} s "
+            f"({model.solver_}, reciprocal condition {model.rcond_:.1e})"
+        )
+        if model.search_length_scale:
+            curve = ", ".join(
+                f"{scale:.3g}: {error:.3g}"
+                for scale, error in zip(model.length_scales_, model.cv_errors_, strict=True)
+            )
+            log(f"  CV error by length scale (standardised units²): {curve}")
+    return model
+
+
+def _announce_gpr(model: GaussianProcessRegressor, rows: int, log: Log) -> None:
+    target = rows if model.n_points is None else min(int(model.n_points), rows)
+    steps = []
+    if model.search_length_scale:
+        low, high = (float(v) for v in model.length_scale_range)
+        search_rows = min(rows, int(model.search_points) if model.search_points else target)
+        steps.append(
+            f"length-scale search ({model.n_length_scales} values in [{low:g}, {high:g}] x "
+            f"{model.cv_splits} half-splits on {search_rows} rows)"
+        )
+    if target < rows:
+        steps.append(f"greedy subsampling to {target} of {rows} rows")
+    steps.append("solve")
+    kernel = model.kernel.name if model.kernel is not None else MultiquadricKernel.name
+    log(f"  GPR ({kernel} kernel): " + ", then ".join(steps))
+
+
+def describe_fitted(model) -> dict[str, Any]:
+    """Model-specific facts for ``fit.json``: the GPR's search and support, the loss curve."""
+    if isinstance(model, GaussianProcessRegressor):
+        return {
+            "gpr": {
+                "length_scale": float(model.length_scale_),
+                "length_scale_search": {
+                    "searched": bool(model.search_length_scale),
+                    "candidates": [float(v) for v in model.length_scales_],
+                    "cv_errors": [float(v) for v in model.cv_errors_],
+                },
+                "support_points": len(model.support_indices_),
+                "solver": model.solver_,
+                "reciprocal_condition": float(model.rcond_),
+                "phase_seconds": dict(model.fit_seconds_),
+            }
+        }
+    history = getattr(model, "loss_history_", None)
+    if history is not None:
+        return {"network": {"loss_history": [float(v) for v in history]}}
+    return {}
+
+
+def fit_learned_jacobian(
+    model: GaussianProcessRegressor, rig, data: TrainingData, *, log: Log = _print
+) -> tuple[LearnedJacobian, dict[str, Any]]:
+    """§4.3-4.4: finite-difference Jacobians at the GPR's support poses, learned by a GPR.
+
+    The Jacobian GPR takes the inverse mapping's settings (regularisation, search range,
+    splits, seed); every support pose is one of its support points.
+    """
+    from rigmap.refine import jacobian
+
+    support = np.asarray(model.support_indices_)
+    n_used = len(rig.used_controls)
+    log(
+        f"  finite-difference Jacobians at {len(support)} support poses "
+        f"({2 * n_used} rig evaluations each)"
+    )
+    clock = time.perf_counter()
+    jacobians = jacobian(rig, rig.expand_used(data.controls[support]), "finite_difference")
+    fd_seconds = time.perf_counter() - clock
+    learned = LearnedJacobian(
+        kernel=model.kernel_,
+        regularization=model.regularization,
+        search_length_scale=model.search_length_scale,
+        length_scale_range=model.length_scale_range,
+        n_length_scales=model.n_length_scales,
+        cv_splits=model.cv_splits,
+        cv_max_outputs=model.cv_max_outputs,
+        normalize=model.normalize,
+        seed=model.seed,
+    )
+    log(
+        f"  learned Jacobian: GPR {len(support)} poses -> {jacobians.shape[1]} x "
+        f"{jacobians.shape[2]} Jacobians (after {fd_seconds:.1f} s of finite differences)"
+    )
+    clock = time.perf_counter()
+    learned.fit(
+        data.features[support],
+        jacobians,
+        rig_name=rig.name,
+        control_names=list(rig.used_controls),
+    )
+    fit_seconds = time.perf_counter() - clock
+    predicted = learned.predict(data.features[support])
+    relative = float(np.linalg.norm(predicted - jacobians) / np.linalg.norm(jacobians))
+    log(
+        f"  learned Jacobian fitted in {fit_seconds:.1f} s: length scale "
+        f"{learned.length_scale_:.3g}, relative error at the support poses {relative:.2e}"
+    )
+    return learned, {
+        "folder": LEARNED_JACOBIAN_FOLDER,
+        "poses": len(support),
+        "jacobian_shape": [int(jacobians.shape[1]), int(jacobians.shape[2])],
+        "method": "finite_difference",
+        "length_scale": float(learned.length_scale_),
+        "relative_error_at_support": relative,
+        "seconds": {"finite_differences": fd_seconds, "fit": fit_seconds},
+    }
+
+
+def training_error(model, rig, data: TrainingData) -> dict[str, Any]:
+    """Errors on the corpus frames the model was trained on (§6.1's two measures).
+
+    The ground-truth error is in training-std units, so predicting the corpus mean
+    scores 1; the joint error (cm²) comes with that of the mean controls for scale.
+    """
+    rows = slice(0, data.corpus_rows)
+    truth = data.controls[rows]
+    predicted = model.predict(data.features[rows])
+    kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
+    std = control_std(truth)
+    gt = ground_truth_error(predicted, truth, std, kinds, names=list(rig.used_controls))
+    n_joint_values = 3 * rig.n_joints
+    target = data.features[rows, :n_joint_values]
+    posed = np.asarray(rig.evaluate(rig.expand_used(predicted)))
+    mean_pose = np.asarray(rig.evaluate(rig.expand_used(truth.mean(axis=0, keepdims=True))))
+    return {
+        "rows": int(data.corpus_rows),
+        "ground_truth_error": gt.mean,
+        "ground_truth_scored_controls": gt.scored_controls,
+        "joint_error_cm2": joint_error(posed, target).mean,
+        "joint_error_cm2_mean_controls": joint_error(
+            np.broadcast_to(mean_pose.reshape(1, -1), target.shape), target
+        ).mean,
+    }
+
+
+def feature_layout(rig) -> dict[str, Any]:
+    """How the input columns are laid out (see :func:`inverse_features`)."""
+    names = feature_names(list(rig.joint_names))
+    return {
+        "function": "rigmap.regression.features.inverse_features",
+        "width": len(names),
+        "n_joints": rig.n_joints,
+        "joint_columns": "<joint>.x, <joint>.y, <joint>.z per joint in joint_names order (cm, "
+        "relative to the COG)",
+        "joint_names": list(rig.joint_names),
+        "placement_columns": names[-PLACEMENT_WIDTH:],
+    }
+
+
+# --------------------------------------------------------------------------- the folder
+def write_model_folder(folder: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
+    """Fill a hidden sibling folder with ``fill(staging)``, then rename it to ``folder``.
+
+    An existing ``folder`` is replaced only once the new one is complete. A fit killed
+    mid-way leaves at most a hidden ``.<name>.<pid>.*`` sibling, which the next fit of
+    the same model removes once its process is gone.
+    """
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned(folder)
+    prefix = f".{folder.name}.{os.getpid()}."
+    staging = Path(tempfile.mkdtemp(prefix=prefix, suffix=".tmp", dir=folder.parent))
+    try:
+        fill(staging)
+        staging.chmod(0o755)
+        if folder.exists():
+            retired = Path(tempfile.mkdtemp(prefix=prefix, suffix=".old", dir=folder.parent))
+            os.replace(folder, retired / folder.name)
+            os.replace(staging, folder)
+            shutil.rmtree(retired)
+        else:
+            os.replace(staging, folder)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return folder
+
+
+def _remove_abandoned(folder: Path) -> None:
+    pattern = re.compile(rf"^\.{re.escape(folder.name)}\.(\d+)\..*\.(tmp|old)$")
+    for candidate in folder.parent.iterdir():
+        match = pattern.match(candidate.name)
+        if match and candidate.is_dir() and not _process_alive(int(match.group(1))):
+            shutil.rmtree(candidate, ignore_errors=True)
+
+
+def _process_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return False  # our own leftovers can only be from an earlier, failed call
+    try:
+        os.kill(pid, 0)  # signal 0: only asks whether the process exists
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _json_ready(value: Any) -> Any:
+    """Plain JSON: numpy scalars as numbers, non-finite numbers as null."""
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json_ready(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,286 @@
+"""The ``fit`` stage and ``rigmap fit``: training rows, model folders, learned Jacobian, errors.
+
+One biped corpus (animate + pose stages) and one small pca_gaussian samples file are built
+per session in a temporary data folder; fits use tiny budgets.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_dir
+
+from rigmap.animation.corpus import Corpus
+from rigmap.cli import main as rigmap_main
+from rigmap.refine import jacobian
+from rigmap.regression import (
+    FeedForwardRegressor,
+    GaussianProcessRegressor,
+    LearnedJacobian,
+    ModelMismatchError,
+    load_regressor,
+)
+from rigmap.regression.fitting import load_training_data, write_model_folder
+from rigmap.sampling import make_sampler, supersample
+
+ROOT = Path(__file__).resolve().parents[1]
+N_SAMPLES = 300
+TINY = [
+    "budget.gpr_points=40",
+    "budget.length_scales=3",
+    "budget.cv_splits=2",
+    "budget.epochs=1",
+    "budget.hidden=32",
+    "budget.batch_size=64",
+    f"budget.samples={N_SAMPLES}",
+]
+
+
+def _stage(name: str):
+    """A pipelines/<name>.py module (they are scripts, not a package)."""
+    sys.path.insert(0, str(ROOT / "pipelines"))
+    try:
+        spec = importlib.util.spec_from_file_location(name, ROOT / "pipelines" / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    finally:
+        sys.path.remove(str(ROOT / "pipelines"))
+
+
+def config(*overrides: str):
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory, biped) -> Path:
+    """Biped train/test corpus and poses, plus a small pca_gaussian samples file."""
+    data = tmp_path_factory.mktemp("fit_data")
+    cfg = config("rig=biped", f"paths.data={data}")
+    _stage("animate").run(cfg)
+    _stage("pose").run(cfg, progress=False)
+    corpus = Corpus.read(data / "biped/corpus/train.parquet", control_names=biped.used_controls)
+    sampler = make_sampler("pca_gaussian").fit(corpus.values())
+    supersample(
+        biped, sampler, N_SAMPLES, data / "biped/samples/pca_gaussian.npz", seed=0, progress=False
+    )
+    return data
+
+
+@pytest.fixture(scope="module")
+def models_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("fit_models")
+
+
+def fit_config(data_dir: Path, models_dir: Path, *overrides: str):
+    return config(
+        "rig=biped", f"paths.data={data_dir}", f"paths.models={models_dir}", *TINY, *overrides
+    )
+
+
+@pytest.fixture(scope="module")
+def gpr_fit(data_dir, models_dir):
+    cfg = fit_config(data_dir, models_dir, "regressor=gpr", "sampler=none", "kernel=multiquadric")
+    return _stage("fit").run(cfg)
+
+
+@pytest.fixture(scope="module")
+def nn_fit(data_dir, models_dir):
+    # a few epochs so the tiny network is clearly better than the mean, not by luck
+    cfg = fit_config(
+        data_dir, models_dir, "regressor=nn", "sampler=pca_gaussian", "budget.epochs=4"
+    )
+    return _stage("fit").run(cfg)
+
+
+def standardised_error(model, data) -> tuple[float, float]:
+    """Mean squared control error on the corpus rows in training-std units, and the mean's."""
+    rows = slice(0, data.corpus_rows)
+    truth = data.controls[rows]
+    std = truth.std(axis=0)
+    moving = std > 1e-9
+    predicted = model.predict(data.features[rows])
+    model_error = float((((predicted - truth)[:, moving] / std[moving]) ** 2).mean())
+    mean_error = float((((truth.mean(axis=0) - truth)[:, moving] / std[moving]) ** 2).mean())
+    return model_error, mean_error
+
+
+def test_training_rows_add_the_default_pose_when_the_corpus_lacks_it(data_dir, biped):
+    data = load_training_data(biped, data_dir, "pca_gaussian")
+    corpus = Corpus.read(data_dir / "biped/corpus/train.parquet", control_names=biped.used_controls)
+    n = len(corpus.table)
+    defaults = biped.controls.defaults[biped.controls.used_indices]
+    # no biped corpus frame is the rest pose, so it is appended right after the corpus
+    assert not (np.abs(corpus.values() - defaults).max(axis=1) < 1e-9).any()
+    assert data.rest_pose_added and data.rest_index == n == data.corpus_rows
+    np.testing.assert_array_equal(data.controls[n], defaults)
+    rest = biped.pose(biped.default_controls(1))
+    np.testing.assert_allclose(data.features[n, : 3 * biped.n_joints], rest.positions.ravel())
+    assert (data.rows, data.sample_rows) == (n + 1 + N_SAMPLES, N_SAMPLES)
+    assert data.features.shape[1] == 3 * biped.n_joints + 12
+    none = load_training_data(biped, data_dir, "none")
+    assert none.rows == n + 1 and none.sources["samples"] is None
+
+
+def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir, biped):
+    folder = gpr_fit.folder
+    assert folder.name == "gpr-none-multiquadric" and folder.parent.name == "biped"
+    names = sorted(p.name for p in folder.iterdir())
+    assert names == ["fit.json", "gpr.json", "gpr.npz", "learned_jacobian"]
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no staging left
+    record = json.loads((folder / "fit.json").read_text())
+    n_corpus = len(Corpus.read(data_dir / "biped/corpus/train.parquet").table)
+    assert (record["rig"], record["regressor"], record["sampler"], record["kernel"]) == (
+        "biped",
+        "gpr",
+        "none",
+        "multiquadric",
+    )
+    assert record["rows"] == {
+        "total": n_corpus + 1,
+        "corpus": n_corpus,
+        "rest_pose_added": 1,
+        "samples": 0,
+    }
+    assert record["features"]["width"] == 3 * biped.n_joints + 12
+    assert record["features"]["joint_names"] == list(biped.joint_names)
+    assert record["outputs"]["controls"] == list(biped.used_controls)
+    assert record["seconds"]["total"] >= record["seconds"]["model"] > 0
+    assert record["config"]["regressor"]["n_points"] == 40  # the resolved config
+    assert record["gpr"]["support_points"] == 40
+    search = record["gpr"]["length_scale_search"]
+    assert record["gpr"]["length_scale"] in search["candidates"] and len(search["cv_errors"]) == 3
+
+    model = load_regressor(folder, rig=biped)
+    assert isinstance(model, GaussianProcessRegressor)
+    # subsampling started from the rest pose, the row the stage added
+    assert model.support_indices_[0] == record["rest_pose"]["index"] == n_corpus
+    data = load_training_data(biped, data_dir, "none")
+    model_error, mean_error = standardised_error(model, data)
+    assert model_error < 0.7 * mean_error
+    assert record["training_error"]["ground_truth_error"] == pytest.approx(model_error, rel=1e-6)
+
+
+def test_learned_jacobian_matches_finite_differences_at_a_support_pose(gpr_fit, data_dir, biped):
+    model = load_regressor(gpr_fit.folder, rig=biped)
+    learned = LearnedJacobian.load(gpr_fit.folder / "learned_jacobian", rig=biped)
+    data = load_training_data(biped, data_dir, "none")
+    row = int(model.support_indices_[7])
+    predicted = learned.predict(data.features[row])
+    expected = jacobian(biped, biped.expand_used(data.controls[row : row + 1]))[0]
+    assert predicted.shape == expected.shape == (3 * biped.n_joints, len(biped.used_controls))
+    relative = np.linalg.norm(predicted - expected) / np.linalg.norm(expected)
+    assert relative < 1e-3
+    # away from the support the learned Jacobian is an estimate, not a copy of a support one
+    assert not np.allclose(learned.predict(data.features[row + 1]), predicted)
+
+
+def test_network_fits_corpus_plus_samples(nn_fit, data_dir, biped):
+    folder = nn_fit.folder
+    assert folder.name == "nn-pca_gaussian-none"
+    assert sorted(p.name for p in folder.iterdir()) == ["fit.json", "network.json", "network.pt"]
+    record = json.loads((folder / "fit.json").read_text())
+    assert (record["regressor"], record["sampler"], record["kernel"]) == (
+        "nn",
+        "pca_gaussian",
+        "none",
+    )
+    assert record["rows"]["samples"] == N_SAMPLES
+    assert record["inputs"]["samples"].endswith("biped/samples/pca_gaussian.npz")
+    assert len(record["network"]["loss_history"]) == 4  # budget.epochs
+    model = load_regressor(folder, rig=biped)
+    assert isinstance(model, FeedForwardRegressor) and model.hidden == 32
+    model_error, mean_error = standardised_error(
+        model, load_training_data(biped, data_dir, "pca_gaussian")
+    )
+    assert model_error < 0.9 * mean_error
+    assert record["training_error"]["ground_truth_error"] == pytest.approx(model_error, rel=1e-6)
+
+
+def test_model_folder_of_another_rig_is_refused(gpr_fit, nn_fit, quadruped):
+    with pytest.raises(ModelMismatchError, match=r"fitted for rig 'biped'.*'quadruped'"):
+        load_regressor(gpr_fit.folder, rig=quadruped)
+    with pytest.raises(ModelMismatchError, match=r"fitted for rig 'biped'.*'quadruped'"):
+        load_regressor(nn_fit.folder, rig="quadruped")
+    with pytest.raises(ModelMismatchError, match="'biped'"):
+        LearnedJacobian.load(gpr_fit.folder / "learned_jacobian", rig=quadruped)
+
+
+def test_missing_inputs_are_named(tmp_path, data_dir):
+    partial = tmp_path / "data"
+    (partial / "biped/corpus").mkdir(parents=True)
+    source = data_dir / "biped/corpus/train.parquet"
+    (partial / "biped/corpus/train.parquet").write_bytes(source.read_bytes())
+    fit = _stage("fit")
+    cfg = fit_config(partial, tmp_path / "models", "regressor=gpr", "sampler=none")
+    with pytest.raises(FileNotFoundError, match=r"biped/poses/train\.parquet.*pose stage"):
+        fit.run(cfg)
+    cfg = fit_config(data_dir, tmp_path / "models", "regressor=nn", "sampler=uniform")
+    with pytest.raises(FileNotFoundError, match=r"biped/samples/uniform\.npz"):
+        fit.run(cfg)
+    assert not (tmp_path / "models").exists()
+
+
+def test_model_folder_is_replaced_only_when_complete(tmp_path):
+    folder = tmp_path / "models" / "rig" / "gpr-none-linear"
+
+    def fill(text):
+        def write(staging: Path) -> None:
+            (staging / "fit.json").write_text(text)
+
+        return write
+
+    write_model_folder(folder, fill("first"))
+
+    def broken(staging: Path) -> None:
+        (staging / "half.json").write_text("{")
+        raise RuntimeError("killed mid-fit")
+
+    with pytest.raises(RuntimeError, match="killed mid-fit"):
+        write_model_folder(folder, broken)
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["gpr-none-linear"]
+    assert (folder / "fit.json").read_text() == "first"
+
+    # a folder abandoned by a killed process (its pid is gone) is cleared by the next fit
+    finished = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    dead_pid = int(finished.stdout)
+    abandoned = folder.parent / f".gpr-none-linear.{dead_pid}.abc123.tmp"
+    abandoned.mkdir()
+    write_model_folder(folder, fill("second"))
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["gpr-none-linear"]
+    assert (folder / "fit.json").read_text() == "second"
+
+
+def test_rigmap_fit_cli(tmp_path, data_dir, capsys, biped):
+    models = tmp_path / "models"
+    common = [f"paths.data={data_dir}", f"paths.models={models}", *TINY]
+    status = rigmap_main(
+        ["fit", "rig=biped", "regressor=gpr", "kernel=gaussian", "sampler=none", *common]
+    )
+    assert status == 0
+    folder = models / "biped" / "gpr-none-gaussian"
+    assert str(folder) in capsys.readouterr().out
+    record = json.loads((folder / "fit.json").read_text())
+    assert (record["kernel"], record["gpr"]["support_points"]) == ("gaussian", 40)
+    assert not (folder / "learned_jacobian").exists()  # only the multiquadric GPR has one
+    assert load_regressor(folder, rig=biped).kernel_.name == "gaussian"
+
+    assert rigmap_main(["fit", "rig=biped", "kernel=nope", *common]) == 2
+    assert "Could not find 'kernel/nope'" in capsys.readouterr().err
+    missing = tmp_path / "no_data"
+    assert rigmap_main(["fit", "rig=biped", "sampler=none", f"paths.data={missing}"]) == 2
+    assert f"{missing}/biped/corpus/train.parquet" in capsys.readouterr().err
+    assert rigmap_main(["fit", "--config-dir", str(tmp_path), "rig=biped"]) == 2
+    assert f"{tmp_path}/config.yaml" in capsys.readouterr().err
