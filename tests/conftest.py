@@ -21,3 +21,77 @@ def biped():
     from rigmap.rigs import load
 
     return load("biped")
+
+
+# --------------------------------------------------------------------------- a real mlflow server
+MLFLOW_SERVER_START_TIMEOUT_S = 120  # a loaded 2-core machine needs 20-45 s to start it
+
+
+@pytest.fixture(scope="session")
+def mlflow_server(tmp_path_factory):
+    """``http://127.0.0.1:<port>`` of a fresh `mlflow server` (temporary SQLite backend and
+    artifact folder, free port, own process group); the whole group is killed at the end."""
+    import os
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    folder = tmp_path_factory.mktemp("mlflow-server")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    env["MLFLOW_SERVER_ENABLE_JOB_EXECUTION"] = "false"  # no huey job-runner processes
+    log_path = folder / "server.log"
+    log = open(log_path, "w")
+    server = subprocess.Popen(
+        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port),
+         "--workers", "1", "--backend-store-uri", f"sqlite:///{folder / 'backend.db'}",
+         "--artifacts-destination", str(folder / "artifacts")],
+        stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True,
+    )  # fmt: skip
+    uri = f"http://127.0.0.1:{port}"
+
+    def tail() -> str:
+        log.flush()
+        return log_path.read_text()[-2000:]
+
+    try:
+        deadline = time.monotonic() + MLFLOW_SERVER_START_TIMEOUT_S
+        while True:
+            if server.poll() is not None:
+                raise RuntimeError(f"mlflow server exited with {server.returncode}: {tail()}")
+            try:
+                with urllib.request.urlopen(f"{uri}/health", timeout=2) as response:
+                    if response.status == 200:
+                        break
+            except OSError:
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError(
+                    f"mlflow server not up in {MLFLOW_SERVER_START_TIMEOUT_S} s: {tail()}"
+                )
+            time.sleep(0.25)
+        yield uri
+    finally:
+        # SIGTERM the server's process group (uvicorn children), then SIGKILL what lingers
+        for sig, wait_s in ((signal.SIGTERM, 15.0), (signal.SIGKILL, 5.0)):
+            try:
+                os.killpg(server.pid, sig)
+            except ProcessLookupError:
+                break
+            deadline = time.monotonic() + wait_s
+            while time.monotonic() < deadline:
+                server.poll()  # reap the leader so the group can empty
+                try:
+                    os.killpg(server.pid, 0)
+                except ProcessLookupError:
+                    break
+                time.sleep(0.1)
+            else:
+                continue
+            break
+        log.close()

@@ -106,7 +106,146 @@ def _parser() -> argparse.ArgumentParser:
     )
     export.add_argument("--out", type=Path, required=True, help=".blend file to write")
     export.set_defaults(run=_export_blend)
+
+    fit = commands.add_parser(
+        "fit",
+        help="fit an inverse mapping into models/<rig>/<regressor>-<sampler>-<kernel>/",
+        description="Runs the fit stage (pipelines/fit.py) with Hydra overrides, e.g. "
+        "rigmap fit rig=biped regressor=gpr kernel=gaussian sampler=none, or "
+        "rigmap fit rig=quadruped regressor=nn sampler=pca_gaussian experiment=paper. "
+        "Paths in the config (paths.data, paths.models) are relative to the working directory.",
+    )
+    fit.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="Hydra overrides of conf/config.yaml (rig=, regressor=, kernel=, sampler=, "
+        "experiment=, budget.*=, paths.*=)",
+    )
+    fit.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
+    )
+    fit.set_defaults(run=_fit)
+
+    evaluate = commands.add_parser(
+        "evaluate",
+        help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
+        description="Runs the evaluate stage (pipelines/evaluate.py) with Hydra overrides, e.g. "
+        "rigmap evaluate rig=quadruped evaluate.set=methods, rigmap evaluate rig=biped "
+        "evaluate.set=samplers, rigmap evaluate rig=face 'evaluate.methods=[gpr,nn]' "
+        "evaluate.log_to_mlflow=false. Paths in the config (paths.data, paths.models, "
+        "paths.metrics) are relative to the working directory.",
+    )
+    evaluate.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="Hydra overrides of conf/config.yaml (rig=, evaluate.set=, evaluate.methods=, "
+        "sampler=, kernel=, experiment=, tracking.uri=, paths.*=)",
+    )
+    evaluate.set_defaults(run=_evaluate)
+
+    reproduce = commands.add_parser(
+        "reproduce",
+        help="run the DVC pipeline (dvc repro) for an experiment and print where the report is",
+        description="Composes conf/ with the overrides into params.yaml (as `dvc exp run -S` "
+        "would), then runs `dvc repro` with this Python's bin folder first on PATH, streaming "
+        "DVC's output. Examples: rigmap reproduce; rigmap reproduce experiment=paper; "
+        "rigmap reproduce budget.samples=20000 --target report.",
+    )
+    reproduce.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="Hydra overrides of conf/config.yaml: experiment=quick|paper, budget.*=, "
+        "regressor.*=, seed= (default: conf/config.yaml as it is, i.e. experiment=quick)",
+    )
+    reproduce.add_argument(
+        "--target",
+        action="append",
+        default=[],
+        metavar="STAGE",
+        help="reproduce only this stage and what it depends on (repeatable; default: all)",
+    )
+    reproduce.add_argument(
+        "--dry", action="store_true", help="show what would run; params.yaml is left as it was"
+    )
+    reproduce.add_argument("--force", action="store_true", help="re-run even unchanged stages")
+    reproduce.add_argument(
+        "--keep-going", action="store_true", help="run independent stages after a failure"
+    )
+    reproduce.add_argument(
+        "--params-only",
+        action="store_true",
+        help="only write params.yaml (then run dvc repro / dvc exp run yourself)",
+    )
+    reproduce.add_argument(
+        "--project",
+        type=Path,
+        default=None,
+        help="the repository (folder with dvc.yaml and conf/; default: found from here up)",
+    )
+    reproduce.set_defaults(run=_reproduce)
     return parser
+
+
+def find_config_dir(explicit: Path | None = None) -> Path:
+    """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the source checkout's."""
+    if explicit is not None:
+        candidates = [Path(explicit)]
+    else:
+        import rigmap
+
+        checkout = Path(rigmap.__file__).resolve().parents[2]  # src/rigmap/__init__.py
+        candidates = [Path.cwd() / "conf", checkout / "conf"]
+    for candidate in candidates:
+        if (candidate / "config.yaml").is_file():
+            return candidate.resolve()
+    looked = ", ".join(str(c / "config.yaml") for c in candidates)
+    raise FileNotFoundError(
+        f"no Hydra config found (looked for {looked}); run from the repository root or pass "
+        "--config-dir PATH/TO/conf"
+    )
+
+
+def compose_config(overrides: list[str], config_dir: Path | None = None):
+    """``conf/config.yaml`` with Hydra ``overrides``, as the pipeline apps would see it."""
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    folder = find_config_dir(config_dir)
+    try:
+        with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
+            cfg = compose(config_name="config", overrides=list(overrides))
+    except (HydraException, OmegaConfBaseException) as error:
+        raise ValueError(
+            f"config {folder}/config.yaml with overrides {overrides}: {error}"
+        ) from None
+    return cfg
+
+
+def _fit(args) -> int:
+    from rigmap.regression.fitting import fit_from_config
+
+    result = fit_from_config(compose_config(args.overrides, args.config_dir))
+    print(result.folder)
+    return 0
+
+
+def _evaluate(args) -> int:
+    """The stage's own script in a child process: the same Hydra app DVC runs."""
+    import subprocess
+
+    script = find_config_dir().parent / "pipelines" / "evaluate.py"
+    if not script.is_file():
+        raise FileNotFoundError(
+            f"{script}: the evaluate stage script is missing; run from rigmap's checkout"
+        )
+    return subprocess.run([sys.executable, str(script), *args.overrides], check=False).returncode
 
 
 def _export_blend(args) -> int:
@@ -259,6 +398,21 @@ def _rigs_render(args) -> int:
         out = render_skeleton_views(rig, Y, args.out, title=f"{rig.name} — {label}")
     print(out)
     return 0
+
+
+def _reproduce(args) -> int:
+    from rigmap.reproduce import plan_reproduce, run_reproduce
+
+    plan = plan_reproduce(
+        args.overrides,
+        targets=args.target,
+        project=args.project,
+        dry=args.dry,
+        force=args.force,
+        keep_going=args.keep_going,
+        params_only=args.params_only,
+    )
+    return run_reproduce(plan)
 
 
 if __name__ == "__main__":

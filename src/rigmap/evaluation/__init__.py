@@ -1,5 +1,21 @@
 """Evaluation of inverse rig mappings (paper §6.1): errors, honest timing, and results."""
 
+from rigmap.evaluation.methods import (
+    EVALUATION_SETS,
+    METHODS,
+    EvaluationJob,
+    EvaluationSetupError,
+    LearnedJacobianAtTargets,
+    Method,
+    MethodEvaluation,
+    RefineSettings,
+    ScriptCountingRig,
+    TestClip,
+    TestSet,
+    evaluation_jobs,
+    get_method,
+    run_method,
+)
 from rigmap.evaluation.metrics import (
     ClipResult,
     FrameErrors,
@@ -14,18 +30,32 @@ from rigmap.evaluation.metrics import (
 from rigmap.evaluation.timing import CountingRig, RigEvaluationCount, Stopwatch, Timing, run_timed
 
 __all__ = [
+    "EVALUATION_SETS",
+    "METHODS",
     "ClipResult",
     "CountingRig",
+    "EvaluationJob",
+    "EvaluationSetupError",
     "FrameErrors",
     "GroundTruthError",
+    "LearnedJacobianAtTargets",
+    "Method",
+    "MethodEvaluation",
     "MethodResult",
     "MetricInputError",
+    "RefineSettings",
     "RigEvaluationCount",
+    "ScriptCountingRig",
     "Stopwatch",
+    "TestClip",
+    "TestSet",
     "Timing",
     "control_std",
+    "evaluation_jobs",
+    "get_method",
     "ground_truth_error",
     "joint_error",
+    "run_method",
     "run_timed",
     "write_per_frame_csv",
 ]

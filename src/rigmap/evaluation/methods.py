@@ -1,0 +1,632 @@
+"""The methods of Table 1 and the runner that scores them on a rig's test clips (paper §6.1).
+
+A *method* is an initial guess (the rig's retarget script, or an inverse
+mapping learned by regression) optionally followed by damped-least-squares
+refinement (Eq. 13) with the rig's own Jacobian (finite differences, or
+autodiff on a built-in rig) or a Jacobian learned by GPR (§4.4):
+
+=======================  ==========  =================================
+method                   guess       refinement
+=======================  ==========  =================================
+script                   script      none
+gpr                      gpr         none
+gpr_learned_jacobian     gpr         learned Jacobian
+gpr_computed_jacobian    gpr         finite-difference Jacobian
+nn                       nn          none
+nn_computed_jacobian     nn          finite-difference Jacobian
+nn_learned_jacobian      nn          learned Jacobian (extra row)
+nn_autodiff_jacobian     nn          autodiff Jacobian (extra row)
+=======================  ==========  =================================
+
+``run_method`` retargets every test clip, one clip per timed pass: the clock
+covers the whole method from the clip's poses to its controls — features,
+prediction, every rig evaluation refinement makes — after an untimed warm-up
+on the clip's first frames (one-off costs: thread pools, caches, torch
+kernel selection). The rig evaluations that *score* the result (joint error)
+are measurement, not method, and are neither timed nor counted. Controls the
+method does not predict (the rig's unused ones) stay at their defaults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rigmap.evaluation.metrics import (
+    ClipResult,
+    MethodResult,
+    control_std,
+    ground_truth_error,
+    joint_error,
+)
+from rigmap.evaluation.timing import CountingRig, run_timed
+
+GUESSES = ("script", "regressor")
+REFINEMENTS = ("none", "computed_jacobian", "learned_jacobian")
+JACOBIANS = ("finite_difference", "autodiff")
+
+#: what the clock covers, written into every metrics JSON
+TIMING_SCOPE = (
+    "per clip, from its target poses to its controls: input features, the script or "
+    "regressor, and refinement with every rig evaluation it makes; the rig evaluations "
+    "that score the result (joint error) are not timed or counted"
+)
+
+
+class EvaluationSetupError(ValueError):
+    """A method, setting or test data the runner cannot use, with what was expected."""
+
+
+# --------------------------------------------------------------------------- methods
+@dataclass(frozen=True)
+class Method:
+    """One row of Table 1: how the initial guess is made and how it is refined."""
+
+    name: str
+    guess: str  # "script" or "regressor"
+    regressor: str | None = None  # "gpr" or "nn" when guess == "regressor"
+    refine: str = "none"  # one of REFINEMENTS
+    jacobian: str | None = None  # one of JACOBIANS when refine == "computed_jacobian"
+
+    def __post_init__(self) -> None:
+        if self.guess not in GUESSES:
+            raise EvaluationSetupError(
+                f"method {self.name!r}: guess must be one of {GUESSES}, got {self.guess!r}"
+            )
+        if (self.guess == "regressor") != (self.regressor is not None):
+            raise EvaluationSetupError(
+                f"method {self.name!r}: a regressor is needed exactly when the guess is "
+                f"'regressor' (guess {self.guess!r}, regressor {self.regressor!r})"
+            )
+        if self.refine not in REFINEMENTS:
+            raise EvaluationSetupError(
+                f"method {self.name!r}: refine must be one of {REFINEMENTS}, got {self.refine!r}"
+            )
+        wants_jacobian = self.refine == "computed_jacobian"
+        if wants_jacobian != (self.jacobian in JACOBIANS) or (
+            not wants_jacobian and self.jacobian is not None
+        ):
+            raise EvaluationSetupError(
+                f"method {self.name!r}: a computed Jacobian needs jacobian in {JACOBIANS}, "
+                f"other refinements none (refine {self.refine!r}, jacobian {self.jacobian!r})"
+            )
+
+    @property
+    def uses_rig_during_retarget(self) -> bool:
+        """Whether the method itself evaluates the rig (and so is slow on a DCC rig)."""
+        return self.guess == "script" or self.refine != "none"
+
+    @property
+    def refine_label(self) -> str:
+        """``none``, ``learned_jacobian``, ``finite_difference`` or ``autodiff``."""
+        return self.jacobian if self.refine == "computed_jacobian" else self.refine
+
+
+FINITE = "finite_difference"
+
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method("script", "script"),
+        Method("gpr", "regressor", "gpr"),
+        Method("gpr_learned_jacobian", "regressor", "gpr", "learned_jacobian"),
+        Method("gpr_computed_jacobian", "regressor", "gpr", "computed_jacobian", FINITE),
+        Method("nn", "regressor", "nn"),
+        Method("nn_computed_jacobian", "regressor", "nn", "computed_jacobian", FINITE),
+        Method("nn_learned_jacobian", "regressor", "nn", "learned_jacobian"),
+        Method("nn_autodiff_jacobian", "regressor", "nn", "computed_jacobian", "autodiff"),
+    )
+}
+
+
+def get_method(name: str) -> Method:
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise EvaluationSetupError(
+            f"unknown method {name!r}; available methods: {', '.join(METHODS)}"
+        ) from None
+
+
+@dataclass(frozen=True)
+class RefineSettings:
+    """Damped least squares settings: λ (cm, or ``"auto"``), tolerance (cm²), iteration cap."""
+
+    damping: float | str = 0.1
+    tolerance: float = 1e-4
+    max_iterations: int = 10
+
+    def __post_init__(self) -> None:
+        number = isinstance(self.damping, int | float) and np.isfinite(self.damping)
+        if self.damping != "auto" and not (number and self.damping >= 0):
+            raise EvaluationSetupError(
+                f"refine.damping: expected a number >= 0 (cm) or 'auto', got {self.damping!r}"
+            )
+        if not (isinstance(self.tolerance, int | float) and self.tolerance >= 0):
+            raise EvaluationSetupError(
+                f"refine.tolerance: expected a number >= 0 (cm²), got {self.tolerance!r}"
+            )
+        if int(self.max_iterations) != self.max_iterations or self.max_iterations < 0:
+            raise EvaluationSetupError(
+                f"refine.max_iterations: expected an integer >= 0, got {self.max_iterations!r}"
+            )
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any], method: Method) -> RefineSettings:
+        """From a ``refine`` config group (conf/refine/*.yaml) composed for ``method``.
+
+        The group must be the method's refinement (and, for a computed Jacobian,
+        name the same Jacobian), so a config never silently runs another method.
+        """
+        config = dict(config)
+        if config.get("name") != method.refine:
+            raise EvaluationSetupError(
+                f"method {method.name!r} refines with {method.refine!r}, but the refine config "
+                f"is {config.get('name')!r}"
+            )
+        if method.refine == "computed_jacobian" and config.get("jacobian") != method.jacobian:
+            raise EvaluationSetupError(
+                f"method {method.name!r} uses the {method.jacobian} Jacobian, but refine.jacobian "
+                f"is {config.get('jacobian')!r}"
+            )
+        missing = [k for k in ("damping", "tolerance", "max_iterations") if k not in config]
+        if missing:
+            raise EvaluationSetupError(f"refine config {method.refine!r} lacks {missing}")
+        damping = config["damping"]
+        return cls(
+            damping=damping if damping == "auto" else float(damping),
+            tolerance=float(config["tolerance"]),
+            max_iterations=int(config["max_iterations"]),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "damping": self.damping,
+            "tolerance": self.tolerance,
+            "max_iterations": self.max_iterations,
+        }
+
+
+# --------------------------------------------------------------------------- test data
+@dataclass(frozen=True)
+class TestClip:
+    """One test clip: target poses (cm, COG-relative, COG placement) and the animator's keys."""
+
+    name: str
+    frames: np.ndarray  # (N,) the clip's frame numbers
+    positions: np.ndarray  # (N, J, 3)
+    cog: np.ndarray  # (N, 3)
+    cog_rotation: np.ndarray  # (N, 3, 3)
+    controls: np.ndarray  # (N, C_used) the animator's values = ground truth
+
+    __test__ = False  # a data class, not a pytest test class
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+@dataclass(frozen=True)
+class TestSet:
+    """A rig's test clips and the training-corpus std that scales the ground-truth error."""
+
+    rig: str
+    clips: list[TestClip]
+    control_names: list[str]  # the used controls, rig order
+    control_kinds: list[str]
+    train_std: np.ndarray  # (C_used,)
+
+    __test__ = False  # a data class, not a pytest test class
+
+    @property
+    def frames(self) -> int:
+        return sum(len(c) for c in self.clips)
+
+    def first_frames(self, n: int | None) -> TestSet:
+        """The same clips cut to their first ``n`` frames (``None``: unchanged)."""
+        if n is None:
+            return self
+        if int(n) != n or n < 1:
+            raise EvaluationSetupError(f"frames per clip: expected an integer >= 1, got {n!r}")
+        n = int(n)
+        clips = [
+            TestClip(
+                c.name, c.frames[:n], c.positions[:n], c.cog[:n], c.cog_rotation[:n], c.controls[:n]
+            )
+            for c in self.clips
+        ]
+        return TestSet(self.rig, clips, self.control_names, self.control_kinds, self.train_std)
+
+    @classmethod
+    def load(
+        cls, rig: Any, data_folder: str | Path, *, clips: Sequence[str] | None = None
+    ) -> TestSet:
+        """Read ``<data_folder>/poses/test.parquet`` and ``corpus/{test,train}.parquet``.
+
+        ``data_folder`` is the rig's folder (``data/<rig>``); ``clips`` picks test
+        clips by name (default: all, in file order).
+        """
+        from rigmap.animation.corpus import Corpus
+        from rigmap.animation.posing import PoseTable
+
+        folder = Path(data_folder)
+        used = list(rig.used_controls)
+        poses = PoseTable.read(
+            folder / "poses" / "test.parquet", rig=rig.name, n_joints=rig.n_joints, split="test"
+        )
+        if poses.joint_names != list(rig.joint_names):
+            raise EvaluationSetupError(
+                f"{folder / 'poses' / 'test.parquet'}: joint names differ from rig {rig.name!r}'s"
+            )
+        test = Corpus.read(
+            folder / "corpus" / "test.parquet", rig=rig.name, control_names=used, split="test"
+        )
+        train = Corpus.read(
+            folder / "corpus" / "train.parquet", rig=rig.name, control_names=used, split="train"
+        )
+        keys = ["clip", "frame"]
+        pose_keys = poses.table[keys].reset_index(drop=True)
+        corpus_keys = test.table[keys].reset_index(drop=True)
+        if not pose_keys.equals(corpus_keys):
+            raise EvaluationSetupError(
+                f"{folder}: poses/test.parquet and corpus/test.parquet list different "
+                f"(clip, frame) rows ({len(pose_keys)} and {len(corpus_keys)} rows); re-run "
+                "the pose stage"
+            )
+        names = list(dict.fromkeys(poses.table["clip"]))
+        if clips is not None:
+            unknown = [c for c in clips if c not in names]
+            if unknown or not clips:
+                raise EvaluationSetupError(
+                    f"test clips {unknown or '[]'} not found for rig {rig.name!r}; "
+                    f"its test clips are {names}"
+                )
+            names = list(clips)
+        positions, cog, rotation = poses.positions(), poses.cog(), poses.cog_rotation()
+        truth = test.table[used].to_numpy(dtype=np.float64)
+        clip_column = poses.table["clip"].to_numpy()
+        frame_column = poses.table["frame"].to_numpy()
+        test_clips = []
+        for name in names:
+            rows = np.flatnonzero(clip_column == name)
+            test_clips.append(
+                TestClip(
+                    name,
+                    frame_column[rows].astype(np.int64),
+                    positions[rows],
+                    cog[rows],
+                    rotation[rows],
+                    truth[rows],
+                )
+            )
+        kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
+        std = control_std(train.table[used].to_numpy(dtype=np.float64))
+        return cls(rig.name, test_clips, used, kinds, std)
+
+
+# --------------------------------------------------------------------------- results
+@dataclass
+class MethodEvaluation:
+    """A method's scores (``result``) and the control curves it produced."""
+
+    result: MethodResult
+    controls: pd.DataFrame  # clip, frame, one column per used control
+    initial_joint_error: dict[str, float] = field(default_factory=dict)  # per clip, refined only
+
+
+# --------------------------------------------------------------------------- runner
+def run_method(
+    rig: Any,
+    method: Method | str,
+    test_set: TestSet,
+    *,
+    regressor: Any = None,
+    learned_jacobian: Any = None,
+    refine: RefineSettings | None = None,
+    sampler: str = "none",
+    kernel: str | None = None,
+    warmup_frames: int = 1,
+    extra: Mapping[str, Any] | None = None,
+    progress: bool = False,
+) -> MethodEvaluation:
+    """Retarget every clip of ``test_set`` with ``method``; time, count and score it.
+
+    ``regressor`` is the fitted inverse mapping (features -> used controls) for
+    regressor methods; ``learned_jacobian`` the ``LearnedJacobian`` for
+    learned-Jacobian refinement; ``refine`` the damped-least-squares settings
+    for refined methods. ``sampler`` and ``kernel`` label the result.
+    """
+    method = get_method(method) if isinstance(method, str) else method
+    _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine)
+    counting = ScriptCountingRig(rig) if method.guess == "script" else CountingRig(rig)
+    retarget = _Retargeter(counting, method, regressor, learned_jacobian, refine)
+    clip_results, curves, initial, iterations, warmup = [], [], {}, {}, {}
+    for clip in test_set.clips:
+        (Y_used, refined), timing = run_timed(
+            partial(retarget, clip), np.arange(len(clip)), warmup_frames=warmup_frames, rig=counting
+        )
+        X_pred = rig.evaluate(rig.expand_used(Y_used))  # scoring: not timed, not counted
+        truth = ground_truth_error(
+            Y_used,
+            clip.controls,
+            test_set.train_std,
+            test_set.control_kinds,
+            names=test_set.control_names,
+        )
+        clip_results.append(
+            ClipResult(
+                clip.name,
+                joint_error(X_pred, clip.positions).per_frame,
+                truth.per_frame,
+                total_time_s=timing.seconds,
+                rig_evaluations=timing.rig.poses,
+                rig_calls=timing.rig.calls,
+                frame_numbers=clip.frames,
+            )
+        )
+        warmup[clip.name] = {"seconds": timing.warmup_seconds, "frames": timing.warmup_frames}
+        if refined is not None:
+            initial[clip.name] = float(refined.initial_joint_error.mean())
+            iterations[clip.name] = float(refined.iterations.mean())
+        table = pd.DataFrame(Y_used, columns=test_set.control_names)
+        table.insert(0, "frame", clip.frames)
+        table.insert(0, "clip", clip.name)
+        curves.append(table)
+        if progress:
+            summary = clip_results[-1].summary()
+            print(
+                f"  {test_set.rig} {method.name} {clip.name!r}: joint error "
+                f"{summary['joint_error']:.4g} {getattr(rig, 'length_unit', 'cm')}², "
+                f"ground truth {summary['ground_truth_error']:.4g}, "
+                f"{summary['total_time_s']:.3g} s ({summary['fps']:.4g} fps), "
+                f"{summary['rig_evaluations']} rig evaluations",
+                flush=True,
+            )
+    context: dict[str, Any] = {
+        "guess": method.guess,
+        "regressor": method.regressor,
+        "kernel": kernel,
+        "refine": method.refine,
+        "jacobian": method.jacobian,
+        "refine_settings": refine.to_dict() if refine is not None else None,
+        "timing_scope": TIMING_SCOPE,
+        "warmup": warmup,
+        "unused_controls": "rig defaults",
+    }
+    if initial:
+        frames = {c.name: len(c) for c in test_set.clips}
+        total = sum(frames.values())
+        context["initial_joint_error"] = {
+            "average": sum(initial[n] * frames[n] for n in initial) / total,
+            "clips": initial,
+        }
+        context["mean_iterations"] = {
+            "average": sum(iterations[n] * frames[n] for n in iterations) / total,
+            "clips": iterations,
+        }
+    context.update(extra or {})
+    result = MethodResult(
+        test_set.rig,
+        method.name,
+        sampler,
+        clip_results,
+        length_unit=str(getattr(rig, "length_unit", "cm")),
+        warmup_frames=int(warmup_frames),
+        skipped_controls=truth.skipped,
+        extra=context,
+    )
+    controls = pd.concat(curves, ignore_index=True)
+    return MethodEvaluation(result, controls, initial)
+
+
+class ScriptCountingRig(CountingRig):
+    """A ``CountingRig`` that also counts the world-transform read-backs a retarget script makes."""
+
+    def world_transforms(self, Y: Any) -> Any:
+        out = self.wrapped.world_transforms(Y)
+        self._record(Y)
+        return out
+
+
+class _Retargeter:
+    """``(clip, frames) -> (Y_used, RefineResult | None)``: the method itself, what is timed."""
+
+    def __init__(self, rig, method, regressor, learned_jacobian, refine):
+        self.rig = rig
+        self.method = method
+        self.regressor = regressor
+        self.learned_jacobian = learned_jacobian
+        self.refine = refine
+
+    def __call__(self, clip: TestClip, frames: np.ndarray):
+        from rigmap.refine import ComputedJacobian, damped_least_squares
+
+        positions, cog = clip.positions[frames], clip.cog[frames]
+        rotation = clip.cog_rotation[frames]
+        if self.method.guess == "script":
+            from rigmap.retarget.script import script_retarget
+
+            Y_used = script_retarget(self.rig, positions, cog, rotation).Y_used
+        else:
+            features = self._features(clip, positions, cog, rotation)
+            Y_used = np.asarray(self.regressor.predict(features), dtype=np.float64)
+        if self.method.refine == "none":
+            return Y_used, None
+        if self.method.refine == "computed_jacobian":
+            source = ComputedJacobian(self.rig, self.method.jacobian)
+        else:
+            features = self._features(clip, positions, cog, rotation)
+            source = LearnedJacobianAtTargets(self.learned_jacobian, features, positions)
+        refined = damped_least_squares(
+            self.rig,
+            Y_used,
+            positions,
+            source,
+            damping=self.refine.damping,
+            tolerance=self.refine.tolerance,
+            max_iterations=self.refine.max_iterations,
+        )
+        return refined.Y_used, refined
+
+    def _features(self, clip, positions, cog, rotation) -> np.ndarray:
+        from rigmap.regression.features import inverse_features
+
+        return inverse_features(
+            positions,
+            cog,
+            rotation,
+            n_joints=self.rig.n_joints,
+            where=f"test clip {clip.name!r} of rig {self.rig.name!r}",
+        )
+
+
+class LearnedJacobianAtTargets:
+    """A learned Jacobian predicted once per target pose from its full input features.
+
+    The learned model reads the same features as the inverse mapping (joints +
+    COG placement, ``inverse_features``), while damped least squares hands a
+    Jacobian source only the COG-relative targets of the frames still moving.
+    The Jacobians of every frame are predicted up front (no rig evaluation);
+    a call finds its frames among the targets — refinement passes them in
+    increasing frame order, so each is matched to the first equal target after
+    the previous one.
+    """
+
+    per_iteration = False
+
+    def __init__(self, model: Any, features: np.ndarray, positions: np.ndarray):
+        n = len(positions)
+        self._targets = np.asarray(positions, dtype=np.float64).reshape(n, -1)
+        J = np.asarray(model.predict(features), dtype=np.float64)
+        self.jacobians = J.reshape(n, self._targets.shape[1], -1)
+        self._rows: dict[bytes, list[int]] = {}
+        for index, row in enumerate(self._targets):
+            self._rows.setdefault(row.tobytes(), []).append(index)
+
+    def __call__(self, Y_full: np.ndarray, X_target: np.ndarray) -> tuple[np.ndarray, int]:
+        flat = np.asarray(X_target, dtype=np.float64).reshape(len(X_target), -1)
+        chosen, previous = [], -1
+        for row in flat:
+            candidates = self._rows.get(row.tobytes(), [])
+            later = [i for i in candidates if i > previous]
+            if not later:
+                raise EvaluationSetupError(
+                    "learned Jacobian: refinement asked for a target pose that is not among the "
+                    "clip's targets (or out of frame order)"
+                )
+            previous = later[0]
+            chosen.append(previous)
+        return self.jacobians[chosen], 0
+
+
+def _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine) -> None:
+    if test_set.rig != rig.name:
+        raise EvaluationSetupError(
+            f"test set is for rig {test_set.rig!r}, but the rig is {rig.name!r}"
+        )
+    if method.guess == "regressor" and regressor is None:
+        raise EvaluationSetupError(
+            f"method {method.name!r} needs a fitted {method.regressor} inverse mapping "
+            "(regressor=...); got none"
+        )
+    if method.guess == "script" and regressor is not None:
+        raise EvaluationSetupError(f"method {method.name!r} takes no regressor; one was given")
+    if method.refine == "learned_jacobian" and learned_jacobian is None:
+        raise EvaluationSetupError(
+            f"method {method.name!r} needs a learned Jacobian (learned_jacobian=...); got none"
+        )
+    if method.refine != "none" and refine is None:
+        raise EvaluationSetupError(
+            f"method {method.name!r} refines: pass refine=RefineSettings(...) (conf/refine)"
+        )
+    if method.refine == "none" and refine is not None:
+        raise EvaluationSetupError(
+            f"method {method.name!r} does not refine, but refine settings were given"
+        )
+    if method.jacobian == "autodiff" and not getattr(rig, "differentiable", False):
+        raise EvaluationSetupError(
+            f"method {method.name!r} needs autodiff, but rig {rig.name!r} is not differentiable"
+        )
+
+
+# --------------------------------------------------------------------------- what a stage runs
+@dataclass(frozen=True)
+class EvaluationJob:
+    """One method run of an evaluate stage: which models it reads and where its metrics go."""
+
+    method: Method
+    sampler: str  # the sampler the regressor's training data came from ("none" for gpr/script)
+    kernel: str | None  # the GPR kernel (None for nn and script)
+    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV beside it)
+    jacobian_kernel: str | None = None  # kernel of the GPR folder holding the learned Jacobian
+
+    @property
+    def model_folder_name(self) -> str | None:
+        """``<regressor>-<sampler>-<kernel>`` (contract layout), or None for the script."""
+        if self.method.regressor is None:
+            return None
+        return f"{self.method.regressor}-{self.sampler}-{self.kernel or 'none'}"
+
+    @property
+    def learned_jacobian_folder_name(self) -> str | None:
+        """The GPR folder whose ``learned_jacobian/`` refinement reads, if it needs one."""
+        if self.method.refine != "learned_jacobian":
+            return None
+        return f"gpr-none-{self.jacobian_kernel}"
+
+
+EVALUATION_SETS = ("methods", "samplers", "kernels")
+
+
+def evaluation_jobs(
+    set_name: str,
+    rig: str,
+    metrics_folder: str | Path,
+    *,
+    methods: Sequence[str] = tuple(METHODS),
+    samplers: Sequence[str] = (),
+    kernels: Sequence[str] = (),
+    nn_sampler: str = "pca_gaussian",
+    gpr_kernel: str = "multiquadric",
+) -> list[EvaluationJob]:
+    """The runs of one evaluate stage.
+
+    - ``methods``: each method once; GPR methods read ``gpr-none-<gpr_kernel>``,
+      network methods ``nn-<nn_sampler>-none``, learned-Jacobian refinement the
+      ``learned_jacobian/`` of ``gpr-none-<gpr_kernel>``; files
+      ``methods/<method>-<sampler>.json``.
+    - ``samplers``: ``nn`` once per sampler; files ``samplers/nn-<sampler>.json``.
+    - ``kernels``: ``gpr`` once per kernel; files ``kernels/gpr-<kernel>.json``.
+    """
+    root = Path(metrics_folder) / rig / set_name
+    jobs = []
+    if set_name == "methods":
+        for name in methods:
+            method = get_method(name)
+            sampler = nn_sampler if method.regressor == "nn" else "none"
+            kernel = gpr_kernel if method.regressor == "gpr" else None
+            jacobian_kernel = gpr_kernel if method.refine == "learned_jacobian" else None
+            path = root / f"{name}-{sampler}.json"
+            jobs.append(EvaluationJob(method, sampler, kernel, path, jacobian_kernel))
+    elif set_name == "samplers":
+        for sampler in samplers:
+            jobs.append(EvaluationJob(METHODS["nn"], sampler, None, root / f"nn-{sampler}.json"))
+    elif set_name == "kernels":
+        for kernel in kernels:
+            jobs.append(EvaluationJob(METHODS["gpr"], "none", kernel, root / f"gpr-{kernel}.json"))
+    else:
+        raise EvaluationSetupError(
+            f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
+        )
+    if not jobs:
+        raise EvaluationSetupError(f"evaluate.set={set_name}: nothing to run (empty list)")
+    stems = [job.metrics_path.name for job in jobs]
+    repeated = sorted({s for s in stems if stems.count(s) > 1})
+    if repeated:
+        raise EvaluationSetupError(f"evaluate.set={set_name}: runs repeated: {repeated}")
+    return jobs
