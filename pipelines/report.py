@@ -1,0 +1,71 @@
+"""DVC stage ``report``: the paper's tables, the figures and ``reports/index.html``.
+
+Reads every rig's metrics (``<paths.metrics>/<rig>/{methods,samplers,kernels}/``), test
+clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
+``<paths.reports>/index.html``, ``<paths.reports>/tables/`` and
+``<paths.reports>/figures/results/``. A missing metrics file is an error that lists it.
+
+Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
+(what the evaluate stages ran), the network rows' sampler from ``sampler``; a ``report``
+block, if the config has one, may set ``rigs``, ``excluded_methods``, ``clips`` (see
+rigmap.reports.settings.ReportSettings):
+
+    python pipelines/report.py
+    python pipelines/report.py '+report.rigs=[quadruped,biped]'
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+
+from rigmap.reports import ReportFiles, ReportInputError, ReportSettings, build_report
+
+
+def report_settings(cfg: DictConfig) -> ReportSettings:
+    """Expected rows: the ``evaluate`` lists, ``sampler.name`` for the network, then ``report``."""
+    values: dict = {}
+    evaluate = cfg.get("evaluate")
+    if evaluate is not None:
+        for key in ("methods", "samplers", "kernels", "clips"):
+            if evaluate.get(key) is not None:
+                values[key] = list(evaluate[key])
+    if cfg.get("sampler") is not None and cfg.sampler.get("name") is not None:
+        values["nn_sampler"] = str(cfg.sampler.name)
+    report = cfg.get("report")
+    if report is not None:
+        values.update(OmegaConf.to_container(report, resolve=True))
+    return ReportSettings.from_mapping(values)
+
+
+def run(cfg: DictConfig) -> ReportFiles:
+    files = build_report(
+        metrics_root=Path(cfg.paths.metrics),
+        data_root=Path(cfg.paths.data),
+        reports_root=Path(cfg.paths.reports),
+        settings=report_settings(cfg),
+    )
+    for name, paths in files.tables.items():
+        print(f"{name}: " + ", ".join(str(p) for p in paths.values()))
+    for figure in files.figures:
+        print(f"figure: {figure.path}")
+    for note in files.notes:
+        print(f"note: {note}")
+    print(f"report: {files.index}")
+    return files
+
+
+@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    try:
+        run(cfg)
+    except ReportInputError as error:  # a missing or bad input file: say which, no traceback
+        print(f"report: error: {error}", file=sys.stderr)
+        raise SystemExit(1) from None
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,180 @@
+"""``params.yaml``: the experiment the DVC pipeline runs, composed from ``conf/`` by Hydra.
+
+DVC's Hydra integration (``hydra.enabled`` in ``.dvc/config``) makes
+``dvc exp run -S experiment=paper -S regressor.hidden=1024`` compose
+``conf/config.yaml`` with those overrides, resolve every interpolation and dump
+the result to ``params.yaml`` before reproducing. The stages in ``dvc.yaml``
+interpolate the values they use from it into their command lines
+(``python pipelines/supersample.py ... budget.samples=${budget.samples}``), so
+DVC re-runs exactly the stages whose values changed, ``dvc.lock`` records the
+values each output was made with, and ``dvc exp show`` lists them.
+
+``rigmap reproduce`` writes ``params.yaml`` the same way (``compose_params``
+gives the same text DVC writes) and then runs ``dvc repro``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+PARAMS_FILE = "params.yaml"
+CONFIG_NAME = "config"
+EXPERIMENT_GROUP = "experiment"
+
+
+class ParamsError(ValueError):
+    """Overrides or a project layout from which no ``params.yaml`` can be composed."""
+
+
+@dataclass(frozen=True)
+class ParamsUpdate:
+    """A ``params.yaml`` written (or left as it was) and what differs from the defaults."""
+
+    path: Path
+    changed: bool
+    params: dict[str, Any]
+    differs_from_defaults: tuple[str, ...]
+
+
+def find_project_root(start: str | Path | None = None) -> Path:
+    """The nearest folder at or above ``start`` (default: cwd) holding dvc.yaml and conf/."""
+    start = Path.cwd() if start is None else Path(start)
+    start = start.resolve()
+    for folder in (start, *start.parents):
+        if (folder / "dvc.yaml").is_file() and (folder / "conf" / f"{CONFIG_NAME}.yaml").is_file():
+            return folder
+    raise ParamsError(
+        f"no project found: expected dvc.yaml and conf/{CONFIG_NAME}.yaml in {start} or a "
+        "folder above it; run from the rigmap repository or pass --project DIR"
+    )
+
+
+def experiment_names(config_dir: str | Path) -> list[str]:
+    """The choices of the ``experiment`` group (``conf/experiment/*.yaml``)."""
+    return sorted(p.stem for p in (Path(config_dir) / EXPERIMENT_GROUP).glob("*.yaml"))
+
+
+def check_overrides(overrides: Sequence[str], config_dir: str | Path) -> list[str]:
+    """Hydra ``key=value`` overrides; a clear error for anything else or an unknown experiment."""
+    checked = []
+    for override in overrides:
+        key, sep, value = str(override).partition("=")
+        if not sep or not key.lstrip("+~"):
+            raise ParamsError(
+                f"override {override!r}: expected KEY=VALUE (e.g. experiment=paper, "
+                "budget.samples=20000)"
+            )
+        if key == EXPERIMENT_GROUP:
+            choices = experiment_names(config_dir)
+            if value not in choices:
+                raise ParamsError(
+                    f"override {override!r}: unknown experiment {value!r}; expected one of "
+                    f"{choices} (conf/{EXPERIMENT_GROUP}/*.yaml)"
+                )
+        checked.append(str(override))
+    return checked
+
+
+def compose_params(config_dir: str | Path, overrides: Sequence[str] = ()) -> str:
+    """The text of ``params.yaml``: the config composed with ``overrides`` and fully resolved.
+
+    The same text DVC's Hydra integration writes (``OmegaConf.to_yaml`` of the resolved
+    config), so ``rigmap reproduce`` and ``dvc exp run -S`` agree byte for byte.
+    """
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    config_dir = Path(config_dir).resolve()
+    overrides = check_overrides(overrides, config_dir)
+    try:
+        with initialize_config_dir(config_dir=str(config_dir), version_base=None):
+            cfg = compose(config_name=CONFIG_NAME, overrides=list(overrides))
+        OmegaConf.resolve(cfg)
+    except (HydraException, OmegaConfBaseException) as error:
+        raise ParamsError(
+            f"cannot compose {config_dir}/{CONFIG_NAME}.yaml with overrides {list(overrides)}: "
+            f"{error}"
+        ) from None
+    return OmegaConf.to_yaml(cfg)
+
+
+def write_params(
+    project: str | Path, overrides: Sequence[str] = (), *, defaults: bool = True
+) -> ParamsUpdate:
+    """Compose ``<project>/params.yaml`` from ``<project>/conf`` and ``overrides``, atomically.
+
+    The file is rewritten only when its text changes (so ``dvc repro`` sees no change
+    when the experiment is the same). With ``defaults``, also report which values differ
+    from the plain composition (no overrides).
+    """
+    import yaml
+
+    project = Path(project)
+    config_dir = project / "conf"
+    text = compose_params(config_dir, overrides)
+    path = project / PARAMS_FILE
+    changed = not path.is_file() or path.read_text(encoding="utf-8") != text
+    if changed:
+        _write_atomically(path, text)
+    params = yaml.safe_load(text)
+    differing: tuple[str, ...] = ()
+    if defaults:
+        plain = yaml.safe_load(compose_params(config_dir, ()))
+        flat, flat_plain = flatten(params), flatten(plain)
+        differing = tuple(
+            key
+            for key in sorted(set(flat) | set(flat_plain))
+            if flat.get(key, _ABSENT) != flat_plain.get(key, _ABSENT)
+        )
+    return ParamsUpdate(path, changed, params, differing)
+
+
+_ABSENT = object()
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    fd, temp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+        os.chmod(temp, 0o644)
+        os.replace(temp, path)
+    except BaseException:
+        Path(temp).unlink(missing_ok=True)
+        raise
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (lists stay values)."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, f"{name}."))
+        else:
+            flat[name] = value
+    return flat
+
+
+_INTERPOLATION = re.compile(r"\$\{\s*([A-Za-z_][\w.]*)\s*\}")
+
+
+def interpolated_params(dvc_yaml: str | Path) -> set[str]:
+    """The ``params.yaml`` keys that ``dvc.yaml`` interpolates, such as ``${budget.samples}``."""
+    text = Path(dvc_yaml).read_text(encoding="utf-8")
+    keys = set(_INTERPOLATION.findall(text))
+    return {k for k in keys if not k.startswith("item.") and k != "item"}
+
+
+def reaching_stages(keys: Sequence[str], dvc_yaml: str | Path) -> list[str]:
+    """Which of ``keys`` some stage reads, directly or through a node it interpolates."""
+    read = interpolated_params(dvc_yaml)
+    return [k for k in keys if any(k == r or k.startswith(f"{r}.") for r in read)]

@@ -1,0 +1,124 @@
+"""The whole report from the metrics tree: four tables, the figures and ``index.html``.
+
+Outputs (the report stage owns exactly these)::
+
+    <reports>/index.html
+    <reports>/tables/{table1_methods,table2_sampling,table3_rigs,table_kernels}.{md,csv,html}
+    <reports>/figures/results/*.png
+
+Supersample grids ``<reports>/figures/samples_<rig>.png`` belong to another stage;
+the index links them when they exist.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rigmap.reports.catalog import rig_label
+from rigmap.reports.figures import FigureFile, per_frame_figure, sweep_figure, time_figure
+from rigmap.reports.index_page import sample_grid_figures, write_index
+from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
+from rigmap.reports.rig_facts import rig_facts
+from rigmap.reports.settings import ReportSettings
+from rigmap.reports.table import Table, write_table
+from rigmap.reports.tables import kernels_table, methods_table, rigs_table, sampling_table
+
+TABLES_FOLDER = "tables"
+RESULT_FIGURES_FOLDER = Path("figures") / "results"
+
+
+@dataclass
+class ReportFiles:
+    """What ``build_report`` wrote, and the notes it put on the index page."""
+
+    index: Path
+    tables: dict[str, dict[str, Path]]
+    figures: list[FigureFile]
+    notes: list[str] = field(default_factory=list)
+
+
+def _load_rig(name: str):
+    from rigmap.rigs import load
+
+    return load(name)
+
+
+def build_report(
+    *,
+    metrics_root: str | Path,
+    data_root: str | Path,
+    reports_root: str | Path,
+    settings: ReportSettings | None = None,
+    load_rig: Callable[[str], object] = _load_rig,
+) -> ReportFiles:
+    """Read every metrics file the settings expect, then write tables, figures and the index.
+
+    Nothing is written until every input has been read and checked, so a missing file
+    leaves the previous report untouched.
+    """
+    settings = settings or ReportSettings()
+    metrics_root, data_root, reports_root = map(Path, (metrics_root, data_root, reports_root))
+    tree = load_metrics(metrics_root, data_root, settings)
+    facts = [
+        rig_facts(load_rig(rig), data_root / rig / "corpus" / "train.parquet")
+        for rig in settings.rigs
+    ]
+    for metrics in tree.values():  # read every per-frame CSV before writing anything
+        for method in settings.methods_for(metrics.rig):
+            metrics.methods[method].per_frame()
+
+    tables: list[Table] = [
+        methods_table(tree, settings),
+        sampling_table(tree, settings),
+        rigs_table(facts),
+        kernels_table(tree, settings),
+    ]
+    written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
+
+    figures_folder = reports_root / RESULT_FIGURES_FOLDER
+    method_tree = {rig: tree[rig] for rig in settings.method_rigs}
+    figures = [
+        per_frame_figure(tree[rig], settings, figures_folder / f"per_frame_{rig}.png")
+        for rig in settings.method_rigs
+    ]
+    figures.append(time_figure(method_tree, settings, figures_folder / "time_per_method.png"))
+    notes = []
+    sweep = sweep_figure(tree, figures_folder / "joint_error_vs_supersamples.png")
+    if sweep is None:
+        notes.append(
+            "Joint error against the number of supersamples: no samples sweep was evaluated "
+            f"(expected {metrics_root}/<rig>/{SWEEP_FOLDER}/nn-<sampler>-<samples>.json); the "
+            "figure is skipped."
+        )
+    else:
+        figures.append(sweep)
+    _remove_stale_figures(figures_folder, {f.path.resolve() for f in figures})
+    grids, grid_notes = sample_grid_figures(reports_root / "figures", settings.rigs)
+    notes += grid_notes
+
+    index = write_index(
+        reports_root / "index.html",
+        tables=[(t, written_tables[t.name]) for t in tables],
+        result_figures=figures,
+        sample_grids=grids,
+        notes=notes,
+        facts={
+            "Characters": ", ".join(rig_label(r) for r in settings.rigs),
+            "Methods compared (Table 1) on": ", ".join(rig_label(r) for r in settings.method_rigs),
+            "Test clips": "; ".join(
+                f"{rig_label(r)}: {', '.join(tree[r].test_clips)}" for r in settings.rigs
+            ),
+            "Network rows (Table 1) trained with sampler": settings.nn_sampler,
+            "Metrics read from": str(metrics_root),
+        },
+    )
+    return ReportFiles(index=index, tables=written_tables, figures=[*figures, *grids], notes=notes)
+
+
+def _remove_stale_figures(folder: Path, keep: set[Path]) -> None:
+    """PNGs an earlier report left in the report's own figure folder (e.g. a dropped rig)."""
+    for path in folder.glob("*.png"):
+        if path.resolve() not in keep:
+            path.unlink()

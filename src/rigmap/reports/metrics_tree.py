@@ -1,0 +1,299 @@
+"""Reading the evaluate stages' metrics tree, checking every file the tables need.
+
+Layout (written by ``rigmap.evaluation.metrics``)::
+
+    metrics/<rig>/methods/<method>-<sampler>.json  (+ .csv, per frame)   Table 1
+    metrics/<rig>/samplers/nn-<sampler>.json                             Table 2
+    metrics/<rig>/kernels/gpr-<kernel>.json                              §7.1 kernels
+    metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json   (optional)        error vs. samples
+
+A missing or malformed file stops the report with an error naming the file,
+what was expected and what came; all missing files are listed at once so one
+run of the report says everything that is absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from rigmap.evaluation.metrics import RESULT_FORMAT
+from rigmap.reports.settings import ReportSettings
+
+NUMBER_KEYS = ("frames", "joint_error", "ground_truth_error", "total_time_s", "fps")
+PER_FRAME_COLUMNS = ("clip", "frame", "joint_error", "ground_truth_error")
+SWEEP_FOLDER = "sample_sweep"
+_SWEEP_NAME = re.compile(r"^nn-(?P<sampler>[a-z_]+)-(?P<n>\d+)\.json$")
+# relative agreement asked of a per-frame CSV's clip means and its JSON
+_CSV_AGREEMENT = 1e-6
+
+
+class ReportInputError(ValueError):
+    """A metrics or corpus file the report needs is missing, unreadable or inconsistent."""
+
+
+@dataclass(frozen=True)
+class Numbers:
+    """A method's numbers on one clip or on all test frames (``Average``)."""
+
+    frames: int
+    joint_error: float
+    ground_truth_error: float
+    total_time_s: float
+    fps: float
+    rig_evaluations: int = 0
+
+
+@dataclass(frozen=True)
+class LoadedResult:
+    """One metrics JSON: its averages, per-clip numbers (clip order of the file) and unit."""
+
+    path: Path
+    rig: str
+    method: str
+    sampler: str
+    length_unit: str
+    average: Numbers
+    clips: dict[str, Numbers]
+    extra: dict
+
+    @property
+    def csv_path(self) -> Path:
+        return self.path.with_suffix(".csv")
+
+    def per_frame(self) -> pd.DataFrame:
+        """The per-frame CSV beside the JSON, checked against it."""
+        return read_per_frame(self.csv_path, self)
+
+
+@dataclass
+class RigMetrics:
+    """Everything the tables need about one rig."""
+
+    rig: str
+    test_clips: tuple[str, ...]
+    methods: dict[str, LoadedResult] = field(default_factory=dict)
+    samplers: dict[str, LoadedResult] = field(default_factory=dict)
+    kernels: dict[str, LoadedResult] = field(default_factory=dict)
+    sweep: dict[str, dict[int, LoadedResult]] = field(default_factory=dict)
+
+    @property
+    def length_unit(self) -> str:
+        results = [*self.methods.values(), *self.samplers.values(), *self.kernels.values()]
+        units = {r.length_unit for r in results}
+        if len(units) != 1:
+            raise ReportInputError(
+                f"rig {self.rig!r}: metrics files disagree on the length unit: {sorted(units)}"
+            )
+        return units.pop()
+
+
+# --------------------------------------------------------------------------- one file
+def read_result(
+    path: str | Path,
+    *,
+    rig: str,
+    method: str,
+    sampler: str,
+    clips: Sequence[str] | None = None,
+) -> LoadedResult:
+    """Read and check one metrics JSON (format, identity, finite numbers, the expected clips)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ReportInputError(f"{path}: metrics file missing ({method} on rig {rig!r})")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ReportInputError(f"{path}: not a readable JSON file ({error})") from None
+    if not isinstance(data, dict):
+        raise ReportInputError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    if data.get("format") != RESULT_FORMAT:
+        raise ReportInputError(
+            f"{path}: expected format {RESULT_FORMAT!r}, got {data.get('format')!r}"
+        )
+    for key, wanted in (("rig", rig), ("method", method), ("sampler", sampler)):
+        if data.get(key) != wanted:
+            raise ReportInputError(
+                f"{path}: field {key!r} is {data.get(key)!r} but the file name says {wanted!r}"
+            )
+    average = _numbers(data.get("average"), f"{path}: average")
+    raw_clips = data.get("clips")
+    if not isinstance(raw_clips, dict) or not raw_clips:
+        raise ReportInputError(f"{path}: expected a non-empty 'clips' object, got {raw_clips!r}")
+    per_clip = {
+        str(name): _numbers(values, f"{path}: clip {name!r}") for name, values in raw_clips.items()
+    }
+    if clips is not None:
+        missing = [c for c in clips if c not in per_clip]
+        unexpected = [c for c in per_clip if c not in clips]
+        if missing or unexpected:
+            raise ReportInputError(
+                f"{path}: expected the test clips {list(clips)}; missing {missing}, "
+                f"unexpected {unexpected}"
+            )
+        per_clip = {c: per_clip[c] for c in clips}
+    frames = sum(n.frames for n in per_clip.values())
+    if frames != average.frames:
+        raise ReportInputError(
+            f"{path}: the clips hold {frames} frames but the average says {average.frames}"
+        )
+    unit = data.get("length_unit")
+    if not isinstance(unit, str) or not unit:
+        raise ReportInputError(f"{path}: expected a 'length_unit' string, got {unit!r}")
+    extra = data.get("extra") if isinstance(data.get("extra"), dict) else {}
+    return LoadedResult(path, rig, method, sampler, unit, average, per_clip, extra)
+
+
+def _numbers(values, where: str) -> Numbers:
+    if not isinstance(values, dict):
+        raise ReportInputError(f"{where}: expected an object of numbers, got {values!r}")
+    numbers = {}
+    for key in NUMBER_KEYS:
+        value = values.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ReportInputError(f"{where}: expected a number for {key!r}, got {value!r}")
+        if not math.isfinite(value) or value < 0:
+            raise ReportInputError(f"{where}: {key!r} must be finite and >= 0, got {value!r}")
+        numbers[key] = value
+    if numbers["frames"] < 1 or numbers["total_time_s"] <= 0:
+        raise ReportInputError(
+            f"{where}: expected frames >= 1 and total_time_s > 0, got {numbers['frames']} frames "
+            f"in {numbers['total_time_s']} s"
+        )
+    evaluations = values.get("rig_evaluations", 0)
+    return Numbers(
+        frames=int(numbers["frames"]),
+        joint_error=float(numbers["joint_error"]),
+        ground_truth_error=float(numbers["ground_truth_error"]),
+        total_time_s=float(numbers["total_time_s"]),
+        fps=float(numbers["fps"]),
+        rig_evaluations=int(evaluations) if isinstance(evaluations, int | float) else 0,
+    )
+
+
+def read_per_frame(path: str | Path, result: LoadedResult) -> pd.DataFrame:
+    """A per-frame CSV (clip, frame, joint_error, ground_truth_error) that agrees with its JSON."""
+    path = Path(path)
+    if not path.is_file():
+        raise ReportInputError(f"{path}: per-frame CSV missing (beside {result.path.name})")
+    try:
+        table = pd.read_csv(path, dtype={"clip": str})
+    except (OSError, ValueError) as error:
+        raise ReportInputError(f"{path}: not a readable CSV ({error})") from None
+    missing = [c for c in PER_FRAME_COLUMNS if c not in table.columns]
+    if missing:
+        raise ReportInputError(
+            f"{path}: expected columns {list(PER_FRAME_COLUMNS)}, missing {missing} "
+            f"(got {list(table.columns)})"
+        )
+    errors = table[["joint_error", "ground_truth_error"]]
+    if not errors.map(lambda v: isinstance(v, int | float) and math.isfinite(v)).all().all():
+        raise ReportInputError(f"{path}: errors must be finite numbers")
+    for clip, numbers in result.clips.items():
+        rows = table[table["clip"] == clip]
+        if len(rows) != numbers.frames:
+            raise ReportInputError(
+                f"{path}: clip {clip!r} has {len(rows)} frames but {result.path.name} says "
+                f"{numbers.frames}"
+            )
+        mean = float(rows["joint_error"].mean())
+        if not math.isclose(mean, numbers.joint_error, rel_tol=_CSV_AGREEMENT, abs_tol=1e-12):
+            raise ReportInputError(
+                f"{path}: clip {clip!r} mean joint error {mean!r} disagrees with "
+                f"{result.path.name} ({numbers.joint_error!r}); is one of them stale?"
+            )
+    return table[table["clip"].isin(list(result.clips))].reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------- the tree
+def corpus_clip_names(corpus_file: str | Path) -> tuple[str, ...]:
+    """The clip names of a test corpus, in file order."""
+    corpus_file = Path(corpus_file)
+    if not corpus_file.is_file():
+        raise ReportInputError(
+            f"{corpus_file}: test corpus missing (the animate stage writes it); the report "
+            "takes each rig's test clip names from it"
+        )
+    try:
+        clips = pd.read_parquet(corpus_file, columns=["clip"])["clip"]
+    except (OSError, ValueError, KeyError) as error:
+        raise ReportInputError(f"{corpus_file}: cannot read its 'clip' column ({error})") from None
+    names = tuple(str(c) for c in dict.fromkeys(clips))
+    if not names:
+        raise ReportInputError(f"{corpus_file}: the test corpus has no clips")
+    return names
+
+
+def expected_files(metrics_root: str | Path, rig: str, settings: ReportSettings) -> list[tuple]:
+    """``(table, key, path, method, sampler)`` for every file the tables need on ``rig``."""
+    root = Path(metrics_root) / rig
+    files = []
+    for method in settings.methods_for(rig):
+        sampler = settings.method_sampler(method)
+        path = root / "methods" / f"{method}-{sampler}.json"
+        files.append(("methods", method, path, method, sampler))
+    for sampler in settings.samplers:
+        files.append(("samplers", sampler, root / "samplers" / f"nn-{sampler}.json", "nn", sampler))
+    for kernel in settings.kernels:
+        files.append(("kernels", kernel, root / "kernels" / f"gpr-{kernel}.json", "gpr", "none"))
+    return files
+
+
+def load_metrics(
+    metrics_root: str | Path, data_root: str | Path, settings: ReportSettings
+) -> dict[str, RigMetrics]:
+    """Every rig's metrics; one error listing all missing files if any are absent."""
+    missing = []
+    for rig in settings.rigs:
+        for table, key, path, method, sampler in expected_files(metrics_root, rig, settings):
+            if not path.is_file():
+                what = {
+                    "methods": f"Table 1: {method}",
+                    "samplers": f"Table 2: nn trained with sampler {sampler}",
+                    "kernels": f"kernel table: gpr with the {key} kernel",
+                }[table]
+                missing.append(f"{path} ({what})")
+            elif table == "methods" and not path.with_suffix(".csv").is_file():
+                missing.append(f"{path.with_suffix('.csv')} (per-frame errors of {method})")
+    if missing:
+        raise ReportInputError(
+            f"{len(missing)} metrics file(s) missing under {metrics_root} — the evaluate stages "
+            "write them (`dvc repro` or `python pipelines/evaluate.py rig=... evaluate.set=...`); "
+            "rigs or rows an experiment does not run belong in the report settings (report.rigs, "
+            "report.method_rigs, report.excluded_methods):\n  " + "\n  ".join(missing)
+        )
+    tree = {}
+    for rig in settings.rigs:
+        clips = settings.clips or corpus_clip_names(
+            Path(data_root) / rig / "corpus" / "test.parquet"
+        )
+        metrics = RigMetrics(rig, clips)
+        for table, key, path, method, sampler in expected_files(metrics_root, rig, settings):
+            result = read_result(path, rig=rig, method=method, sampler=sampler, clips=clips)
+            getattr(metrics, table)[key] = result
+        metrics.sweep = _read_sweep(Path(metrics_root) / rig / SWEEP_FOLDER, rig, clips)
+        tree[rig] = metrics
+    return tree
+
+
+def _read_sweep(folder: Path, rig: str, clips) -> dict[str, dict[int, LoadedResult]]:
+    """Optional ``nn-<sampler>-<n>.json`` files: the network trained with n extra samples."""
+    sweep: dict[str, dict[int, LoadedResult]] = {}
+    if not folder.is_dir():
+        return sweep
+    for path in sorted(folder.glob("*.json")):
+        match = _SWEEP_NAME.match(path.name)
+        if match is None:
+            raise ReportInputError(
+                f"{path}: unexpected file in {folder}; expected names nn-<sampler>-<samples>.json"
+            )
+        sampler, n = match["sampler"], int(match["n"])
+        result = read_result(path, rig=rig, method="nn", sampler=sampler, clips=clips)
+        sweep.setdefault(sampler, {})[n] = result
+    return {s: dict(sorted(points.items())) for s, points in sweep.items()}

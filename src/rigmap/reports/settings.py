@@ -1,0 +1,109 @@
+"""Which rows the report expects: rigs, methods, samplers, kernels, and what a rig leaves out.
+
+Every expected metrics file must exist — a missing row is an error, not a gap —
+so the report states up front what the experiment evaluated. Rows an
+experiment does not run (the Script baseline exists only for rigs with a
+hand-written retarget script) are listed in ``excluded_methods`` and left out
+on purpose.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from rigmap.reports.catalog import KERNELS, METHODS, RIGS, SAMPLERS, find_row
+
+#: the evaluate stages run the script baseline only where one exists (quadruped, biped)
+DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
+    "face": ("script",),
+    "squirrel": ("script",),
+}
+
+
+@dataclass(frozen=True)
+class ReportSettings:
+    """The rows of every table.
+
+    ``rigs`` appear in Tables 2, 3 and the kernel table; ``method_rigs`` (a subset) in
+    Table 1 — the evaluate stage compares the methods on the quadruped and the biped,
+    like the paper. ``nn_sampler`` is the sampler whose network the Table 1 rows ``nn*`` use
+    (their files are ``methods/<method>-<nn_sampler>.json``; GPR and Script
+    rows use ``none``). ``clips`` restricts the expected test clips (``None``:
+    every clip of the rig's test corpus).
+    """
+
+    rigs: tuple[str, ...] = tuple(r.key for r in RIGS)
+    method_rigs: tuple[str, ...] = ("quadruped", "biped")
+    methods: tuple[str, ...] = tuple(m.key for m in METHODS)
+    samplers: tuple[str, ...] = tuple(s.key for s in SAMPLERS)
+    kernels: tuple[str, ...] = tuple(k.key for k in KERNELS)
+    nn_sampler: str = "pca_gaussian"
+    excluded_methods: Mapping[str, tuple[str, ...]] = field(
+        default_factory=lambda: dict(DEFAULT_EXCLUDED_METHODS)
+    )
+    clips: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("rigs", "methods", "samplers", "kernels"):
+            values = tuple(str(v) for v in getattr(self, name))
+            if not values:
+                raise ValueError(f"report settings: {name} is empty; expected at least one")
+            repeated = sorted({v for v in values if values.count(v) > 1})
+            if repeated:
+                raise ValueError(f"report settings: {name} repeats {repeated}")
+            object.__setattr__(self, name, values)
+        method_rigs = tuple(str(r) for r in self.method_rigs)
+        outside = [r for r in method_rigs if r not in self.rigs]
+        if outside:
+            raise ValueError(
+                f"report settings: method_rigs {outside} are not among rigs {list(self.rigs)}"
+            )
+        object.__setattr__(self, "method_rigs", method_rigs)
+        for key in self.methods:
+            find_row(METHODS, key, "method")
+        for key in self.samplers:
+            find_row(SAMPLERS, key, "sampler")
+        for key in self.kernels:
+            find_row(KERNELS, key, "kernel")
+        find_row(SAMPLERS, self.nn_sampler, "nn_sampler")
+        excluded = {
+            str(rig): tuple(str(m) for m in ms) for rig, ms in self.excluded_methods.items()
+        }
+        for rig, methods in excluded.items():
+            for key in methods:
+                find_row(METHODS, key, f"excluded method of rig {rig!r}")
+        object.__setattr__(self, "excluded_methods", excluded)
+        if self.clips is not None:
+            object.__setattr__(self, "clips", tuple(str(c) for c in self.clips))
+
+    def methods_for(self, rig: str) -> tuple[str, ...]:
+        """The Table 1 methods the experiment evaluated on ``rig`` (none off ``method_rigs``)."""
+        if rig not in self.method_rigs:
+            return ()
+        left_out = set(self.excluded_methods.get(rig, ()))
+        return tuple(m for m in self.methods if m not in left_out)
+
+    def method_sampler(self, method: str) -> str:
+        """The sampler in a method's file name: the network's for ``nn*``, else ``none``."""
+        return self.nn_sampler if method.startswith("nn") else "none"
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any] | None) -> ReportSettings:
+        """Settings from a config mapping (unknown keys are an error naming them)."""
+        values = dict(values or {})
+        known = set(cls.__dataclass_fields__)
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"report settings: unknown keys {unknown}; expected {sorted(known)}")
+        for name in ("rigs", "method_rigs", "methods", "samplers", "kernels", "clips"):
+            if values.get(name) is not None:
+                values[name] = _as_tuple(values[name], name)
+        return cls(**values)
+
+
+def _as_tuple(value: Any, name: str) -> tuple[str, ...]:
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise ValueError(f"report settings: {name} must be a list, got {value!r}")
+    return tuple(str(v) for v in value)

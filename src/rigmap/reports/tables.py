@@ -1,0 +1,334 @@
+"""The paper's comparison tables built from our metrics, with its published values beside them.
+
+- ``methods_table``  — Table 1: per test clip and Average, every method;
+- ``sampling_table`` — Table 2: the network trained on each supersampler;
+- ``rigs_table``     — Table 3: training frames, rig DOFs and joint DOFs;
+- ``kernels_table``  — §7.1: GPR with each kernel (the paper gives no numbers).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import pandas as pd
+
+from rigmap.reports import published
+from rigmap.reports.catalog import KERNELS, METHODS, SAMPLERS, find_row, rig_label
+from rigmap.reports.metrics_tree import LoadedResult, Numbers, RigMetrics
+from rigmap.reports.rig_facts import RigFacts
+from rigmap.reports.settings import ReportSettings
+from rigmap.reports.table import MISSING, Column, Table, format_error, format_seconds
+
+OURS = "rigmap (this run)"
+SQUARE = "\u00b2"
+
+JOINT_ERROR_NOTE = (
+    "Joint Error: mean squared difference between the joint positions the method's controls "
+    "produce and the targets, over frames and the 3J joint coordinates, in the rig's length "
+    "unit squared (×3 for the mean squared joint distance)."
+)
+GROUND_TRUTH_NOTE = (
+    "Ground Truth Error: mean squared difference to the animator's controls, each control "
+    "divided by its standard deviation in the training corpus (rotations in radians); "
+    "dimensionless."
+)
+TIME_NOTE = (
+    "Total Time: wall-clock seconds for the clip (warm-up frames excluded); Frames per Sec = "
+    "frames / Total Time; measured on the machine that ran the evaluate stage."
+)
+PUBLISHED_NOTE = (
+    f"Columns labelled '{published.LABEL}' are the values printed in {published.SOURCE}; they "
+    "were measured on the authors' Maya characters with their own animation and units, so "
+    "they orient, they are not a target."
+)
+
+
+def _unit_label(units: set[str]) -> str:
+    return f"{units.pop()}{SQUARE}" if len(units) == 1 else f"length unit{SQUARE}"
+
+
+# --------------------------------------------------------------------------- Table 1
+def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
+    """Table 1: rows Character/Motion × Method, per clip and Average, ours then published."""
+    others = [rig_label(rig) for rig in tree if not settings.methods_for(rig)]
+    tree = {rig: metrics for rig, metrics in tree.items() if settings.methods_for(rig)}
+    unit = _unit_label({r.length_unit for m in tree.values() for r in m.methods.values()})
+    value_labels = [
+        f"Joint Error ({unit})",
+        "Ground Truth Error",
+        "Total Time (s)",
+        "Frames per Sec",
+    ]
+    columns = [Column("Character/Motion", numeric=False), Column("Method", numeric=False)]
+    columns += [Column(label, OURS, short_group="") for label in value_labels]
+    columns += [
+        Column(label, published.LABEL, short_group="published")
+        for label in ("Joint Error", *value_labels[1:])
+    ]
+
+    rows, classes, records = [], [], []
+    for rig, metrics in tree.items():
+        methods = settings.methods_for(rig)
+        for motion in (*metrics.test_clips, published.AVERAGE):
+            for index, method in enumerate(methods):
+                result = metrics.methods[method]
+                numbers = result.average if motion == published.AVERAGE else result.clips[motion]
+                row_kind = find_row(METHODS, method, "method")
+                paper = published.table1_value(rig, motion, method)
+                label = f"{rig_label(rig)} — {motion}" if index == 0 else ""
+                rows.append(
+                    [label, row_kind.display, *_method_cells(numbers), *_paper_cells(paper)]
+                )
+                css = ["group-start" if index == 0 else ""]
+                css += ["average" if motion == published.AVERAGE else "", "extra" * row_kind.extra]
+                classes.append(" ".join(c for c in css if c))
+                records.append(
+                    {
+                        "rig": rig,
+                        "motion": motion,
+                        "method": method,
+                        "method_label": row_kind.label,
+                        "extra": row_kind.extra,
+                        "sampler": result.sampler,
+                        **_number_record(numbers),
+                        "length_unit": result.length_unit,
+                        **_paper_record(paper),
+                    }
+                )
+    extras = [m.label for m in METHODS if m.extra and m.key in settings.methods]
+    notes = [
+        JOINT_ERROR_NOTE,
+        GROUND_TRUTH_NOTE,
+        TIME_NOTE,
+        f"GPR rows use the GPR fitted on the train corpus (multiquadric kernel unless the "
+        f"experiment says otherwise); NN rows use the network trained on the corpus plus "
+        f"'{find_row(SAMPLERS, settings.nn_sampler, 'sampler').label}' supersamples.",
+        PUBLISHED_NOTE + " The paper's 'Maya Script' is our Script row.",
+    ]
+    if extras:
+        notes.append(f"Rows marked (extra) are not in the paper: {', '.join(extras)}.")
+    if others:
+        compared = ", ".join(rig_label(rig) for rig in tree)
+        notes.append(
+            f"Like the paper, the methods are compared on {compared}; {', '.join(others)} "
+            "appear in Tables 2 and 3 and the kernel table."
+        )
+    excluded = {
+        r: ms for r, ms in settings.excluded_methods.items() if r in settings.method_rigs and ms
+    }
+    for rig, left_out in excluded.items():
+        labels = ", ".join(find_row(METHODS, m, "method").label for m in left_out)
+        notes.append(f"{rig_label(rig)}: not evaluated by this experiment: {labels}.")
+    return Table(
+        name="table1_methods",
+        title="Table 1 — inverse rig mapping methods on the test clips",
+        columns=columns,
+        rows=rows,
+        data=pd.DataFrame.from_records(records),
+        notes=notes,
+        row_classes=classes,
+    )
+
+
+def _method_cells(numbers: Numbers) -> list[str]:
+    return [
+        format_error(numbers.joint_error),
+        format_error(numbers.ground_truth_error),
+        format_seconds(numbers.total_time_s),
+        format_seconds(numbers.fps),
+    ]
+
+
+def _paper_cells(paper: published.PublishedMethodRow | None) -> list[str]:
+    if paper is None:
+        return [MISSING] * 4
+    return [paper.joint_error, paper.ground_truth_error, paper.total_time_s, paper.fps]
+
+
+def _number_record(numbers: Numbers) -> dict:
+    return {
+        "frames": numbers.frames,
+        "joint_error": numbers.joint_error,
+        "ground_truth_error": numbers.ground_truth_error,
+        "total_time_s": numbers.total_time_s,
+        "fps": numbers.fps,
+        "rig_evaluations": numbers.rig_evaluations,
+    }
+
+
+def _paper_record(paper: published.PublishedMethodRow | None) -> dict:
+    keys = ("joint_error", "ground_truth_error", "total_time_s", "fps")
+    if paper is None:
+        return {f"published_{k}": "" for k in keys} | {"published_source": ""}
+    values = {f"published_{k}": getattr(paper, k) for k in keys}
+    source = f"{published.SOURCE}, Table 1 ({published.LABEL})"
+    return values | {"published_source": source}
+
+
+# --------------------------------------------------------------------------- Tables 2 and §7.1
+def _per_rig_table(
+    tree: Mapping[str, RigMetrics],
+    keys: Sequence[str],
+    catalogue,
+    attribute: str,
+    *,
+    name: str,
+    title: str,
+    what: str,
+    paper: Mapping[str, tuple[str, str]] | None,
+    notes: list[str],
+) -> Table:
+    """Rows = ``keys`` (samplers or kernels); per rig a group of Joint / Ground Truth Error."""
+    first_column = "Method" if catalogue is SAMPLERS else "Kernel"
+    columns = [Column(first_column, numeric=False)]
+    for rig, metrics in tree.items():
+        unit = _unit_label({r.length_unit for r in getattr(metrics, attribute).values()})
+        group = rig_label(rig)
+        columns += [Column(f"Joint Error ({unit})", group), Column("Ground Truth Error", group)]
+    if paper is not None:
+        columns += [
+            Column("Joint Error", published.LABEL, short_group="published"),
+            Column("Ground Truth Error", published.LABEL, short_group="published"),
+        ]
+    rows, records = [], []
+    for key in keys:
+        row_kind = find_row(catalogue, key, what)
+        cells = [row_kind.display]
+        for rig, metrics in tree.items():
+            result: LoadedResult = getattr(metrics, attribute)[key]
+            numbers = result.average
+            cells += [format_error(numbers.joint_error), format_error(numbers.ground_truth_error)]
+            record = {
+                "rig": rig,
+                what: key,
+                f"{what}_label": row_kind.label,
+                **_number_record(numbers),
+                "length_unit": result.length_unit,
+            }
+            if paper is not None:
+                record |= {
+                    "published_joint_error": paper[key][0],
+                    "published_ground_truth_error": paper[key][1],
+                    "published_source": f"{published.SOURCE}, Table 2 ({published.LABEL}; "
+                    "character not stated)",
+                }
+            records.append(record)
+        if paper is not None:
+            cells += list(paper[key])
+        rows.append(cells)
+    return Table(
+        name=name,
+        title=title,
+        columns=columns,
+        rows=rows,
+        data=pd.DataFrame.from_records(records),
+        notes=notes,
+    )
+
+
+def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
+    """Table 2: the network trained on the corpus plus each sampler's supersamples."""
+    return _per_rig_table(
+        tree,
+        settings.samplers,
+        SAMPLERS,
+        "samplers",
+        name="table2_sampling",
+        title="Table 2 — the network trained with each supersampling method (Average of the "
+        "test clips)",
+        what="sampler",
+        paper=published.TABLE2,
+        notes=[
+            JOINT_ERROR_NOTE,
+            GROUND_TRUTH_NOTE,
+            "'No Extra Samples' trains on the animator corpus alone; the others add the same "
+            "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
+            PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on.",
+        ],
+    )
+
+
+def kernels_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
+    """§7.1: GPR on the train corpus with each kernel (no published numbers exist)."""
+    return _per_rig_table(
+        tree,
+        settings.kernels,
+        KERNELS,
+        "kernels",
+        name="table_kernels",
+        title="GPR kernels (§7.1) — Average of the test clips",
+        what="kernel",
+        paper=None,
+        notes=[
+            JOINT_ERROR_NOTE,
+            GROUND_TRUTH_NOTE,
+            "The paper reports no numbers for this comparison, only that the multiquadric "
+            "kernel did best (§7.1).",
+        ],
+    )
+
+
+# --------------------------------------------------------------------------- Table 3
+def rigs_table(facts: Sequence[RigFacts]) -> Table:
+    """Table 3: training frames, rig DOFs (all and used) and joint DOFs per character."""
+    columns = [Column("Character", numeric=False)]
+    columns += [
+        Column(label, OURS, short_group="")
+        for label in (
+            "Training Frames",
+            "Keyed Frames",
+            "Rig DOFs",
+            "Used Rig DOFs",
+            "Joint DOFs",
+        )
+    ]
+    columns.append(Column("Character", published.LABEL, numeric=False, short_group="published"))
+    columns += [
+        Column(label, published.LABEL, short_group="published")
+        for label in ("Training Frames", "Rig DOFs", "Joint DOFs")
+    ]
+    rows, records = [], []
+    for fact in facts:
+        paper = published.TABLE3.get(fact.rig)
+        ours = [
+            fact.training_frames,
+            fact.keyed_frames,
+            fact.rig_dofs,
+            fact.used_rig_dofs,
+            fact.joint_dofs,
+        ]
+        rows.append([rig_label(fact.rig), *map(str, ours), *(paper if paper else [MISSING] * 4)])
+        records.append(
+            {
+                "rig": fact.rig,
+                "training_frames": fact.training_frames,
+                "keyed_frames": fact.keyed_frames,
+                "rig_dofs": fact.rig_dofs,
+                "used_rig_dofs": fact.used_rig_dofs,
+                "joint_dofs": fact.joint_dofs,
+                "length_unit": fact.length_unit,
+                "published_character": paper[0] if paper else "",
+                "published_training_frames": paper[1] if paper else "",
+                "published_rig_dofs": paper[2] if paper else "",
+                "published_joint_dofs": paper[3] if paper else "",
+                "published_source": f"{published.SOURCE}, Table 3 ({published.LABEL})"
+                if paper
+                else "",
+            }
+        )
+    return Table(
+        name="table3_rigs",
+        title="Table 3 — numerical characteristics of the rigs",
+        columns=columns,
+        rows=rows,
+        data=pd.DataFrame.from_records(records),
+        notes=[
+            "Training Frames: every played frame of the train corpus (keys and the frames "
+            "interpolated between them); Keyed Frames: frames holding at least one key.",
+            "Rig DOFs: all controls of the rig; Used Rig DOFs: those the animators key, the "
+            "only ones learning and refinement touch (§6.1).",
+            "Joint DOFs: 3 × joints (3 × mesh vertices for mesh rigs).",
+            PUBLISHED_NOTE,
+            published.TABLE3_NOTE,
+        ],
+    )

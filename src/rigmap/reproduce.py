@@ -1,0 +1,270 @@
+"""``rigmap reproduce``: compose the experiment into params.yaml, then ``dvc repro`` with progress.
+
+1. ``params.yaml`` is composed from ``conf/`` and the overrides (``experiment=paper``,
+   ``budget.samples=20000`` ...) exactly as ``dvc exp run -S`` would compose it
+   (:mod:`rigmap.pipeline_params`); it is rewritten only when it changes.
+2. ``dvc repro [STAGE ...]`` runs with the directory of the running Python first on
+   ``PATH``, so every stage's ``python`` is the project's virtual environment.
+   DVC's output is streamed as it comes, and a ``stage k/n`` line is printed when
+   each stage starts (``n``: the stages DVC reports changed plus everything
+   downstream of them — an upper bound, as DVC skips a stage whose inputs came out
+   unchanged).
+3. At the end it prints where ``index.html`` is.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from rigmap.pipeline_params import (
+    ParamsError,
+    check_overrides,
+    find_project_root,
+    reaching_stages,
+    write_params,
+)
+
+# how DVC says a stage starts, or is restored from its run cache instead of running
+STAGE_STARTS = (
+    (re.compile(r"Running stage '([^']+)'"), ""),
+    (re.compile(r"Stage '([^']+)' is cached - skipping run"), " (cached: outputs restored)"),
+)
+PREFIX = "[rigmap reproduce]"
+
+
+@dataclass(frozen=True)
+class ReproducePlan:
+    """Everything a run needs, decided before anything is written or started."""
+
+    project: Path
+    overrides: tuple[str, ...]
+    command: tuple[str, ...]
+    env: dict[str, str]
+    dry: bool
+    params_only: bool = False
+
+    @property
+    def count_stages(self) -> bool:
+        return not self.dry
+
+    @property
+    def bin_dir(self) -> str:
+        return self.env["PATH"].split(os.pathsep, 1)[0]
+
+
+def plan_reproduce(
+    overrides: Sequence[str] = (),
+    *,
+    targets: Sequence[str] = (),
+    project: str | Path | None = None,
+    dry: bool = False,
+    force: bool = False,
+    keep_going: bool = False,
+    params_only: bool = False,
+    python: str | Path | None = None,
+    environ: dict[str, str] | None = None,
+) -> ReproducePlan:
+    """Check the arguments and build the ``dvc repro`` command and its environment.
+
+    ``params_only``: write params.yaml and stop (for ``dvc repro`` / ``dvc exp run`` by hand).
+    """
+    root = find_project_root(project)
+    overrides = tuple(check_overrides(overrides, root / "conf"))
+    for target in targets:
+        if not target or target.startswith("-") or "=" in target:
+            raise ParamsError(
+                f"--target {target!r}: expected a stage name from dvc.yaml (e.g. report, "
+                "fit_nn, evaluate@quadruped-methods)"
+            )
+    environ = dict(os.environ if environ is None else environ)
+    bin_dir = str(Path(python or sys.executable).parent)
+    path = os.pathsep.join([bin_dir, *[p for p in environ.get("PATH", "").split(os.pathsep) if p]])
+    environ["PATH"] = path
+    dvc = shutil.which("dvc", path=path)
+    if dvc is None and params_only:
+        dvc = "dvc"
+    elif dvc is None:
+        raise ParamsError(
+            f"dvc not found on PATH (looked first in {bin_dir}); install the project "
+            "(`make setup`, it brings dvc) or put dvc on PATH"
+        )
+    command = [dvc, "repro", *targets]
+    if dry:
+        command.append("--dry")
+    if force:
+        command.append("--force")
+    if keep_going:
+        command.append("--keep-going")
+    return ReproducePlan(root, overrides, tuple(command), environ, dry, params_only)
+
+
+def count_stages(plan: ReproducePlan) -> int | None:
+    """How many stages ``dvc repro`` may run: changed ones and everything downstream of them.
+
+    From ``dvc status --json`` and ``dvc dag --dot`` (``dvc repro --dry`` cannot tell on a
+    fresh clone: it stops at the first stage whose inputs do not exist yet). Restricted to
+    the targets and what they depend on; ``None`` when DVC cannot say.
+    """
+    dvc = plan.command[0]
+    targets = [c for c in plan.command[2:] if not c.startswith("-")]
+    force = "--force" in plan.command
+    try:
+        # both questions at once: each DVC start-up costs a second or two
+        outputs = _dvc_outputs(
+            [[dvc, "dag", "--dot"], *([] if force else [[dvc, "status", "--json"]])], plan
+        )
+        dag = outputs[0]
+        nodes = {_stage_name(n) for n in _DOT_NODE.findall(dag)}
+        edges = [(_stage_name(a), _stage_name(b)) for a, b in _DOT_EDGE.findall(dag)]
+        changed = set(nodes) if force else {_stage_name(n) for n in json.loads(outputs[1])}
+    except (OSError, ValueError, subprocess.CalledProcessError):
+        return None
+    downstream = {a: set() for a in nodes}
+    upstream = {a: set() for a in nodes}
+    for a, b in edges:
+        downstream.setdefault(a, set()).add(b)
+        upstream.setdefault(b, set()).add(a)
+    may_run = _closure(changed & nodes, downstream)
+    if targets:
+        scope = _closure({t for t in targets if t in nodes}, upstream)
+        if len(scope) == 0:
+            return None  # a target DVC names differently (a dvc.yaml path, a glob)
+        may_run &= scope
+    return len(may_run)
+
+
+_DOT_NODE = re.compile(r'^"([^"]+)";$', re.MULTILINE)
+_DOT_EDGE = re.compile(r'^"([^"]+)" -> "([^"]+)";$', re.MULTILINE)
+
+
+def _stage_name(name: str) -> str:
+    return name.split(":", 1)[1] if name.startswith("dvc.yaml:") else name
+
+
+def _closure(start: set[str], links: dict[str, set[str]]) -> set[str]:
+    seen, todo = set(start), list(start)
+    while todo:
+        for other in links.get(todo.pop(), ()):
+            if other not in seen:
+                seen.add(other)
+                todo.append(other)
+    return seen
+
+
+def _dvc_outputs(commands: list[list[str]], plan: ReproducePlan) -> list[str]:
+    """Run the commands side by side; their standard outputs (an error if one fails)."""
+    running = [
+        subprocess.Popen(
+            command,
+            cwd=plan.project,
+            env=plan.env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        for command in commands
+    ]
+    outputs = []
+    for command, process in zip(commands, running, strict=True):
+        stdout, _ = process.communicate()
+        if process.returncode != 0:
+            raise subprocess.CalledProcessError(process.returncode, command)
+        outputs.append(stdout)
+    return outputs
+
+
+def run_reproduce(plan: ReproducePlan, *, out: TextIO | None = None) -> int:
+    """Write params.yaml, run ``dvc repro`` streaming its output; DVC's exit code."""
+    out = out or sys.stdout
+    params_file = plan.project / "params.yaml"
+    before = params_file.read_text(encoding="utf-8") if params_file.is_file() else None
+    update = write_params(plan.project, plan.overrides)
+    try:
+        return _run(plan, update, out)
+    finally:
+        if plan.dry and update.changed:  # a dry run leaves the workspace as it was
+            if before is None:
+                params_file.unlink(missing_ok=True)
+            else:
+                params_file.write_text(before, encoding="utf-8")
+
+
+def _run(plan: ReproducePlan, update, out: TextIO) -> int:
+    state = "updated" if update.changed else "unchanged"
+    chosen = " ".join(plan.overrides) or "(defaults of conf/config.yaml)"
+    print(f"{PREFIX} params.yaml {state}: {chosen}", file=out, flush=True)
+    if update.differs_from_defaults:
+        reached = reaching_stages(update.differs_from_defaults, plan.project / "dvc.yaml")
+        print(
+            f"{PREFIX} differs from the defaults: {', '.join(update.differs_from_defaults)}",
+            file=out,
+        )
+        if not reached:
+            print(
+                f"{PREFIX} warning: no stage in dvc.yaml interpolates any of these values "
+                "(${...} in its cmd), so they change nothing the pipeline runs",
+                file=out,
+            )
+    if plan.params_only:
+        print(f"{PREFIX} wrote {update.path}; run `dvc repro` or `dvc exp run` next", file=out)
+        return 0
+    total = count_stages(plan) if plan.count_stages else None
+    if total is not None:
+        print(f"{PREFIX} {total} stage(s) changed or downstream of a change", file=out, flush=True)
+    print(f"{PREFIX} {' '.join(plan.command[1:])} (PATH starts with {plan.bin_dir})", file=out)
+    out.flush()
+    code = _stream(plan, out, total)
+    index = plan.project / str(update.params.get("paths", {}).get("reports", "reports"))
+    index = index / "index.html"
+    if code != 0:
+        print(f"{PREFIX} dvc repro failed (exit code {code})", file=out)
+    elif index.is_file():
+        print(f"{PREFIX} report: {index}", file=out)
+    else:
+        print(f"{PREFIX} done; no report yet at {index} (the report stage did not run)", file=out)
+    out.flush()
+    return code
+
+
+def _stream(plan: ReproducePlan, out: TextIO, total: int | None) -> int:
+    """Pass DVC's output through as it arrives; announce each stage as it starts."""
+    process = subprocess.Popen(
+        plan.command,
+        cwd=plan.project,
+        env=plan.env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    assert process.stdout is not None
+    announced: list[str] = []
+    pending = ""
+    try:
+        while chunk := process.stdout.read1(4096):
+            text = chunk.decode("utf-8", errors="replace")
+            out.write(text)
+            pending += text
+            *complete, pending = re.split(r"[\r\n]", pending)
+            for line in complete:
+                for pattern, remark in STAGE_STARTS:
+                    match = pattern.search(line)
+                    if match and match.group(1) not in announced:
+                        announced.append(match.group(1))
+                        of = f"/{total}" if total else ""
+                        out.write(
+                            f"{PREFIX} stage {len(announced)}{of}: {match.group(1)}{remark}\n"
+                        )
+            out.flush()
+    except KeyboardInterrupt:
+        process.terminate()
+        process.wait()
+        raise
+    return process.wait()
