@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender demo test lint format benchmark clean
+.PHONY: setup blender reproduce demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -24,7 +24,11 @@ $(STAMP): pyproject.toml
 blender:
 	bash scripts/setup_blender_env.sh
 
-# The main job on the built-in default (for now: describe and render the default rig).
+# The main job: the quick replication of the paper's tables (dvc repro; reports/index.html).
+reproduce: setup
+	$(BIN)/rigmap reproduce
+
+# A first look without running the pipeline: describe and render the built-in rigs.
 demo: setup
 	$(BIN)/rigmap rigs list
 	$(BIN)/rigmap rigs describe quadruped
@@ -44,6 +48,8 @@ format: setup
 
 benchmark: setup
 	$(BIN)/python benchmarks/rig_eval.py
+	$(BIN)/python benchmarks/supersample.py
+	$(BIN)/python benchmarks/regression.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache
