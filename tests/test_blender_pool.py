@@ -126,8 +126,10 @@ def test_killed_worker_mid_batch_is_restarted_and_the_result_is_identical(stand_
                 os.kill(victim, signal.SIGKILL)
                 killed.append(victim)
 
+        # 20 slow chunks: after the first one finishes the victim still has work to lose,
+        # even when a loaded machine schedules the two workers unevenly
         out = pool.map_rows(
-            "evaluate", {"controls": Y}, args={"delay": 0.02}, chunk_rows=4, on_chunk_done=kill_once
+            "evaluate", {"controls": Y}, args={"delay": 0.1}, chunk_rows=2, on_chunk_done=kill_once
         )
         seen_pids.update(pool.pids())
         assert pool.restarts >= 1

@@ -258,6 +258,7 @@ def test_dvc_matrix_runs_every_sampler_on_every_rig():
     assert "conf/sampler/${item.sampler}.yaml" in spec["deps"]
     figures = pipeline["sample_figures"]
     assert sorted(figures["matrix"]["rig"]) == sorted(RIGS)
-    assert figures["outs"] == ["reports/figures/samples_${item.rig}.png"]
+    # the figure is committed to git for the README, so DVC does not cache it
+    assert figures["outs"] == [{"reports/figures/samples_${item.rig}.png": {"cache": False}}]
     for name in available():
         assert f"data/${{item.rig}}/samples/{name}.npz" in figures["deps"]
