@@ -100,7 +100,10 @@ class WorkerPool:
         worker = self._slots[slot]
         if worker is None or not worker.alive:
             if worker is not None:
+                # died between requests (killed, crashed while idle): a restart all the same
                 worker.kill()
+                with self._lock:
+                    self.restarts += 1
             worker = self._start(slot)
         return worker
 
