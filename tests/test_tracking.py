@@ -13,12 +13,10 @@ from __future__ import annotations
 import json
 import os
 import re
-import signal
 import socket
 import subprocess
 import sys
 import time
-import urllib.request
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -56,74 +54,15 @@ from rigmap.tracking import (
 from rigmap.tracking.store import local_artifact_root
 
 REPO = Path(__file__).resolve().parents[1]
-SERVER_START_TIMEOUT_S = 120  # a loaded 2-core machine needs 20-45 s to start mlflow server
 CLIPS = {"jump & play": (12, 21), "tai chi": (8, 22)}  # name: (frames, seed)
 
 
 # --------------------------------------------------------------------------- fixtures
+# `mlflow_server` (one real server for the whole session) comes from conftest.py
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def mlflow_server(tmp_path_factory):
-    """``http://127.0.0.1:<port>`` of a fresh `mlflow server`; killed (whole group) at the end."""
-    folder = tmp_path_factory.mktemp("mlflow-server")
-    port = _free_port()
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
-    env["MLFLOW_SERVER_ENABLE_JOB_EXECUTION"] = "false"  # no huey job-runner processes
-    log = open(folder / "server.log", "w")
-    server = subprocess.Popen(
-        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port),
-         "--workers", "1", "--backend-store-uri", f"sqlite:///{folder / 'backend.db'}",
-         "--artifacts-destination", str(folder / "artifacts")],
-        stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True,
-    )  # fmt: skip
-    uri = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + SERVER_START_TIMEOUT_S
-        while True:
-            if server.poll() is not None:
-                raise RuntimeError(f"mlflow server exited with {server.returncode}: {_tail(log)}")
-            try:
-                with urllib.request.urlopen(f"{uri}/health", timeout=2) as response:
-                    if response.status == 200:
-                        break
-            except OSError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError(
-                    f"mlflow server not up in {SERVER_START_TIMEOUT_S} s: {_tail(log)}"
-                )
-            time.sleep(0.25)
-        yield uri
-    finally:
-        _stop_group(server)
-        log.close()
-
-
-def _tail(log) -> str:
-    log.flush()
-    return Path(log.name).read_text()[-2000:]
-
-
-def _stop_group(process: subprocess.Popen) -> None:
-    """SIGTERM the server's process group (it has uvicorn children); SIGKILL what lingers."""
-    for sig, wait_s in ((signal.SIGTERM, 15.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(process.pid, sig)
-        except ProcessLookupError:  # the whole group is gone
-            return
-        deadline = time.monotonic() + wait_s
-        while time.monotonic() < deadline:
-            process.poll()  # reap the leader so the group can empty
-            try:
-                os.killpg(process.pid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.1)
 
 
 @pytest.fixture(scope="module")
