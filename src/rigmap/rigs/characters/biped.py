@@ -14,6 +14,7 @@ import numpy as np
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.features.aim import aim_joint
 from rigmap.rigs.features.chain_attributes import chain_attributes
+from rigmap.rigs.features.fixed_joint import fixed_joint
 from rigmap.rigs.features.fk_chain import fk_chain
 from rigmap.rigs.features.limb import FootSpec, LimbUsage, limb
 from rigmap.rigs.features.space_blend import space_blend_control
@@ -84,16 +85,7 @@ def build_biped():
         used="rx ry rz",
     )
     b.joint("head", "neck_2")
-    b.joint("head_end", "head")
-    b.set_rest("head_end", (0, 180, 2))
-    head_top = b.offset_to("head", (0, 180, 2))
-
-    def head_joints(ctx):
-        ctx.xf["head_end"] = type(ctx.xf["head"])(
-            ctx.xf["head"].R, ctx.xf["head"].apply(ctx.const(head_top))
-        )
-
-    b.step(head_joints)
+    fixed_joint(b, "head_end", parent="head", position=(0, 180, 2))
     fk_chain(
         b,
         ["jaw"],
@@ -104,15 +96,7 @@ def build_biped():
         rotate_range={"rx": (-0.1, 0.6), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
         control_suffix="_ctrl",
     )
-    b.joint("jaw_end", "jaw")
-    b.set_rest("jaw_end", (0, 156, 11))
-    jaw_tip = b.offset_to("jaw", (0, 156, 11))
-
-    def jaw_end(ctx):
-        jaw = ctx.xf["jaw"]
-        ctx.xf["jaw_end"] = type(jaw)(jaw.R, jaw.apply(ctx.const(jaw_tip)))
-
-    b.step(jaw_end)
+    fixed_joint(b, "jaw_end", parent="jaw", position=(0, 156, 11))
     b.transform_control(
         "eye_aim",
         parent="root",

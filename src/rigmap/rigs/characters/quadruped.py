@@ -13,9 +13,9 @@ import numpy as np
 
 from rigmap.rigs.characters.biped import SIDES, _mirror
 from rigmap.rigs.engine.builder import RigBuilder
-from rigmap.rigs.engine.transforms import Transform
 from rigmap.rigs.features.aim import aim_joint
 from rigmap.rigs.features.chain_attributes import chain_attributes
+from rigmap.rigs.features.fixed_joint import fixed_joint
 from rigmap.rigs.features.fk_chain import fk_chain
 from rigmap.rigs.features.limb import FootSpec, LimbUsage, limb
 from rigmap.rigs.features.space_blend import space_blend_control
@@ -79,7 +79,7 @@ def build_quadruped():
         used="rx ry rz",
     )
     b.joint("head", "neck_3")
-    _fixed_joint(b, "head_end", parent="head", position=(0, 84, 63))
+    fixed_joint(b, "head_end", parent="head", position=(0, 84, 63))
     fk_chain(
         b,
         ["jaw"],
@@ -90,7 +90,7 @@ def build_quadruped():
         rotate_range={"rx": (-0.1, 0.7), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
         control_suffix="_ctrl",
     )
-    _fixed_joint(b, "jaw_end", parent="jaw", position=(0, 76, 61))
+    fixed_joint(b, "jaw_end", parent="jaw", position=(0, 76, 61))
     b.transform_control(
         "eye_aim",
         parent="root",
@@ -153,19 +153,6 @@ def build_quadruped():
         _front_leg(b, side, sign)
         _hind_leg(b, side, sign)
     return b.build(description="Dog quadruped, digitigrade hind legs, tail and ears (cm, radians)")
-
-
-def _fixed_joint(b: RigBuilder, name: str, *, parent: str, position) -> None:
-    """A joint rigidly attached to ``parent`` (end sites such as the snout tip)."""
-    b.joint(name, parent)
-    b.set_rest(name, position)
-    offset = b.offset_to(parent, position)
-
-    def step(ctx):
-        host = ctx.xf[parent]
-        ctx.xf[name] = Transform(host.R, host.apply(ctx.const(offset)))
-
-    b.step(step)
 
 
 def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
