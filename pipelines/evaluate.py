@@ -186,9 +186,9 @@ class ModelFolders:
         return self._load(self.regressor_folder(job), load_regressor)
 
     def learned_jacobian(self, job: EvaluationJob):
-        from rigmap.regression import LearnedJacobian
+        from rigmap.regression import load_learned_jacobian
 
-        return self._load(self.jacobian_folder(job), LearnedJacobian.load)
+        return self._load(self.jacobian_folder(job), load_learned_jacobian)
 
     def _load(self, folder: Path | None, loader):
         if folder is None:

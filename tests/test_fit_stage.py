@@ -22,11 +22,12 @@ from rigmap.refine import jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
     GaussianProcessRegressor,
-    LearnedJacobian,
     ModelMismatchError,
+    load_learned_jacobian,
     load_regressor,
 )
 from rigmap.regression.fitting import load_training_data, write_model_folder
+from rigmap.regression.mapping import InverseMapping
 from rigmap.sampling import make_sampler, supersample
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -133,7 +134,7 @@ def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir,
     folder = gpr_fit.folder
     assert folder.name == "gpr-none-multiquadric" and folder.parent.name == "biped"
     names = sorted(p.name for p in folder.iterdir())
-    assert names == ["fit.json", "gpr.json", "gpr.npz", "learned_jacobian"]
+    assert names == ["fit.json", "gpr.json", "gpr.npz", "learned_jacobian", "placement.json"]
     assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no staging left
     record = json.loads((folder / "fit.json").read_text())
     n_corpus = len(Corpus.read(data_dir / "biped/corpus/train.parquet").table)
@@ -150,6 +151,11 @@ def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir,
         "samples": 0,
     }
     assert record["features"]["width"] == 3 * biped.n_joints + 12
+    # the biped's root channels were found on the rig and are solved, not regressed
+    placement = record["placement"]
+    assert [c["name"] for c in placement["ground"]] == ["root.tx", "root.tz"]
+    assert placement["turn"]["name"] == "root.ry"
+    assert all(abs(c["gain"] - 1.0) < 1e-6 for c in [*placement["ground"], placement["turn"]])
     assert record["features"]["joint_names"] == list(biped.joint_names)
     assert record["outputs"]["controls"] == list(biped.used_controls)
     assert record["seconds"]["total"] >= record["seconds"]["model"] > 0
@@ -159,7 +165,8 @@ def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir,
     assert record["gpr"]["length_scale"] in search["candidates"] and len(search["cv_errors"]) == 3
 
     model = load_regressor(folder, rig=biped)
-    assert isinstance(model, GaussianProcessRegressor)
+    assert isinstance(model, InverseMapping)
+    assert isinstance(model.regressor, GaussianProcessRegressor)
     # subsampling started from the rest pose, the row the stage added
     assert model.support_indices_[0] == record["rest_pose"]["index"] == n_corpus
     data = load_training_data(biped, data_dir, "none")
@@ -170,7 +177,7 @@ def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir,
 
 def test_learned_jacobian_matches_finite_differences_at_a_support_pose(gpr_fit, data_dir, biped):
     model = load_regressor(gpr_fit.folder, rig=biped)
-    learned = LearnedJacobian.load(gpr_fit.folder / "learned_jacobian", rig=biped)
+    learned = load_learned_jacobian(gpr_fit.folder / "learned_jacobian", rig=biped)
     data = load_training_data(biped, data_dir, "none")
     row = int(model.support_indices_[7])
     predicted = learned.predict(data.features[row])
@@ -185,7 +192,12 @@ def test_learned_jacobian_matches_finite_differences_at_a_support_pose(gpr_fit, 
 def test_network_fits_corpus_plus_samples(nn_fit, data_dir, biped):
     folder = nn_fit.folder
     assert folder.name == "nn-pca_gaussian-none"
-    assert sorted(p.name for p in folder.iterdir()) == ["fit.json", "network.json", "network.pt"]
+    assert sorted(p.name for p in folder.iterdir()) == [
+        "fit.json",
+        "network.json",
+        "network.pt",
+        "placement.json",
+    ]
     record = json.loads((folder / "fit.json").read_text())
     assert (record["regressor"], record["sampler"], record["kernel"]) == (
         "nn",
@@ -196,7 +208,7 @@ def test_network_fits_corpus_plus_samples(nn_fit, data_dir, biped):
     assert record["inputs"]["samples"].endswith("biped/samples/pca_gaussian.npz")
     assert len(record["network"]["loss_history"]) == 4  # budget.epochs
     model = load_regressor(folder, rig=biped)
-    assert isinstance(model, FeedForwardRegressor) and model.hidden == 32
+    assert isinstance(model.regressor, FeedForwardRegressor) and model.hidden == 32
     model_error, mean_error = standardised_error(
         model, load_training_data(biped, data_dir, "pca_gaussian")
     )
@@ -210,7 +222,7 @@ def test_model_folder_of_another_rig_is_refused(gpr_fit, nn_fit, quadruped):
     with pytest.raises(ModelMismatchError, match=r"fitted for rig 'biped'.*'quadruped'"):
         load_regressor(nn_fit.folder, rig="quadruped")
     with pytest.raises(ModelMismatchError, match="'biped'"):
-        LearnedJacobian.load(gpr_fit.folder / "learned_jacobian", rig=quadruped)
+        load_learned_jacobian(gpr_fit.folder / "learned_jacobian", rig=quadruped)
 
 
 def test_missing_inputs_are_named(tmp_path, data_dir):

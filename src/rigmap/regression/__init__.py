@@ -60,14 +60,31 @@ def make_regressor(name: str, **params: Any):
 
 
 def load_regressor(folder: str | os.PathLike, rig: Any = None):
-    """The inverse mapping saved in ``folder`` (``gpr.json`` or ``network.json``)."""
+    """The inverse mapping saved in ``folder`` (``gpr.json`` or ``network.json``).
+
+    A folder written by a fit also holds ``placement.json``: the regressor then comes
+    wrapped in its :class:`~rigmap.regression.mapping.InverseMapping` (pose rows in).
+    """
+    from rigmap.regression.mapping import InverseMapping, has_placement
+
     folder = Path(folder)
+    if has_placement(folder):
+        return InverseMapping.load(folder, rig=rig)
     found = [cls for cls in REGRESSORS.values() if (folder / f"{cls.file_stem}.json").is_file()]
     if len(found) != 1:
         expected = " or ".join(f"{cls.file_stem}.json" for cls in REGRESSORS.values())
         what = "both" if found else "neither"
         raise ModelFileError(f"{folder}: expected exactly one of {expected}, found {what}")
     return found[0].load(folder, rig=rig)
+
+
+def load_learned_jacobian(folder: str | os.PathLike, rig: Any = None):
+    """The learned Jacobian saved in ``folder``, wrapped with its placement if it has one."""
+    from rigmap.regression.mapping import JacobianMapping, has_placement
+
+    if has_placement(folder):
+        return JacobianMapping.load(folder, rig=rig)
+    return LearnedJacobian.load(folder, rig=rig)
 
 
 __all__ = [
@@ -88,6 +105,7 @@ __all__ = [
     "greedy_subsample",
     "kernel_from_dict",
     "length_scale_cv_errors",
+    "load_learned_jacobian",
     "load_regressor",
     "make_kernel",
     "make_regressor",

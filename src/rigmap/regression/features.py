@@ -1,10 +1,13 @@
-"""What the inverse mapping sees: COG-relative joint positions plus the COG placement.
+"""What the inverse mapping receives: a pose row of COG-relative joints plus the COG placement.
 
 The paper regresses controls from joint positions relative to the centre of
 gravity (§3.2). Those are blind to where the character stands, so root
-controls (placement, COG translation) could never be recovered; rigmap
-appends the COG's world position (3 numbers, cm) and rotation (9 numbers) as
-extra inputs. Refinement still works on the joint positions alone.
+controls could never be recovered from them alone; a pose row therefore also
+carries the COG's world position (3 numbers, cm) and rotation (9 numbers).
+The regressor itself does not see them raw: :mod:`rigmap.regression.placement`
+turns a pose row into inputs that ignore where the character stands and faces
+and solves the root controls from the COG placement. Refinement works on the
+joint positions alone.
 """
 
 from __future__ import annotations

@@ -11,10 +11,14 @@ The training rows, in this order:
    and the network on the corpus plus samples; other pairings are allowed and named by
    the model folder.
 
-Inputs are :func:`~rigmap.regression.features.inverse_features` (COG-relative joints plus
-the COG placement), targets the rig's used controls. A multiquadric GPR also gets the
-learned Jacobian of §4.3-4.4: finite-difference Jacobians at its support poses, regressed
-by a GPR of the same settings, saved in ``learned_jacobian/`` inside the model folder.
+Rows are :func:`~rigmap.regression.features.inverse_features` pose rows (COG-relative
+joints plus the COG placement) and the rig's used controls. The fit first finds the rig's
+root channels (:func:`~rigmap.regression.placement.find_placement`): the regressor then
+learns from inputs and targets that ignore where the character stands and faces, and the
+model (an :class:`~rigmap.regression.mapping.InverseMapping`) solves the root channels from
+the COG placement when it predicts. A multiquadric GPR also gets the learned Jacobian of
+§4.3-4.4: finite-difference Jacobians at its support poses, regressed by a GPR of the same
+settings, saved in ``learned_jacobian/`` inside the model folder.
 
 The model folder ``<paths.models>/<rig>/<regressor>-<sampler>-<kernel>/`` (kernel
 ``none`` for the network) is filled in a hidden sibling folder and renamed into place, so
@@ -45,6 +49,8 @@ from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_f
 from rigmap.regression.gpr import GaussianProcessRegressor
 from rigmap.regression.kernels import MultiquadricKernel
 from rigmap.regression.learned_jacobian import LearnedJacobian
+from rigmap.regression.mapping import InverseMapping, JacobianMapping
+from rigmap.regression.placement import Placement, find_placement
 from rigmap.sampling.supersample import load_samples
 
 FIT_FORMAT = "rigmap.fit/1"
@@ -53,6 +59,8 @@ LEARNED_JACOBIAN_FOLDER = "learned_jacobian"
 NO_KERNEL = "none"  # the kernel label of regressors that have none (the network)
 # a corpus frame counts as the rest pose when every used control is within this of its default
 _REST_TOLERANCE = 1e-9
+# corpus frames (evenly spaced, plus the rest pose) at which the root channels are probed
+PLACEMENT_PROBES = 4
 
 Log = Callable[[str], None]
 
@@ -286,15 +294,19 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
         f"{data.features.shape[1]} inputs -> {data.controls.shape[1]} used controls"
     )
     log(f"  rest pose: {data.rest_pose}")
+    placement = placement_of(rig, data)
+    log(f"  placement: {placement.describe()}")
+    for note in placement.notes:
+        log(f"  placement note: {note}")
 
     seconds: dict[str, float] = {}
     clock = time.perf_counter()
-    fitted = fit_regressor(model, rig, data, log=log)
+    fitted = fit_regressor(model, rig, data, placement, log=log)
     seconds["model"] = time.perf_counter() - clock
-    details = describe_fitted(fitted)
+    details = describe_fitted(fitted.regressor)
 
     learned = None
-    if isinstance(fitted, GaussianProcessRegressor) and isinstance(
+    if isinstance(fitted.regressor, GaussianProcessRegressor) and isinstance(
         fitted.kernel_, MultiquadricKernel
     ):
         learned, jacobian_details = fit_learned_jacobian(fitted, rig, data, log=log)
@@ -319,7 +331,7 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
         "regressor": regressor,
         "sampler": sampler,
         "kernel": kernel_label,
-        "model_file": f"{fitted.file_stem}.json",
+        "model_file": f"{fitted.regressor.file_stem}.json",
         "rows": {
             "total": data.rows,
             "corpus": data.corpus_rows,
@@ -332,7 +344,8 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
             "note": data.rest_pose,
         },
         "seconds": seconds,
-        "features": feature_layout(rig),
+        "features": feature_layout(rig, placement),
+        "placement": placement.to_dict(),
         "outputs": {"count": len(rig.used_controls), "controls": list(rig.used_controls)},
         "inputs": data.sources,
         "training_error": error,
@@ -352,8 +365,18 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
 
 
-def fit_regressor(model, rig, data: TrainingData, *, log: Log = _print):
-    """``model.fit`` on the training rows; a GPR also gets the rest-pose row."""
+def placement_of(rig, data: TrainingData) -> Placement:
+    """The rig's root channels, probed at the rest pose and a few corpus frames."""
+    defaults = rig.controls.defaults[rig.controls.used_indices]
+    picks = np.linspace(0, data.corpus_rows - 1, PLACEMENT_PROBES).round().astype(int)
+    probes = np.concatenate([defaults[None], data.controls[np.unique(picks)]])
+    return find_placement(rig, probes)
+
+
+def fit_regressor(
+    model, rig, data: TrainingData, placement: Placement, *, log: Log = _print
+) -> InverseMapping:
+    """``model.fit`` on the training rows behind ``placement``; a GPR also gets the rest row."""
     options: dict[str, Any] = {"rig_name": rig.name, "control_names": list(rig.used_controls)}
     if "rest_index" in inspect.signature(model.fit).parameters:
         options["rest_index"] = data.rest_index
@@ -361,7 +384,7 @@ def fit_regressor(model, rig, data: TrainingData, *, log: Log = _print):
         _announce_gpr(model, data.rows, log)
     else:
         log(f"  training {model!r} on {data.rows} rows")
-    model.fit(data.features, data.controls, **options)
+    mapping = InverseMapping(model, placement).fit(data.features, data.controls, **options)
     if isinstance(model, GaussianProcessRegressor):
         phases = model.fit_seconds_
         log(
@@ -376,7 +399,7 @@ def fit_regressor(model, rig, data: TrainingData, *, log: Log = _print):
                 for scale, error in zip(model.length_scales_, model.cv_errors_, strict=True)
             )
             log(f"  CV error by length scale (standardised units²): {curve}")
-    return model
+    return mapping
 
 
 def _announce_gpr(model: GaussianProcessRegressor, rows: int, log: Log) -> None:
@@ -420,13 +443,14 @@ def describe_fitted(model) -> dict[str, Any]:
 
 
 def fit_learned_jacobian(
-    model: GaussianProcessRegressor, rig, data: TrainingData, *, log: Log = _print
-) -> tuple[LearnedJacobian, dict[str, Any]]:
+    mapping: InverseMapping, rig, data: TrainingData, *, log: Log = _print
+) -> tuple[JacobianMapping, dict[str, Any]]:
     """§4.3-4.4: finite-difference Jacobians at the GPR's support poses, learned by a GPR.
 
     The Jacobian GPR takes the inverse mapping's settings (regularisation, search range,
-    splits, seed); every support pose is one of its support points.
+    splits, seed) and its placement; every support pose is one of its support points.
     """
+    model: GaussianProcessRegressor = mapping.regressor
     from rigmap.refine import jacobian
 
     support = np.asarray(model.support_indices_)
@@ -438,7 +462,7 @@ def fit_learned_jacobian(
     clock = time.perf_counter()
     jacobians = jacobian(rig, rig.expand_used(data.controls[support]), "finite_difference")
     fd_seconds = time.perf_counter() - clock
-    learned = LearnedJacobian(
+    regressor = LearnedJacobian(
         kernel=model.kernel_,
         regularization=model.regularization,
         search_length_scale=model.search_length_scale,
@@ -449,6 +473,7 @@ def fit_learned_jacobian(
         normalize=model.normalize,
         seed=model.seed,
     )
+    learned = JacobianMapping(regressor, mapping.placement)
     log(
         f"  learned Jacobian: GPR {len(support)} poses -> {jacobians.shape[1]} x "
         f"{jacobians.shape[2]} Jacobians (after {fd_seconds:.1f} s of finite differences)"
@@ -505,12 +530,13 @@ def training_error(model, rig, data: TrainingData) -> dict[str, Any]:
     }
 
 
-def feature_layout(rig) -> dict[str, Any]:
-    """How the input columns are laid out (see :func:`inverse_features`)."""
+def feature_layout(rig, placement: Placement) -> dict[str, Any]:
+    """How the model's input columns are laid out (see :func:`inverse_features`)."""
     names = feature_names(list(rig.joint_names))
     return {
         "function": "rigmap.regression.features.inverse_features",
         "width": len(names),
+        "regressor_inputs": f"{placement.input_width} columns ({placement.describe()})",
         "n_joints": rig.n_joints,
         "joint_columns": "<joint>.x, <joint>.y, <joint>.z per joint in joint_names order (cm, "
         "relative to the COG)",
