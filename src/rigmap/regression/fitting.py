@@ -406,7 +406,7 @@ def _announce_gpr(model: GaussianProcessRegressor, rows: int, log: Log) -> None:
     target = rows if model.n_points is None else min(int(model.n_points), rows)
     steps = []
     if model.search_length_scale:
-        low, high = (float(v) for v in model.length_scale_range)
+        low, high = model.search_range
         search_rows = min(rows, int(model.search_points) if model.search_points else target)
         steps.append(
             f"length-scale search ({model.n_length_scales} values in [{low:g}, {high:g}] x "
@@ -466,7 +466,7 @@ def fit_learned_jacobian(
         kernel=model.kernel_,
         regularization=model.regularization,
         search_length_scale=model.search_length_scale,
-        length_scale_range=model.length_scale_range,
+        length_scale_range=model.search_range,
         n_length_scales=model.n_length_scales,
         cv_splits=model.cv_splits,
         cv_max_outputs=model.cv_max_outputs,

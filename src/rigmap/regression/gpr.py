@@ -471,7 +471,8 @@ class GaussianProcessRegressor:
       kernel's own ``length_scale`` is used.
     - ``length_scale_range``, ``n_length_scales``: candidates spaced regularly in
       log scale over the range (the paper's range is 1e-4..1e2 and says
-      "regularly"; 25 values = 4 per decade is our choice).
+      "regularly"; 25 values = 4 per decade is our choice). ``None``: the
+      kernel's own ``search_range`` (the paper's for the multiquadric).
     - ``cv_splits``: random half-splits per candidate (10 in the paper).
     - ``search_points``: rows used by the search, drawn at random from the
       data; the paper does not say which set it cross-validates, and the
@@ -509,7 +510,7 @@ class GaussianProcessRegressor:
         regularization: float = 1e-5,
         n_points: int | None = 750,
         search_length_scale: bool = True,
-        length_scale_range: Sequence[float] = (1e-4, 1e2),
+        length_scale_range: Sequence[float] | None = None,
         n_length_scales: int = 25,
         cv_splits: int = 10,
         search_points: int | None = None,
@@ -560,7 +561,7 @@ class GaussianProcessRegressor:
 
     def get_params(self) -> dict[str, Any]:
         params = {name: getattr(self, name) for name in self._PARAM_NAMES}
-        params["length_scale_range"] = [float(v) for v in self.length_scale_range]
+        params["length_scale_range"] = [float(v) for v in self.search_range]
         params["kernel"] = self._kernel().to_dict()
         return params
 
@@ -572,6 +573,15 @@ class GaussianProcessRegressor:
 
     def _kernel(self) -> Kernel:
         return self.kernel if self.kernel is not None else MultiquadricKernel()
+
+    @property
+    def search_range(self) -> tuple[float, float]:
+        """The length-scale search range: ``length_scale_range``, else the kernel's."""
+        chosen = self.length_scale_range
+        if chosen is None:
+            chosen = getattr(self._kernel(), "search_range", MultiquadricKernel.search_range)
+        low, high = chosen
+        return float(low), float(high)
 
     def _check_params(self) -> None:
         if not isinstance(self._kernel(), Kernel):
@@ -587,11 +597,11 @@ class GaussianProcessRegressor:
             raise ValueError(
                 f"GaussianProcessRegressor: n_points must be >= 1, got {self.n_points}"
             )
-        low, high = (float(v) for v in self.length_scale_range)
+        low, high = self.search_range
         if not (0 < low <= high and np.isfinite(high)):
             raise ValueError(
                 "GaussianProcessRegressor: length_scale_range must be (low, high) with "
-                f"0 < low <= high, got {tuple(self.length_scale_range)}"
+                f"0 < low <= high, got {(low, high)}"
             )
         if int(self.n_length_scales) < 1 or int(self.cv_splits) < 1:
             raise ValueError(
@@ -706,7 +716,7 @@ class GaussianProcessRegressor:
     def _search(
         self, Xn: np.ndarray, Yn: np.ndarray, kernel: Kernel, target: int, rng: np.random.Generator
     ) -> Kernel:
-        low, high = (float(v) for v in self.length_scale_range)
+        low, high = self.search_range
         self.length_scales_ = np.geomspace(low, high, int(self.n_length_scales))
         size = min(len(Xn), int(self.search_points) if self.search_points else target)
         rows = np.sort(rng.choice(len(Xn), size=size, replace=False))
@@ -728,7 +738,7 @@ class GaussianProcessRegressor:
         if not np.isfinite(self.cv_errors_).any():
             raise RuntimeError(
                 "GaussianProcessRegressor: every length scale in "
-                f"{tuple(self.length_scale_range)} gave a non-finite validation error"
+                f"{self.search_range} gave a non-finite validation error"
             )
         best = float(self.length_scales_[int(np.nanargmin(self.cv_errors_))])
         return kernel.with_length_scale(best)
