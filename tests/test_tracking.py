@@ -156,6 +156,7 @@ def test_parent_and_method_runs_on_a_real_server(mlflow_server, evaluation, tmp_
     client = MlflowClient(mlflow_server)
     experiment = client.get_experiment_by_name("rigmap-biped")
     assert experiment is not None
+    assert experiment.tags["mlflow.experimentKind"] == "custom_model_development"
     assert client.get_run(parent.run_id).info.status == "FINISHED"
     children = client.search_runs(
         [experiment.experiment_id], f"tags.mlflow.parentRunId = '{parent.run_id}'"

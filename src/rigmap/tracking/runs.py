@@ -49,6 +49,7 @@ from rigmap.tracking.store import (
 )
 
 EXPERIMENT_PREFIX = "rigmap"
+EXPERIMENT_KIND = "custom_model_development"  # the mlflow.experimentKind tag of every experiment
 _BATCH = 100  # MLflow accepts at most 100 params or tags per log_batch call
 
 
@@ -125,7 +126,9 @@ class Tracker:
         artifact_root = local_artifact_root(self.uri)
         location = (artifact_root / name).as_uri() if artifact_root is not None else None
         try:
-            return self.client.create_experiment(name, artifact_location=location)
+            # MLflow 3 opens experiments of this kind on the runs list, not the GenAI overview
+            tags = {"mlflow.experimentKind": EXPERIMENT_KIND}
+            return self.client.create_experiment(name, artifact_location=location, tags=tags)
         except MlflowException:  # created by a concurrent process since we looked
             found = self.client.get_experiment_by_name(name)
             if found is None:
