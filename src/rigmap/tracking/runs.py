@@ -122,6 +122,10 @@ class Tracker:
         name = experiment_name(rig, self.experiment_prefix)
         found = self.client.get_experiment_by_name(name)
         if found is not None:
+            if found.tags.get("mlflow.experimentKind") != EXPERIMENT_KIND:  # made before the tag
+                self.client.set_experiment_tag(
+                    found.experiment_id, "mlflow.experimentKind", EXPERIMENT_KIND
+                )
             return found.experiment_id
         artifact_root = local_artifact_root(self.uri)
         location = (artifact_root / name).as_uri() if artifact_root is not None else None
