@@ -1,7 +1,7 @@
 """The report the pipeline wrote (``reports/`` of this checkout): every row there, numbers sane.
 
-``make test`` checks the committed report; CI checks it again after ``make reproduce``
-rebuilt it from nothing (``.ci/run``). Only the structure and sanity are checked — every
+``make test`` checks the report in the checkout: the committed one, or in CI the one
+``make reproduce`` has just rebuilt from nothing (``.ci/run`` runs it first). Only the structure and sanity are checked — every
 method, sampler, kernel and rig row the report stage was configured for, finite
 non-negative numbers, the figures and index — not the values, which are what the
 experiment measured.
