@@ -143,12 +143,28 @@ def test_a_rig_without_a_motion_library_is_a_clear_error(tmp_path):
 
 
 def test_dvc_matrix_covers_every_built_in_rig_with_a_library():
+    """Built-in rigs in the main matrices; Blender rigs in stages that depend on the backend."""
     pipeline = yaml.safe_load((ROOT / "dvc.yaml").read_text())
-    built_in = [name for name in libraries() if name in available()]
+    with_library = [name for name in libraries() if name in available()]
+    blender = [name for name in with_library if name.startswith("rigify_")]
+    built_in = [name for name in with_library if name not in blender]
+    assert blender == ["rigify_wolf"]
     for stage, out in (("animate", "corpus"), ("pose", "poses")):
-        spec = pipeline["stages"][stage]
-        assert sorted(spec["matrix"]["rig"]) == sorted(built_in)
-        assert spec["outs"] == [f"data/${{item.rig}}/{out}"]
-        assert f"pipelines/{stage}.py" in spec["deps"]
-        assert "conf/rig/${item.rig}.yaml" in spec["deps"]
+        for name, rigs in ((stage, built_in), (f"{stage}_blender", blender)):
+            spec = pipeline["stages"][name]
+            assert sorted(spec["matrix"]["rig"]) == sorted(rigs)
+            assert spec["outs"] == [f"data/${{item.rig}}/{out}"]
+            assert f"pipelines/{stage}.py" in spec["deps"]
+            assert "conf/rig/${item.rig}.yaml" in spec["deps"]
+        assert "src/rigmap/rigs/blender" in pipeline["stages"][f"{stage}_blender"]["deps"]
     assert "data/${item.rig}/corpus" in pipeline["stages"]["pose"]["deps"]
+    for name in ("supersample", "fit_nn", "fit_gpr", "evaluate"):
+        spec = pipeline["stages"][f"{name}_blender"]
+        assert spec["matrix"]["rig"] == blender
+        assert {"src/rigmap/rigs/blender", "conf/rig/${item.rig}.yaml"} <= set(spec["deps"])
+    evaluate = pipeline["stages"]["evaluate_blender"]
+    assert "nn_autodiff_jacobian" not in evaluate["cmd"] and "frames_per_clip=" in evaluate["cmd"]
+    assert len(evaluate["metrics"]) == 7  # Table 1 without autodiff: the rig is a black box
+    report = pipeline["stages"]["report"]["deps"]
+    for rig in blender:
+        assert {f"metrics/{rig}", f"data/{rig}/corpus", f"conf/rig/{rig}.yaml"} <= set(report)

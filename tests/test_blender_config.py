@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rigmap.rigs.blender.rig import select_names
+from rigmap.rigs.blender.rig import select_names, soft_range_overrides
 from rigmap.rigs.blender.rigify import RIGIFY_HUMAN, RIGIFY_WOLF
 
 CONF = Path(__file__).resolve().parents[1] / "conf" / "rig"
@@ -35,3 +35,22 @@ def test_used_pattern_that_matches_nothing_is_an_error():
         select_names(["hand_ik.L.tx"], ["hnd_ik.*"], "rig 'x' used")
     with pytest.raises(ValueError, match="unknown keys"):
         select_names(["a"], {"includ": ["a"]}, "rig 'x' used")
+
+
+def test_soft_ranges_widen_chosen_controls_and_refuse_bad_ones():
+    names = ["root.tx", "root.ty", "torso.tz", "foot_ik.L.tx"]
+    defaults = [0.0, 0.0, 0.0, 0.0]
+    chosen = soft_range_overrides(
+        names, defaults, {"root.t[xy]": [-400, 400], "*.t[xz]": [-80, 80]}, "rig 'x' soft_ranges"
+    )
+    # later patterns win: root.tx is matched by both
+    assert chosen == {0: (-80.0, 80.0), 1: (-400.0, 400.0), 2: (-80.0, 80.0), 3: (-80.0, 80.0)}
+    assert soft_range_overrides(names, defaults, None, "x") == {}
+    with pytest.raises(ValueError, match=r"pattern 'hips\.\*' matches no control"):
+        soft_range_overrides(names, defaults, {"hips.*": [-1, 1]}, "x")
+    with pytest.raises(ValueError, match=r"leaves out the default 5 of control 'torso\.tz'"):
+        soft_range_overrides(names, [0, 0, 5, 0], {"torso.tz": [-1, 1]}, "x")
+    with pytest.raises(ValueError, match="needs finite lower < upper"):
+        soft_range_overrides(names, defaults, {"root.tx": [3, -3]}, "x")
+    with pytest.raises(ValueError, match=r"needs \[lower, upper\] numbers"):
+        soft_range_overrides(names, defaults, {"root.tx": "wide"}, "x")

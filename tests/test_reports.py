@@ -34,7 +34,8 @@ from rigmap.evaluation.metrics import (
 )
 from rigmap.reports import ReportInputError, ReportSettings, build_report, load_metrics, published
 from rigmap.reports.figures import sweep_figure
-from rigmap.reports.tables import methods_table
+from rigmap.reports.rig_facts import RigFacts
+from rigmap.reports.tables import kernels_table, methods_table, rigs_table, sampling_table
 from rigmap.rigs import load
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -375,8 +376,59 @@ def test_table1_covers_only_the_method_rigs(project):
     table = methods_table(tree, settings)
     assert set(table.data["rig"]) == {"quadruped"}
     assert any("compared on Quadruped; Face appear in Tables 2 and 3" in n for n in table.notes)
-    with pytest.raises(ValueError, match=r"method_rigs \['biped'\] are not among rigs"):
+    with pytest.raises(ValueError, match=r"method_rigs \['biped', 'rigify_wolf'\] are not among"):
         ReportSettings(rigs=RIGS)
+    with pytest.raises(ValueError, match=r"sampler_rigs \['biped'\] are not among rigs"):
+        ReportSettings(rigs=RIGS, method_rigs=RIGS, sampler_rigs=("biped",))
+
+
+def test_a_methods_only_rig_with_a_frame_budget_is_labelled(project, tmp_path):
+    """A rig evaluated on the first frames of its clips (the Blender wolf's quick budget)."""
+    root = tmp_path / "copy"
+    shutil.copytree(project["root"] / "metrics", root / "metrics")
+    shutil.copytree(project["root"] / "data", root / "data")
+    for folder in ("samplers", "kernels"):  # face runs Table 1 only
+        shutil.rmtree(root / "metrics" / "face" / folder)
+    for path in (root / "metrics" / "face" / "methods").glob("*.json"):
+        data = json.loads(path.read_text())
+        data["extra"]["frames_per_clip"] = 2
+        data["extra"]["budget"] = {"gpr_points": 40}
+        path.write_text(json.dumps(data))
+    settings = ReportSettings(rigs=RIGS, method_rigs=RIGS, sampler_rigs=("quadruped",))
+    tree = load_metrics(root / "metrics", root / "data", settings)
+    assert tree["face"].samplers == {} and tree["face"].kernels == {}
+    table = methods_table(tree, settings)
+    face = table.data[table.data["rig"] == "face"]
+    assert set(face["frames_per_clip"]) == {2}
+    assert table.data[table.data["rig"] == "quadruped"]["frames_per_clip"].isna().all()
+    labels = [row[0] for row in table.rows if row[0].startswith("Face")]
+    assert labels and all(label.endswith("(first 2 frames)") for label in labels)
+    budget = [n for n in table.notes if n.startswith("Face: every method is scored on the first 2")]
+    assert len(budget) == 1 and budget[0].endswith(
+        "Its GPR keeps 40 support points (budget.gpr_points)."
+    )
+    assert set(sampling_table(tree, settings).data["rig"]) == {"quadruped"}
+    assert set(kernels_table(tree, settings).data["rig"]) == {"quadruped"}
+    # one rig's rows scored on different frames would not compare: refused, naming the rig
+    path = root / "metrics" / "face" / "methods" / "gpr-none.json"
+    data = json.loads(path.read_text())
+    data["extra"]["frames_per_clip"] = None
+    path.write_text(json.dumps(data))
+    tree = load_metrics(root / "metrics", root / "data", settings)
+    with pytest.raises(ReportInputError, match="rig 'face': the Table 1 metrics files were scored"):
+        methods_table(tree, settings)
+
+
+def test_table3_says_what_a_blender_rig_counts():
+    facts = [
+        RigFacts("quadruped", 884, 200, 769, 218, 228, "cm"),
+        RigFacts("rigify_wolf", 891, 303, 2301, 161, 195, "cm", backend="blender"),
+    ]
+    table = rigs_table(facts)
+    assert [row[0] for row in table.rows] == ["Quadruped", "Rigify Wolf (Blender)"]
+    assert table.rows[1][1:6] == ["891", "303", "2301", "161", "195"]
+    assert list(table.data["backend"]) == ["built-in", "blender"]
+    assert any(n.startswith("Rigify Wolf (Blender): Blender rigs") for n in table.notes)
 
 
 def test_settings_refuse_unknown_rows():
@@ -404,8 +456,12 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
         cfg = compose(config_name="config", overrides=["sampler=gmm"])
     settings = report_stage.report_settings(cfg)
     assert settings.nn_sampler == "gmm"
-    assert settings.rigs == ("quadruped", "biped", "face", "squirrel")
-    assert settings.method_rigs == ("quadruped", "biped")  # the evaluate stage's matrix
+    assert settings.rigs == ("quadruped", "biped", "face", "squirrel", "rigify_wolf")
+    # the evaluate stages: the matrix, and the Blender wolf's own (Table 1 only, no autodiff)
+    assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf")
+    assert settings.sampler_rigs == ("quadruped", "biped", "face", "squirrel")
+    assert "nn_autodiff_jacobian" not in settings.methods_for("rigify_wolf")
+    assert "script" in settings.methods_for("rigify_wolf")
 
 
 # --------------------------------------------------------------------------- reproduce

@@ -425,11 +425,17 @@ def run_method(
 
 
 class ScriptCountingRig(CountingRig):
-    """A ``CountingRig`` that also counts the world-transform read-backs a retarget script makes."""
+    """A ``CountingRig`` that also counts a script's read-backs and Blender constraint solves."""
 
     def world_transforms(self, Y: Any) -> Any:
         out = self.wrapped.world_transforms(Y)
         self._record(Y)
+        return out
+
+    def constraint_retarget(self, positions: Any, cog: Any, cog_rotation: Any) -> Any:
+        """A Blender rig's constraint solve: one rig evaluation per target frame."""
+        out = self.wrapped.constraint_retarget(positions, cog, cog_rotation)
+        self._record(positions)
         return out
 
 

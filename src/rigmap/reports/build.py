@@ -95,7 +95,7 @@ def build_report(
     else:
         figures.append(sweep)
     _remove_stale_figures(figures_folder, {f.path.resolve() for f in figures})
-    grids, grid_notes = sample_grid_figures(reports_root / "figures", settings.rigs)
+    grids, grid_notes = sample_grid_figures(reports_root / "figures", settings.sampler_rigs)
     notes += grid_notes
 
     index = write_index(

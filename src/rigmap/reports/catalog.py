@@ -51,12 +51,13 @@ KERNELS: tuple[Row, ...] = (
     Row("polynomial", "Polynomial"),
 )
 
-#: the built-in characters, in the order of the paper's Table 3
+#: the built-in characters, in the order of the paper's Table 3, then the Blender rigs
 RIGS: tuple[Row, ...] = (
     Row("quadruped", "Quadruped"),
     Row("biped", "Biped"),
     Row("face", "Face"),
     Row("squirrel", "Squirrel"),
+    Row("rigify_wolf", "Rigify Wolf (Blender)", extra=True),
 )
 
 

@@ -238,6 +238,8 @@ def expected_files(metrics_root: str | Path, rig: str, settings: ReportSettings)
         sampler = settings.method_sampler(method)
         path = root / "methods" / f"{method}-{sampler}.json"
         files.append(("methods", method, path, method, sampler))
+    if rig not in settings.sampler_rigs:
+        return files
     for sampler in settings.samplers:
         files.append(("samplers", sampler, root / "samplers" / f"nn-{sampler}.json", "nn", sampler))
     for kernel in settings.kernels:
@@ -266,7 +268,8 @@ def load_metrics(
             f"{len(missing)} metrics file(s) missing under {metrics_root} — the evaluate stages "
             "write them (`dvc repro` or `python pipelines/evaluate.py rig=... evaluate.set=...`); "
             "rigs or rows an experiment does not run belong in the report settings (report.rigs, "
-            "report.method_rigs, report.excluded_methods):\n  " + "\n  ".join(missing)
+            "report.method_rigs, report.sampler_rigs, report.excluded_methods):\n  "
+            + "\n  ".join(missing)
         )
     tree = {}
     for rig in settings.rigs:

@@ -4,7 +4,9 @@ Training frames count every played frame of the train corpus (keys and the
 frames interpolated between them, as the paper's data set), keyed frames are
 reported beside them. Rig DOFs are all the rig's controls, with the used ones
 (those the animators key, §6.1) beside them; joint DOFs are 3 × joints (or
-mesh vertices).
+mesh vertices). A Blender rig's controls are every transform channel of its
+control bones and every custom property; its joints the deform bones its config
+selects.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ class RigFacts:
     used_rig_dofs: int
     joint_dofs: int
     length_unit: str
+    backend: str = "built-in"  # "blender" for a rig evaluated by Blender workers
 
 
 def rig_facts(rig, train_corpus: str | Path) -> RigFacts:
@@ -50,4 +53,5 @@ def rig_facts(rig, train_corpus: str | Path) -> RigFacts:
         used_rig_dofs=len(rig.used_controls),
         joint_dofs=3 * int(rig.n_joints),
         length_unit=str(getattr(rig, "length_unit", "cm")),
+        backend="blender" if getattr(rig, "blender_version", None) else "built-in",
     )

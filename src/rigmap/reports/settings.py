@@ -3,8 +3,10 @@
 Every expected metrics file must exist — a missing row is an error, not a gap —
 so the report states up front what the experiment evaluated. Rows an
 experiment does not run (the Script baseline exists only for rigs with a
-hand-written retarget script) are listed in ``excluded_methods`` and left out
-on purpose.
+retarget script; autodiff only for differentiable rigs) are listed in
+``excluded_methods`` and left out on purpose. The Blender wolf's quick budget
+runs Table 1 and Table 3 only: it is not among the ``sampler_rigs`` (Table 2
+and the kernel table).
 """
 
 from __future__ import annotations
@@ -15,27 +17,34 @@ from typing import Any
 
 from rigmap.reports.catalog import KERNELS, METHODS, RIGS, SAMPLERS, find_row
 
-#: the evaluate stages run the script baseline only where one exists (quadruped, biped)
+#: the evaluate stages run the script baseline only where one exists (quadruped, biped, and
+#: the Blender rigs' constraint retarget) and autodiff only on differentiable rigs
 DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
     "face": ("script",),
     "squirrel": ("script",),
+    "rigify_wolf": ("nn_autodiff_jacobian",),
 }
+#: rigs whose pipeline compares methods only (Table 1) — no sampler or kernel sweeps
+METHODS_ONLY_RIGS: tuple[str, ...] = ("rigify_wolf",)
 
 
 @dataclass(frozen=True)
 class ReportSettings:
     """The rows of every table.
 
-    ``rigs`` appear in Tables 2, 3 and the kernel table; ``method_rigs`` (a subset) in
-    Table 1 — the evaluate stage compares the methods on the quadruped and the biped,
-    like the paper. ``nn_sampler`` is the sampler whose network the Table 1 rows ``nn*`` use
-    (their files are ``methods/<method>-<nn_sampler>.json``; GPR and Script
-    rows use ``none``). ``clips`` restricts the expected test clips (``None``:
-    every clip of the rig's test corpus).
+    ``rigs`` appear in Table 3; ``sampler_rigs`` (a subset; ``None``: every rig but
+    ``METHODS_ONLY_RIGS``) in Table 2 and the kernel table; ``method_rigs`` (a subset)
+    in Table 1 — the evaluate stage compares the methods on the quadruped and the
+    biped, like the paper, and on Rigify's wolf (a Blender rig). ``nn_sampler`` is the
+    sampler whose network the Table 1 rows ``nn*`` use (their files are
+    ``methods/<method>-<nn_sampler>.json``; GPR and Script rows use ``none``).
+    ``clips`` restricts the expected test clips (``None``: every clip of the rig's
+    test corpus).
     """
 
     rigs: tuple[str, ...] = tuple(r.key for r in RIGS)
-    method_rigs: tuple[str, ...] = ("quadruped", "biped")
+    method_rigs: tuple[str, ...] = ("quadruped", "biped", "rigify_wolf")
+    sampler_rigs: tuple[str, ...] | None = None
     methods: tuple[str, ...] = tuple(m.key for m in METHODS)
     samplers: tuple[str, ...] = tuple(s.key for s in SAMPLERS)
     kernels: tuple[str, ...] = tuple(k.key for k in KERNELS)
@@ -61,6 +70,16 @@ class ReportSettings:
                 f"report settings: method_rigs {outside} are not among rigs {list(self.rigs)}"
             )
         object.__setattr__(self, "method_rigs", method_rigs)
+        if self.sampler_rigs is None:
+            sampler_rigs = tuple(r for r in self.rigs if r not in METHODS_ONLY_RIGS)
+        else:
+            sampler_rigs = tuple(str(r) for r in self.sampler_rigs)
+        outside = [r for r in sampler_rigs if r not in self.rigs]
+        if outside:
+            raise ValueError(
+                f"report settings: sampler_rigs {outside} are not among rigs {list(self.rigs)}"
+            )
+        object.__setattr__(self, "sampler_rigs", sampler_rigs)
         for key in self.methods:
             find_row(METHODS, key, "method")
         for key in self.samplers:
@@ -97,7 +116,15 @@ class ReportSettings:
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"report settings: unknown keys {unknown}; expected {sorted(known)}")
-        for name in ("rigs", "method_rigs", "methods", "samplers", "kernels", "clips"):
+        for name in (
+            "rigs",
+            "method_rigs",
+            "sampler_rigs",
+            "methods",
+            "samplers",
+            "kernels",
+            "clips",
+        ):
             if values.get(name) is not None:
                 values[name] = _as_tuple(values[name], name)
         return cls(**values)

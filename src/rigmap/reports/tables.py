@@ -14,7 +14,7 @@ import pandas as pd
 
 from rigmap.reports import published
 from rigmap.reports.catalog import KERNELS, METHODS, SAMPLERS, find_row, rig_label
-from rigmap.reports.metrics_tree import LoadedResult, Numbers, RigMetrics
+from rigmap.reports.metrics_tree import LoadedResult, Numbers, ReportInputError, RigMetrics
 from rigmap.reports.rig_facts import RigFacts
 from rigmap.reports.settings import ReportSettings
 from rigmap.reports.table import MISSING, Column, Table, format_error, format_seconds
@@ -66,16 +66,20 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
         for label in ("Joint Error", *value_labels[1:])
     ]
 
-    rows, classes, records = [], [], []
+    rows, classes, records, budget_notes = [], [], [], []
     for rig, metrics in tree.items():
         methods = settings.methods_for(rig)
+        first = frames_per_clip(metrics, methods)
+        if first is not None:
+            budget_notes.append(_frame_budget_note(metrics, methods, first))
         for motion in (*metrics.test_clips, published.AVERAGE):
+            shown = motion if first is None else f"{motion} (first {first} frames)"
             for index, method in enumerate(methods):
                 result = metrics.methods[method]
                 numbers = result.average if motion == published.AVERAGE else result.clips[motion]
                 row_kind = find_row(METHODS, method, "method")
                 paper = published.table1_value(rig, motion, method)
-                label = f"{rig_label(rig)} — {motion}" if index == 0 else ""
+                label = f"{rig_label(rig)} — {shown}" if index == 0 else ""
                 rows.append(
                     [label, row_kind.display, *_method_cells(numbers), *_paper_cells(paper)]
                 )
@@ -92,6 +96,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         "sampler": result.sampler,
                         **_number_record(numbers),
                         "length_unit": result.length_unit,
+                        "frames_per_clip": first,
                         **_paper_record(paper),
                     }
                 )
@@ -107,6 +112,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     ]
     if extras:
         notes.append(f"Rows marked (extra) are not in the paper: {', '.join(extras)}.")
+    notes += budget_notes
     if others:
         compared = ", ".join(rig_label(rig) for rig in tree)
         notes.append(
@@ -128,6 +134,42 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
         notes=notes,
         row_classes=classes,
     )
+
+
+def frames_per_clip(metrics: RigMetrics, methods: Sequence[str]) -> int | None:
+    """The per-clip frame budget the rig's Table 1 runs were scored with (None: whole clips).
+
+    Read from the metrics files (``extra.frames_per_clip``, written by the evaluate
+    stage); the methods of one rig must agree, or their rows would not compare.
+    """
+    budgets = {metrics.methods[m].extra.get("frames_per_clip") for m in methods}
+    if len(budgets) > 1:
+        files = ", ".join(metrics.methods[m].path.name for m in methods)
+        raise ReportInputError(
+            f"rig {metrics.rig!r}: the Table 1 metrics files were scored on different frames "
+            f"per clip ({sorted(budgets, key=str)}); re-run its evaluate stage ({files})"
+        )
+    budget = budgets.pop() if budgets else None
+    return None if budget is None else int(budget)
+
+
+def _frame_budget_note(metrics: RigMetrics, methods: Sequence[str], first: int) -> str:
+    """Why a rig's rows cover only the first frames of its clips, and its GPR's size."""
+    note = (
+        f"{rig_label(metrics.rig)}: every method is scored on the first {first} frames of each "
+        f"test clip (evaluate.frames_per_clip={first}), the experiment's budget for this rig: "
+        "computed-Jacobian refinement evaluates the rig about 2 × (used controls) times per "
+        "frame and iteration (central differences), and a slow rig (a DCC's) pays for each; "
+        "the Average is over those frames."
+    )
+    points = {
+        metrics.methods[m].extra.get("budget", {}).get("gpr_points")
+        for m in methods
+        if m.startswith("gpr")
+    } - {None}
+    if len(points) == 1:
+        note += f" Its GPR keeps {points.pop()} support points (budget.gpr_points)."
+    return note
 
 
 def _method_cells(numbers: Numbers) -> list[str]:
@@ -229,7 +271,7 @@ def _per_rig_table(
 def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
     """Table 2: the network trained on the corpus plus each sampler's supersamples."""
     return _per_rig_table(
-        tree,
+        {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs},
         settings.samplers,
         SAMPLERS,
         "samplers",
@@ -251,7 +293,7 @@ def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> 
 def kernels_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
     """§7.1: GPR on the train corpus with each kernel (no published numbers exist)."""
     return _per_rig_table(
-        tree,
+        {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs},
         settings.kernels,
         KERNELS,
         "kernels",
@@ -307,6 +349,7 @@ def rigs_table(facts: Sequence[RigFacts]) -> Table:
                 "used_rig_dofs": fact.used_rig_dofs,
                 "joint_dofs": fact.joint_dofs,
                 "length_unit": fact.length_unit,
+                "backend": fact.backend,
                 "published_character": paper[0] if paper else "",
                 "published_training_frames": paper[1] if paper else "",
                 "published_rig_dofs": paper[2] if paper else "",
@@ -316,19 +359,26 @@ def rigs_table(facts: Sequence[RigFacts]) -> Table:
                 else "",
             }
         )
+    notes = [
+        "Training Frames: every played frame of the train corpus (keys and the frames "
+        "interpolated between them); Keyed Frames: frames holding at least one key.",
+        "Rig DOFs: all controls of the rig; Used Rig DOFs: those the animators key, the "
+        "only ones learning and refinement touch (§6.1).",
+        "Joint DOFs: 3 × joints (3 × mesh vertices for mesh rigs).",
+    ]
+    blender = [rig_label(f.rig) for f in facts if f.backend == "blender"]
+    if blender:
+        notes.append(
+            f"{', '.join(blender)}: Blender rigs (not in the paper). Rig DOFs count every "
+            "transform channel of the control bones and every custom property, face and paw "
+            "digits included; Joint DOFs are 3 × the deform-bone heads the rig's config keeps "
+            "(without the face and the paw digits)."
+        )
     return Table(
         name="table3_rigs",
         title="Table 3 — numerical characteristics of the rigs",
         columns=columns,
         rows=rows,
         data=pd.DataFrame.from_records(records),
-        notes=[
-            "Training Frames: every played frame of the train corpus (keys and the frames "
-            "interpolated between them); Keyed Frames: frames holding at least one key.",
-            "Rig DOFs: all controls of the rig; Used Rig DOFs: those the animators key, the "
-            "only ones learning and refinement touch (§6.1).",
-            "Joint DOFs: 3 × joints (3 × mesh vertices for mesh rigs).",
-            PUBLISHED_NOTE,
-            published.TABLE3_NOTE,
-        ],
+        notes=[*notes, PUBLISHED_NOTE, published.TABLE3_NOTE],
     )

@@ -1,11 +1,19 @@
 """The "Maya script" baseline (paper §6.1): a rig-specific heuristic retarget, no learning.
 
 ``script_retarget`` takes target joint positions (COG-relative) and the COG's
-world placement, runs the hand-written script for the rig, and returns the
-used controls plus the rig evaluations the script spent reading back parents'
-world transforms. Each built-in articulated rig has its own script; a rig
-without one is refused (Blender rigs have their constraint-based retarget in
-``rigmap.rigs.blender.retarget``).
+world placement, runs the script for the rig, and returns the used controls plus
+the rig evaluations the script spent. This is the one place that picks the
+script:
+
+- built-in articulated rigs have a hand-written script here (``SCRIPTS``) that
+  reads back parents' world transforms;
+- Blender rigs with a ``retarget`` mapping run the constraint-based retarget
+  (``rig.constraint_retarget``, :mod:`rigmap.rigs.blender.retarget`): Blender
+  solves the constraints once per frame, one rig evaluation each;
+- any other rig is refused.
+
+Rig evaluations are counted by calling the rig (or the counting wrapper the
+evaluation runner passes) through ``world_transforms`` / ``constraint_retarget``.
 """
 
 from __future__ import annotations
@@ -49,17 +57,21 @@ def script_retarget(rig, positions, cog=None, cog_rotation=None, *, chunk: int =
     instead of all three. Returns a :class:`ScriptResult`.
     """
     script = SCRIPTS.get(rig.name)
-    if script is None:
+    if script is None and not _has_constraint_retarget(rig):
         raise NoRetargetScriptError(
             f"no retarget script for rig {rig.name!r}; scripts exist for "
-            f"{', '.join(sorted(SCRIPTS))} (Blender rigs: "
-            "rigmap.rigs.blender.retarget.constraint_retarget)"
+            f"{', '.join(sorted(SCRIPTS))} and for Blender rigs with a 'retarget' mapping "
+            "in their config (constraint-based, rigmap.rigs.blender.retarget)"
         )
     if isinstance(positions, Pose):
         positions, cog, cog_rotation = positions
     where = f"script_retarget on rig {rig.name!r}"
     X = check_positions(positions, rig.n_joints, where)
     cog, cog_rotation = _check_placement(cog, cog_rotation, len(X), where)
+    if script is None:
+        # one constraint solve per frame; a counting wrapper records them
+        Y = np.asarray(rig.constraint_retarget(X, cog, cog_rotation), dtype=np.float64)
+        return ScriptResult(Y[:, rig.controls.used_indices], len(X))
     if chunk < 1:
         raise ValueError(f"{where}: chunk must be a positive number of frames, got {chunk}")
     world = X + cog[:, None, :]
@@ -73,6 +85,13 @@ def script_retarget(rig, positions, cog=None, cog_rotation=None, *, chunk: int =
         evaluations += scene.evaluations
     Y_used = np.concatenate(parts) if parts else np.zeros((0, len(used)))
     return ScriptResult(Y_used, evaluations)
+
+
+def _has_constraint_retarget(rig) -> bool:
+    """A Blender rig that knows which controls follow which joints (its ``retarget`` list)."""
+    return callable(getattr(rig, "constraint_retarget", None)) and bool(
+        getattr(rig, "retarget_mapping", None)
+    )
 
 
 def _check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:

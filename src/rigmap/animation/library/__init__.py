@@ -2,8 +2,9 @@
 
 Each built-in rig has a module here that keys its *used* controls the way an
 animator would (key poses, plants, overlap), with seeded variation of timing and
-values. Training clips are everyday motions; test clips are held out and chosen to
-be large, fast or extreme, as in the paper's Table 1.
+values; Rigify's wolf (a Blender rig) gets the dog's motions re-keyed onto its own
+controls (:mod:`.wolf`). Training clips are everyday motions; test clips are held out
+and chosen to be large, fast or extreme, as in the paper's Table 1.
 
 ``build_clips(rig, split, seed=...)`` gives the clips; ``build_corpus`` plays them on
 the rig's used controls into a :class:`~rigmap.animation.corpus.Corpus`. The same
@@ -37,6 +38,7 @@ _LIBRARY_MODULES: dict[str, str] = {
     "biped": "rigmap.animation.library.biped",
     "face": "rigmap.animation.library.face",
     "squirrel": "rigmap.animation.library.squirrel",
+    "rigify_wolf": "rigmap.animation.library.wolf",
 }
 
 

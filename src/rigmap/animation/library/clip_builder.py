@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from rigmap.animation.clip import Clip
-from rigmap.animation.keyframes import INTERPOLATIONS, Interpolation, Key, KeyframeError
+from rigmap.animation.keyframes import INTERPOLATIONS, FCurve, Interpolation, Key, KeyframeError
 
 AUTHORED_FPS = 24
 
@@ -165,6 +165,19 @@ class ClipBuilder:
     @property
     def controls(self) -> list[str]:
         return list(self._keys)
+
+    def nominal_curves(self) -> dict[str, FCurve]:
+        """Each keyed control's curve at the nominal frames, before any timing variation.
+
+        Draws nothing from the generator: reading a motion's design (to re-key it on
+        another rig, say) leaves the clip's own timing draws untouched.
+        """
+        return {
+            control: FCurve(
+                [Key(frame, value, kind) for frame, (value, kind) in keys.items()], control=control
+            )
+            for control, keys in self._keys.items()
+        }
 
     @property
     def nominal_frames(self) -> np.ndarray:

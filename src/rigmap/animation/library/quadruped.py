@@ -730,9 +730,12 @@ def look_around(b: ClipBuilder) -> None:
     leg = "front_leg_l" if first > 0 else "front_leg_r"
     other = "front_leg_r" if first > 0 else "front_leg_l"
     dog.plant(leg, 0.0, 54.0, 0.0, 0.0, 0.0)
+    dog.paw(54.0, leg, rx=0.0, rz=0.0)  # flat on the ground until it lifts and when it lands
     dog.paw(58.0, leg, ty=14.0, tz=2.0, rx=1.4, rz=0.2)
     dog.paw(70.0, leg, ty=15.0, tz=3.0, rx=1.5, rz=0.25)
     dog.plant(leg, 78.0, 84.0, 0.0, 0.0, b.vary(2.0, 1.0))
+    dog.paw(78.0, leg, rx=0.0, rz=0.0)
+    dog.leg(0.0, leg, roll=0.0, toe_tap=0.0)
     dog.leg(54.0, leg, roll=0.4)
     dog.leg(62.0, leg, roll=0.0, toe_tap=-0.3)
     dog.leg(78.0, leg, roll=0.0, toe_tap=0.0)

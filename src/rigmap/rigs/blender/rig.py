@@ -13,6 +13,7 @@ space, in centimetres. Rotation controls are Euler angles: control bones that
 rotate by quaternion are switched to Euler (``euler_order``, default XYZ) when
 the file is opened, so every rotation channel is one angle an animator keys.
 Custom properties are clamped to their hard range, as Blender clamps keyframes.
+``soft_ranges`` widens (or narrows) the animator's working range of chosen controls.
 """
 
 from __future__ import annotations
@@ -66,6 +67,40 @@ def select_names(names: list[str], selection, where: str) -> list[bool]:
     ]
 
 
+def soft_range_overrides(
+    names: list[str], defaults: list[float], ranges: Mapping | None, where: str
+) -> dict[int, tuple[float, float]]:
+    """Control index -> ``(lower, upper)`` from ``{glob pattern: [lower, upper]}``.
+
+    The backend's ranges (translations ``translate_range`` around rest, rotations ±π)
+    fit a hand or a foot; a character that walks across the room or sits down needs
+    wider ones on its root and body. Later patterns win over earlier ones.
+    """
+    chosen: dict[int, tuple[float, float]] = {}
+    for pattern, bounds in (ranges or {}).items():
+        try:
+            lower, upper = (float(b) for b in bounds)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"{where}: {pattern!r} needs [lower, upper] numbers, got {bounds!r}"
+            ) from None
+        if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper):
+            raise ValueError(f"{where}: {pattern!r} needs finite lower < upper, got {bounds!r}")
+        hits = [i for i, n in enumerate(names) if fnmatchcase(n, str(pattern))]
+        if not hits:
+            raise ValueError(
+                f"{where}: pattern {pattern!r} matches no control (names look like {names[:6]})"
+            )
+        for i in hits:
+            if not lower <= defaults[i] <= upper:
+                raise ValueError(
+                    f"{where}: {pattern!r} range [{lower:g}, {upper:g}] leaves out the default "
+                    f"{defaults[i]:g} of control {names[i]!r}"
+                )
+            chosen[i] = (lower, upper)
+    return chosen
+
+
 class BlenderRig(Rig):
     """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
 
@@ -88,6 +123,7 @@ class BlenderRig(Rig):
         up_axis: str = "Y",
         translate_range: float = 30.0,
         scale_range: Sequence[float] = (0.25, 3.0),
+        soft_ranges: Mapping[str, Sequence[float]] | None = None,
         prune: bool = True,
         use_scripts: bool = False,
         workers: int | None = None,
@@ -131,16 +167,25 @@ class BlenderRig(Rig):
         try:  # a rig that fails to build leaves no worker behind
             info = self._describe()
             controls = info["controls"]
-            used_flags = select_names([c["name"] for c in controls], used, f"rig {name!r} used")
+            names = [c["name"] for c in controls]
+            used_flags = select_names(names, used, f"rig {name!r} used")
+            ranges = soft_range_overrides(
+                names, [c["default"] for c in controls], soft_ranges, f"rig {name!r} soft_ranges"
+            )
         except BaseException:
             self.close()
             raise
         self.controls = ControlTable(
             [
                 Control(
-                    c["name"], c["kind"], c["default"], c["lower"], c["upper"], flag, c["group"]
+                    c["name"],
+                    c["kind"],
+                    c["default"],
+                    *ranges.get(i, (c["lower"], c["upper"])),
+                    flag,
+                    c["group"],
                 )
-                for c, flag in zip(controls, used_flags, strict=True)
+                for i, (c, flag) in enumerate(zip(controls, used_flags, strict=True))
             ]
         )
         self.channels = controls  # per control: bone, attribute/axis or property (for export)
@@ -226,6 +271,17 @@ class BlenderRig(Rig):
             "joints": self.n_joints,
             "bones": self.stats,
         }
+
+    # --- the script baseline ---------------------------------------------------
+    def constraint_retarget(self, positions, cog=None, cog_rotation=None, *, mapping=None):
+        """Full control vectors ``(N, C)`` from the constraint-based retarget (one solve a frame).
+
+        See :func:`rigmap.rigs.blender.retarget.constraint_retarget`; the mapping
+        defaults to the rig's ``retarget`` list.
+        """
+        from rigmap.rigs.blender.retarget import constraint_retarget
+
+        return constraint_retarget(self, positions, cog, cog_rotation, mapping=mapping)
 
     # --- evaluation -----------------------------------------------------------
     def _pose(self, Y) -> Pose:

@@ -92,6 +92,13 @@ RIGIFY_HUMAN: dict = {
 RIGIFY_WOLF: dict = {
     "armature": "rig",
     "cog_bone": "torso",
+    # the corpus walks the root across the room and sits the torso down (the dog's motions,
+    # 1.3 times larger: rigmap.animation.library.wolf); the default ±30 cm fit a paw
+    "soft_ranges": {
+        "root.t[xy]": [-400.0, 400.0],
+        "torso.t[xyz]": [-80.0, 80.0],
+        "*foot_ik.[LR].t[xyz]": [-45.0, 45.0],
+    },
     # Paw digits are left out like the face: they would double the bones evaluated per pose.
     "joints": {
         "include": ["DEF-*"],
@@ -99,7 +106,10 @@ RIGIFY_WOLF: dict = {
     },
     "used": {
         "include": [
-            "root.[tr][xyz]",
+            # the root places the wolf on the ground: the two horizontal translations (Blender's
+            # X and Y; rigmap X and -Z) and the heading about the vertical (Blender's Z)
+            "root.t[xy]",
+            "root.rz",
             "torso.[tr][xyz]",
             "hips.[tr][xyz]",
             "chest.[tr][xyz]",
