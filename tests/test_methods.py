@@ -195,7 +195,13 @@ def test_refinement_lowers_the_joint_error_of_its_initial_guess(face_runs, refin
         assert initial[after.clip] == pytest.approx(before.joint_error, rel=1e-9)
         assert after.joint_error < 0.5 * before.joint_error
     extra = refined_result.to_dict()["extra"]
-    assert extra["refine_settings"] == {"damping": 0.1, "tolerance": 0.0, "max_iterations": 2}
+    assert extra["refine_settings"] == {
+        "damping": 0.1,
+        "tolerance": 0.0,
+        "max_iterations": 2,
+        "control_scale": "training_std",
+        "keep_in_range": True,
+    }
     assert extra["initial_joint_error"]["average"] == pytest.approx(guess_result.joint_error)
 
 

@@ -49,6 +49,7 @@ from rigmap.evaluation.timing import CountingRig, run_timed
 
 GUESSES = ("script", "regressor")
 REFINEMENTS = ("none", "computed_jacobian", "learned_jacobian")
+CONTROL_SCALES = ("training_std", "none")  # the metric refinement damps its steps in
 JACOBIANS = ("finite_difference", "autodiff")
 
 #: what the clock covers, written into every metrics JSON
@@ -136,11 +137,19 @@ def get_method(name: str) -> Method:
 
 @dataclass(frozen=True)
 class RefineSettings:
-    """Damped least squares settings: λ (cm, or ``"auto"``), tolerance (cm²), iteration cap."""
+    """Damped least squares settings: λ, tolerance (cm²), iteration cap, step metric, ranges.
 
-    damping: float | str = 0.1
+    ``control_scale`` ``"training_std"`` damps the step in training standard
+    deviations of the controls (λ in cm per std), ``"none"`` in each control's
+    own unit (λ in cm per unit, the literal Eq. 13); ``keep_in_range`` keeps
+    refined controls inside their soft ranges (see rigmap.refine, issue #7).
+    """
+
+    damping: float | str = "auto"
     tolerance: float = 1e-4
     max_iterations: int = 10
+    control_scale: str = "training_std"
+    keep_in_range: bool = True
 
     def __post_init__(self) -> None:
         number = isinstance(self.damping, int | float) and np.isfinite(self.damping)
@@ -155,6 +164,15 @@ class RefineSettings:
         if int(self.max_iterations) != self.max_iterations or self.max_iterations < 0:
             raise EvaluationSetupError(
                 f"refine.max_iterations: expected an integer >= 0, got {self.max_iterations!r}"
+            )
+        if self.control_scale not in CONTROL_SCALES:
+            raise EvaluationSetupError(
+                f"refine.control_scale: expected one of {CONTROL_SCALES}, "
+                f"got {self.control_scale!r}"
+            )
+        if not isinstance(self.keep_in_range, bool):
+            raise EvaluationSetupError(
+                f"refine.keep_in_range: expected true or false, got {self.keep_in_range!r}"
             )
 
     @classmethod
@@ -183,6 +201,8 @@ class RefineSettings:
             damping=damping if damping == "auto" else float(damping),
             tolerance=float(config["tolerance"]),
             max_iterations=int(config["max_iterations"]),
+            control_scale=str(config.get("control_scale", cls.control_scale)),
+            keep_in_range=config.get("keep_in_range", cls.keep_in_range),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -190,6 +210,8 @@ class RefineSettings:
             "damping": self.damping,
             "tolerance": self.tolerance,
             "max_iterations": self.max_iterations,
+            "control_scale": self.control_scale,
+            "keep_in_range": self.keep_in_range,
         }
 
 
@@ -344,7 +366,9 @@ def run_method(
     method = get_method(method) if isinstance(method, str) else method
     _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine)
     counting = ScriptCountingRig(rig) if method.guess == "script" else CountingRig(rig)
-    retarget = _Retargeter(counting, method, regressor, learned_jacobian, refine)
+    retarget = _Retargeter(
+        counting, method, regressor, learned_jacobian, refine, test_set.train_std
+    )
     clip_results, curves, initial, iterations, warmup = [], [], {}, {}, {}
     for clip in test_set.clips:
         (Y_used, refined), timing = run_timed(
@@ -442,12 +466,13 @@ class ScriptCountingRig(CountingRig):
 class _Retargeter:
     """``(clip, frames) -> (Y_used, RefineResult | None)``: the method itself, what is timed."""
 
-    def __init__(self, rig, method, regressor, learned_jacobian, refine):
+    def __init__(self, rig, method, regressor, learned_jacobian, refine, train_std):
         self.rig = rig
         self.method = method
         self.regressor = regressor
         self.learned_jacobian = learned_jacobian
         self.refine = refine
+        self.train_std = train_std  # (C_used,) the training corpus's, as the metric uses
 
     def __call__(self, clip: TestClip, frames: np.ndarray):
         from rigmap.refine import ComputedJacobian, damped_least_squares
@@ -476,6 +501,8 @@ class _Retargeter:
             damping=self.refine.damping,
             tolerance=self.refine.tolerance,
             max_iterations=self.refine.max_iterations,
+            control_scale=self.train_std if self.refine.control_scale == "training_std" else None,
+            keep_in_range=self.refine.keep_in_range,
         )
         return refined.Y_used, refined
 

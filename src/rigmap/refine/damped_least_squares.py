@@ -5,6 +5,21 @@ Starting from a regressor's guess ``y``, repeat ``Δx = x* − f(y)``,
 iteration cap is reached. Only the used controls move (the Jacobian has
 columns for them alone), so unused controls stay at their defaults.
 
+Controls mix units — centimetres, radians, 0-1 switches — so the plain
+``λ²‖Δy‖²`` penalty of Eq. 13 weighs a radian like a centimetre and lets
+the step pour into whichever controls are cheapest in their own unit. On the
+built-in rigs those are the FK rotations of limbs the animators keep in IK:
+at a predicted IK/FK blend of 0.8-0.9 they still move the joints a little,
+so plain Eq. 13 swings them by radians although the animators moved them by
+thousandths of one (issue #7; paper Fig. 11, controls "drifting along
+manifolds in the rig space"). With ``control_scale`` (the training-corpus
+standard deviation of each control, the scale the ground-truth error uses)
+the step is solved in normalised controls ``z = y / σ``: ``J_z = J·diag(σ)``,
+``Δy = σ ⊙ Δz``, so λ prices one training std of any control alike and a
+control the animators barely moved is stiff. ``keep_in_range`` projects
+every iterate into the controls' soft ranges (widened to include the start),
+so a 0-1 switch stays a switch.
+
 The Jacobian comes from a *source*: computed on the rig at every iteration
 (finite differences, valid for any black-box rig; or autodiff on a built-in
 rig), or predicted once at the target by a learned model (§4.4) — the
@@ -81,7 +96,9 @@ def chiaverini_damping(
     """λ per frame from the smallest singular value (Chiaverini 1993, paper refs [12][23]).
 
     No damping while ``σ_min ≥ ε``; below it λ² grows smoothly to ``max_damping²``
-    as ``σ_min → 0``, so steps stay bounded near singular poses.
+    as ``σ_min → 0``, so steps stay bounded near singular poses. A rig with more
+    controls than its joints can tell apart has ``σ_min = 0`` at every pose, and
+    then this is simply ``λ = max_damping``.
     """
     smallest = singular_values[:, -1]
     ratio = np.clip(smallest / epsilon, 0.0, 1.0)
@@ -97,15 +114,25 @@ def damped_least_squares(
     damping: float | str = 0.1,
     tolerance: float = 1e-3,
     max_iterations: int = 10,
+    control_scale: np.ndarray | None = None,
+    keep_in_range: bool = False,
     auto_epsilon: float = 1.0,
     auto_max_damping: float = 1.0,
 ) -> RefineResult:
     """Refine ``(N, C_used)`` controls so the rig reproduces ``X_target`` (COG-relative).
 
-    ``damping`` is λ (rig length units) or ``"auto"`` (Chiaverini's rule with
-    ``auto_epsilon`` and ``auto_max_damping``). A frame stops when its mean
-    squared joint error is below ``tolerance`` (units²). The best iterate seen
-    per frame is returned, so a diverging step never makes a frame worse.
+    ``damping`` is λ or ``"auto"`` (Chiaverini's rule with ``auto_epsilon`` and
+    ``auto_max_damping``). Without ``control_scale`` λ is in rig length units
+    per control unit, the literal Eq. 13. ``control_scale`` ``(C_used,)`` —
+    normally each control's training-corpus standard deviation
+    (``rigmap.evaluation.metrics.control_std``) — solves the step in
+    ``y / control_scale`` instead, so λ is in rig length units per training
+    std; a control with scale 0 (never moved in training) does not move.
+    ``keep_in_range`` keeps every control inside its soft range
+    ``[lower, upper]`` (or where it started, if the guess was already outside).
+    A frame stops when its mean squared joint error is below ``tolerance``
+    (units²). The best iterate seen per frame is returned, so a diverging step
+    never makes a frame worse.
     """
     X_target = check_positions(X_target, rig.n_joints, f"refine target for rig {rig.name!r}")
     Y_used = np.asarray(Y_used, dtype=np.float64)
@@ -121,6 +148,11 @@ def damped_least_squares(
         raise ValueError(f"damping must be a non-negative number or 'auto', got {damping!r}")
     if max_iterations < 0:
         raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
+    scale = _checked_scale(rig, control_scale, n_used)
+    if keep_in_range:
+        used = rig.controls.used_indices
+        lower = np.minimum(rig.controls.lower[used], Y_used)
+        upper = np.maximum(rig.controls.upper[used], Y_used)
 
     n = len(X_target)
     target = X_target.reshape(n, -1)
@@ -153,7 +185,8 @@ def damped_least_squares(
                 cached_J[frames] = J
         if cached_J is not None:
             J = cached_J[frames]
-        U, s, Vt = np.linalg.svd(J, full_matrices=False)
+        J_scaled = J if scale is None else J * scale  # ∂x/∂z with y = scale · z
+        U, s, Vt = np.linalg.svd(J_scaled, full_matrices=False)
         lam = (
             chiaverini_damping(s, auto_epsilon, auto_max_damping)
             if damping == "auto"
@@ -161,7 +194,10 @@ def damped_least_squares(
         )
         gain = s / (s**2 + lam[:, None] ** 2)  # (F, k): the damped pseudo-inverse's spectrum
         projected = np.einsum("fjk,fj->fk", U, residual[frames])
-        y[frames] += np.einsum("fkc,fk->fc", Vt, gain * projected)
+        step = np.einsum("fkc,fk->fc", Vt, gain * projected)
+        y[frames] += step if scale is None else step * scale
+        if keep_in_range:
+            y[frames] = np.clip(y[frames], lower[frames], upper[frames])
         iterations[frames] += 1
         new_residual, new_error = error_of(y[frames], frames)
         residual[frames], error[frames] = new_residual, new_error
@@ -170,3 +206,18 @@ def damped_least_squares(
         best_error[frames[better]] = new_error[better]
         active[frames] = new_error >= tolerance
     return RefineResult(best_y, best_error, initial, iterations, evaluations)
+
+
+def _checked_scale(rig: Rig, control_scale, n_used: int) -> np.ndarray | None:
+    if control_scale is None:
+        return None
+    scale = np.asarray(control_scale, dtype=np.float64)
+    if scale.shape != (n_used,) or not np.isfinite(scale).all() or (scale < 0).any():
+        shown = f"shape {scale.shape}"
+        if scale.size and np.isfinite(scale).any():
+            shown += f", minimum {np.nanmin(scale):g}"
+        raise RigInputError(
+            f"refine on rig {rig.name!r}: expected control_scale of shape ({n_used},) "
+            f"(one finite value >= 0 per used control, e.g. its training std), got {shown}"
+        )
+    return scale
