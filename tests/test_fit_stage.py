@@ -18,6 +18,7 @@ from hydra import compose, initialize_config_dir
 
 from rigmap.animation.corpus import Corpus
 from rigmap.cli import main as rigmap_main
+from rigmap.evaluation.methods import TestSet, run_method
 from rigmap.refine import jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
@@ -296,3 +297,45 @@ def test_rigmap_fit_cli(tmp_path, data_dir, capsys, biped):
     assert f"{missing}/biped/corpus/train.parquet" in capsys.readouterr().err
     assert rigmap_main(["fit", "--config-dir", str(tmp_path), "rig=biped"]) == 2
     assert f"{tmp_path}/config.yaml" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- samples sweep
+def test_sample_sweep_scores_the_network_per_sample_count(data_dir, nn_fit, biped, tmp_path):
+    sweep = _stage("sample_sweep")
+    cfg = fit_config(
+        data_dir, tmp_path / "models", "regressor=nn", "sampler=pca_gaussian", "budget.epochs=4",
+        f"paths.metrics={tmp_path / 'metrics'}", "+sweep.fractions=[0.25,1.0]",
+    )  # fmt: skip
+    written = sweep.run(cfg)
+    quarter = round(N_SAMPLES / 4)
+    assert [p.name for p in written] == [
+        f"nn-pca_gaussian-{quarter}.json",
+        f"nn-pca_gaussian-{N_SAMPLES}.json",
+    ]
+    folder = tmp_path / "metrics" / "biped" / "sample_sweep"
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)
+    results = {p.name: json.loads(p.read_text()) for p in written}
+    full = results[f"nn-pca_gaussian-{N_SAMPLES}.json"]
+    assert full["extra"]["samples"] == N_SAMPLES
+    assert full["extra"]["training_rows"] == nn_fit.record["rows"]["total"]
+    # all the samples: the same seeded fit as the fit stage's network, so the same scores
+    test_set = TestSet.load(biped, data_dir / "biped")
+    staged = run_method(biped, "nn", test_set, regressor=load_regressor(nn_fit.folder, rig=biped))
+    assert full["average"]["joint_error"] == pytest.approx(
+        staged.result.average()["joint_error"], rel=1e-9
+    )
+    quarter_result = results[f"nn-pca_gaussian-{quarter}.json"]
+    assert quarter_result["extra"]["training_rows"] == full["extra"]["training_rows"] - (
+        N_SAMPLES - quarter
+    )
+    for result in results.values():
+        assert np.isfinite(result["average"]["joint_error"]) and result["average"]["frames"] > 0
+
+
+def test_sample_sweep_refuses_counts_it_cannot_draw():
+    sweep = _stage("sample_sweep")
+    assert sweep.sample_counts([0.5, 0.5, 1.0], 100, 100) == [50, 100]
+    with pytest.raises(ValueError, match=r"expected numbers in \(0, 1\]"):
+        sweep.sample_counts([0.0], 100, 100)
+    with pytest.raises(ValueError, match=r"holds 40 \(budget.samples = 100\)"):
+        sweep.sample_counts([1.0], 100, 40)

@@ -114,3 +114,7 @@ def test_index_links_resolve_and_figures_are_drawn():
     figures = sorted((REPORTS / "figures" / "results").glob("*.png"))
     assert figures, "no result figures in reports/figures/results"
     assert all(path.stat().st_size > 1000 for path in figures)
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    if "sample_sweep" in stages:  # its metrics are drawn as error against supersamples
+        names = {path.name for path in figures}
+        assert "joint_error_vs_supersamples.png" in names, f"figures drawn: {sorted(names)}"
