@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 from rigmap.reports.catalog import METHODS, SAMPLERS, find_row, rig_label
 from rigmap.reports.metrics_tree import RigMetrics
@@ -158,7 +159,10 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
                 label="No Extra Samples",
             )
         ax.set_xscale("log")
-        ax.set_yscale("log")
+        # label the counts that were run, not log-scale minor ticks (they overlap)
+        counts_run = sorted({n for points in metrics.sweep.values() for n in points if n > 0})
+        ax.set_xticks(counts_run, [f"{n:,}" for n in counts_run])
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("extra supersampled poses")
         ax.set_ylabel(f"joint error ({metrics.length_unit}²)")
         ax.set_title(rig_label(rig), fontsize=10)
