@@ -12,21 +12,18 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rigmap.regression.gpr import GaussianProcessRegressor, ModelFileError
+from rigmap.regression import REGRESSORS
+from rigmap.regression.gpr import ModelFileError, write_atomic
 from rigmap.regression.learned_jacobian import LearnedJacobian
-from rigmap.regression.network import FeedForwardRegressor
 from rigmap.regression.placement import Placement
 
 PLACEMENT_FILE = "placement.json"
-_REGRESSOR_CLASSES = {
-    cls.file_stem: cls for cls in (GaussianProcessRegressor, FeedForwardRegressor)
-}
+_REGRESSOR_CLASSES = {cls.file_stem: cls for cls in REGRESSORS.values()}
 
 
 def has_placement(folder: str | os.PathLike) -> bool:
@@ -35,11 +32,7 @@ def has_placement(folder: str | os.PathLike) -> bool:
 
 def _write_placement(folder: Path, placement: Placement, regressor_file: str) -> None:
     data = {"regressor_file": regressor_file, "placement": placement.to_dict()}
-    folder.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=".placement.", suffix=".tmp", dir=folder)
-    with os.fdopen(handle, "w", encoding="utf-8") as stream:
-        stream.write(json.dumps(data, indent=2) + "\n")
-    os.replace(temporary, folder / PLACEMENT_FILE)
+    write_atomic(folder / PLACEMENT_FILE, (json.dumps(data, indent=2) + "\n").encode("utf-8"))
 
 
 def _read_placement(folder: Path) -> tuple[str, Placement]:
