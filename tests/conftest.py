@@ -9,6 +9,18 @@ import pytest
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
+def pytest_runtest_setup(item):
+    """A ``blender`` test fails, never skips, without the worker environment: `make test`
+    installs it, so a missing one is a broken set-up, not a reason to test less."""
+    if item.get_closest_marker("blender") is None:
+        return
+    from rigmap.rigs.blender import blender_available
+    from rigmap.rigs.blender.environment import INSTALL_HINT
+
+    if not blender_available():
+        pytest.fail(f"the Blender worker environment is missing: {INSTALL_HINT}", pytrace=False)
+
+
 @pytest.fixture(scope="session")
 def quadruped():
     from rigmap.rigs import load

@@ -12,14 +12,10 @@ import numpy as np
 import pytest
 
 from rigmap.rigs import load
-from rigmap.rigs.blender import blender_available, find_blender
+from rigmap.rigs.blender import find_blender
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 
 # A 3-bone arm along +X (1 m bones), quaternion rotations as Blender defaults them,

@@ -7,15 +7,11 @@ import pandas as pd
 import pytest
 
 from rigmap.rigs.base import Control, ControlTable, Pose, Rig
-from rigmap.rigs.blender import blender_available, export_blend, read_blend_animation
+from rigmap.rigs.blender import export_blend, read_blend_animation
 from rigmap.rigs.blender.rigify import build_rigify_human
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 
 

@@ -5,15 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rigmap.rigs.blender import blender_available, constraint_retarget
+from rigmap.rigs.blender import constraint_retarget
 from rigmap.rigs.blender.rigify import build_rigify_human
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 
 

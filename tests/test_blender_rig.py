@@ -13,15 +13,10 @@ import numpy as np
 import pytest
 
 from rigmap.rigs import RigInputError
-from rigmap.rigs.blender import blender_available
 from rigmap.rigs.blender.rigify import build_rigify_human, build_rigify_wolf
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 
 

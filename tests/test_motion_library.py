@@ -21,7 +21,6 @@ from rigmap.animation.library import (
     motion_library,
 )
 from rigmap.rigs import load
-from rigmap.rigs.blender import blender_available
 
 # Table 3 of the paper: training frames per character (>=); keyed frames "about 200"
 MIN_TRAIN_FRAMES = {
@@ -41,10 +40,6 @@ PAPER_TEST_CLIPS = {
 # Blender rigs need the worker environment even to list their controls
 BLENDER_MARKS = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 RIGS = [
     pytest.param(name, marks=BLENDER_MARKS) if name.startswith("rigify_") else name

@@ -12,14 +12,9 @@ import pytest
 from rigmap.animation.library import build_clip, build_clips, build_corpus, motion_library
 from rigmap.animation.library import wolf as wolf_library
 from rigmap.rigs import load
-from rigmap.rigs.blender import blender_available
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 WOLF = "rigify_wolf"
 PAWS = ("DEF-toe.L", "DEF-toe.R", "DEF-front_toe.L", "DEF-front_toe.R")

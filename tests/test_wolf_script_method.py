@@ -14,14 +14,9 @@ from rigmap.evaluation.methods import TestClip, TestSet
 from rigmap.evaluation.metrics import control_std, joint_error
 from rigmap.retarget import NoRetargetScriptError, script_retarget
 from rigmap.rigs import load
-from rigmap.rigs.blender import blender_available
 
 pytestmark = [
     pytest.mark.blender,
-    pytest.mark.skipif(
-        not blender_available(),
-        reason="Blender worker environment not installed: run `make blender`",
-    ),
 ]
 WOLF = "rigify_wolf"
 
