@@ -1,0 +1,126 @@
+"""Every path of an experiment, in one place, and the name of a fitted mapping.
+
+Stages, the CLI and the report ask a :class:`Layout` for paths instead of joining
+strings, so a folder moves in one edit. The four roots come from the ``paths`` config
+(``data``, ``models``, ``metrics``, ``reports``), relative to the working directory.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+SPLITS = ("train", "test")
+_NAME = re.compile(r"^[a-z0-9_]+$")
+
+
+@dataclass(frozen=True)
+class ModelId:
+    """A fitted mapping's identity: regressor, sampler of its extra samples, kernel.
+
+    Its folder name is ``<regressor>-<sampler>-<kernel>`` (kernel ``none`` for models
+    without one), e.g. ``gpr-none-multiquadric`` or ``nn-pca_gaussian-none``.
+    """
+
+    regressor: str
+    sampler: str = "none"
+    kernel: str = "none"
+
+    def __post_init__(self) -> None:
+        for field in ("regressor", "sampler", "kernel"):
+            value = getattr(self, field)
+            if not isinstance(value, str) or not _NAME.match(value):
+                raise ValueError(
+                    f"model id {field} {value!r} must be lower-case letters, digits and "
+                    "underscores (it becomes part of a folder name)"
+                )
+
+    @property
+    def folder_name(self) -> str:
+        return f"{self.regressor}-{self.sampler}-{self.kernel}"
+
+    @classmethod
+    def parse(cls, folder_name: str) -> ModelId:
+        """The id a folder name stands for; ``ValueError`` names a malformed one."""
+        parts = str(folder_name).split("-")
+        if len(parts) != 3:
+            raise ValueError(
+                f"model folder name {folder_name!r} is not <regressor>-<sampler>-<kernel>"
+            )
+        return cls(*parts)
+
+    def __str__(self) -> str:
+        return self.folder_name
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The experiment's folders: ``data/<rig>/…``, ``models/<rig>/…``, ``metrics/<rig>/…``."""
+
+    data: Path = Path("data")
+    models: Path = Path("models")
+    metrics: Path = Path("metrics")
+    reports: Path = Path("reports")
+
+    def __post_init__(self) -> None:
+        for field in ("data", "models", "metrics", "reports"):
+            object.__setattr__(self, field, Path(getattr(self, field)))
+
+    @classmethod
+    def from_paths(cls, paths: Mapping | None) -> Layout:
+        """From a ``paths`` config mapping (missing keys keep their defaults)."""
+        paths = dict(paths or {})
+        unknown = sorted(set(paths) - {"data", "models", "metrics", "reports"})
+        if unknown:
+            raise ValueError(f"paths config has unknown keys {unknown}")
+        return cls(**{k: Path(os.fspath(v)) for k, v in paths.items() if v is not None})
+
+    # --- data/<rig>/ -------------------------------------------------------------------
+    def rig_data(self, rig: str) -> Path:
+        return self.data / rig
+
+    def corpus(self, rig: str, split: str) -> Path:
+        """The animator clips of one split: ``data/<rig>/corpus/<split>.parquet``."""
+        return self.rig_data(rig) / "corpus" / f"{_split(split)}.parquet"
+
+    def corpus_folder(self, rig: str) -> Path:
+        return self.rig_data(rig) / "corpus"
+
+    def poses(self, rig: str, split: str) -> Path:
+        """The rig evaluated on a split's frames: ``data/<rig>/poses/<split>.parquet``."""
+        return self.rig_data(rig) / "poses" / f"{_split(split)}.parquet"
+
+    def poses_folder(self, rig: str) -> Path:
+        return self.rig_data(rig) / "poses"
+
+    def samples(self, rig: str, sampler: str) -> Path:
+        """A sampler's posed supersamples: ``data/<rig>/samples/<sampler>.npz``."""
+        return self.rig_data(rig) / "samples" / f"{sampler}.npz"
+
+    # --- models/<rig>/ -----------------------------------------------------------------
+    def rig_models(self, rig: str) -> Path:
+        return self.models / rig
+
+    def model(self, rig: str, model_id: ModelId) -> Path:
+        """A fitted mapping's folder: ``models/<rig>/<regressor>-<sampler>-<kernel>/``."""
+        return self.rig_models(rig) / model_id.folder_name
+
+    # --- metrics/<rig>/<set>/ and reports/ ---------------------------------------------
+    def metrics_folder(self, rig: str, metric_set: str) -> Path:
+        """One evaluation set's metrics: ``metrics/<rig>/<set>/``."""
+        return self.metrics / rig / metric_set
+
+    def figures(self) -> Path:
+        return self.reports / "figures"
+
+    def tables(self) -> Path:
+        return self.reports / "tables"
+
+
+def _split(split: str) -> str:
+    if split not in SPLITS:
+        raise ValueError(f"split {split!r} is not one of {', '.join(SPLITS)}")
+    return split
