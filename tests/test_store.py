@@ -91,10 +91,10 @@ def test_table_file_round_trip_is_byte_deterministic(tmp_path):
     read, read_meta = read_table_file(first, b"rigmap.test")
     pd.testing.assert_frame_equal(read, table)
     assert read_meta == meta
-    with pytest.raises(TableFileError, match="no 'rigmap.other' metadata"):
+    with pytest.raises(TableFileError, match=r"no 'rigmap\.other' metadata"):
         read_table_file(first, b"rigmap.other")
     (tmp_path / "junk.parquet").write_bytes(b"not parquet")
-    with pytest.raises(TableFileError, match="junk.parquet: not a readable parquet"):
+    with pytest.raises(TableFileError, match=r"junk\.parquet: not a readable parquet"):
         read_table_file(tmp_path / "junk.parquet", b"rigmap.test")
 
 
