@@ -23,12 +23,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rigmap.errors import RigmapError
+
 PARAMS_FILE = "params.yaml"
 CONFIG_NAME = "config"
 EXPERIMENT_GROUP = "experiment"
 
 
-class ParamsError(ValueError):
+class ParamsError(RigmapError, ValueError):
     """Overrides or a project layout from which no ``params.yaml`` can be composed."""
 
 

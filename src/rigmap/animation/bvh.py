@@ -27,12 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.errors import RigmapError
+
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 CHANNEL_NAMES = POSITION_CHANNELS + ROTATION_CHANNELS
 
 
-class BVHError(ValueError):
+class BVHError(RigmapError, ValueError):
     """A BVH file that cannot be read; the message names the file and the line."""
 
 

@@ -26,13 +26,14 @@ import pyarrow.parquet as pq
 
 from rigmap.animation.clip import Clip, check_known_controls
 from rigmap.animation.keyframes import KeyframeError
+from rigmap.errors import RigmapError
 
 CORPUS_FORMAT = "rigmap.corpus/1"
 METADATA_KEY = b"rigmap"
 KEY_COLUMNS: tuple[str, str] = ("clip", "frame")
 
 
-class CorpusError(ValueError):
+class CorpusError(RigmapError, ValueError):
     """A corpus that cannot be built, or a file that is not a valid corpus."""
 
 

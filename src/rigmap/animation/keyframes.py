@@ -33,6 +33,8 @@ from typing import Literal
 
 import numpy as np
 
+from rigmap.errors import RigmapError
+
 Interpolation = Literal["bezier", "linear", "constant"]
 INTERPOLATIONS: tuple[str, ...] = ("bezier", "linear", "constant")
 _BEZIER, _LINEAR, _CONSTANT = 0, 1, 2
@@ -44,7 +46,7 @@ _THIRD_TOLERANCE = 1e-9
 _SOLVE_ITERATIONS = 60
 
 
-class KeyframeError(ValueError):
+class KeyframeError(RigmapError, ValueError):
     """Keys that cannot make a curve; the message names the clip and control."""
 
     def __init__(self, message: str, *, clip: str | None = None, control: str | None = None):

@@ -29,6 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from rigmap.animation.corpus import KEY_COLUMNS, Corpus
+from rigmap.errors import RigmapError
 
 POSES_FORMAT = "rigmap.poses/1"
 METADATA_KEY = b"rigmap"
@@ -38,7 +39,7 @@ COG_ROTATION_COLUMNS = tuple(f"cog_rot.{r}{c}" for r in range(3) for c in range(
 DEFAULT_BATCH = 512
 
 
-class PosesError(ValueError):
+class PosesError(RigmapError, ValueError):
     """A poses table that cannot be built, or a file that is not a valid poses file."""
 
 

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import (
     ClipResult,
     MethodResult,
@@ -60,7 +61,7 @@ TIMING_SCOPE = (
 )
 
 
-class EvaluationSetupError(ValueError):
+class EvaluationSetupError(RigmapError, ValueError):
     """A method, setting or test data the runner cannot use, with what was expected."""
 
 

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from rigmap.errors import RigmapError
 from rigmap.rigs.base import CONTROL_KINDS
 
 RESULT_FORMAT = "rigmap.method_result/1"
@@ -53,7 +54,7 @@ METRIC_UNITS = {
 }
 
 
-class MetricInputError(ValueError):
+class MetricInputError(RigmapError, ValueError):
     """Predictions and targets that cannot be compared: wrong shapes or non-finite values."""
 
 

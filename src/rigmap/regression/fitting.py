@@ -44,6 +44,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
+from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import control_std, ground_truth_error, joint_error
 from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
 from rigmap.regression.gpr import GaussianProcessRegressor
@@ -65,7 +66,7 @@ PLACEMENT_PROBES = 4
 Log = Callable[[str], None]
 
 
-class FitInputError(ValueError):
+class FitInputError(RigmapError, ValueError):
     """The training files of a fit are missing, of another rig, or do not line up."""
 
 

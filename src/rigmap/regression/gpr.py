@@ -46,6 +46,7 @@ from scipy.linalg import blas, lapack
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
+from rigmap.errors import RigmapError
 from rigmap.regression.kernels import GramColumns, Kernel, MultiquadricKernel, kernel_from_dict
 from rigmap.rigs.base import RigInputError
 
@@ -67,11 +68,11 @@ class RegressionInputError(RigInputError):
     """Inputs given to a regressor have the wrong shape or bad values."""
 
 
-class ModelMismatchError(ValueError):
+class ModelMismatchError(RigmapError, ValueError):
     """A saved model does not belong to the rig or data it is used with."""
 
 
-class ModelFileError(ValueError):
+class ModelFileError(RigmapError, ValueError):
     """A model folder is incomplete, corrupt or of another kind of model."""
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import RESULT_FORMAT
 from rigmap.reports.settings import ReportSettings
 
@@ -34,7 +35,7 @@ _SWEEP_NAME = re.compile(r"^nn-(?P<sampler>[a-z_]+)-(?P<n>\d+)\.json$")
 _CSV_AGREEMENT = 1e-6
 
 
-class ReportInputError(ValueError):
+class ReportInputError(RigmapError, ValueError):
     """A metrics or corpus file the report needs is missing, unreadable or inconsistent."""
 
 

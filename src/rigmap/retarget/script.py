@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rigmap.errors import RigmapError
 from rigmap.retarget.biped_script import retarget_biped
 from rigmap.retarget.quadruped_script import retarget_quadruped
 from rigmap.retarget.scene import ScriptScene
@@ -37,7 +38,7 @@ DEFAULT_CHUNK = 2048
 _ROTATION_TOLERANCE = 1e-4
 
 
-class NoRetargetScriptError(LookupError):
+class NoRetargetScriptError(RigmapError, LookupError):
     """The rig has no hand-written retarget script."""
 
 

@@ -14,15 +14,17 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from rigmap.errors import RigmapError
+
 ControlKind = Literal["rotate", "translate", "scale", "scalar"]
 CONTROL_KINDS: tuple[str, ...] = ("rotate", "translate", "scale", "scalar")
 
 
-class RigInputError(ValueError):
+class RigInputError(RigmapError, ValueError):
     """Controls or positions given to a rig have the wrong shape or bad values."""
 
 
-class UnknownRigError(KeyError):
+class UnknownRigError(RigmapError, KeyError):
     """A rig name that no backend knows."""
 
     def __str__(self) -> str:  # KeyError quotes its message; we want it plain

@@ -14,16 +14,18 @@ from typing import ClassVar
 
 import numpy as np
 
+from rigmap.errors import RigmapError
+
 # Variances below this fraction of the largest are round-off: the corpus does
 # not move along that direction at all.
 RELATIVE_RANK_TOLERANCE = 1e-12
 
 
-class SamplerInputError(ValueError):
+class SamplerInputError(RigmapError, ValueError):
     """A corpus, a sample count or a random generator a sampler cannot use."""
 
 
-class SamplerNotFittedError(RuntimeError):
+class SamplerNotFittedError(RigmapError, RuntimeError):
     """``sample`` was called before ``fit``."""
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from rigmap.errors import RigmapError
 from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError, check_count
 from rigmap.sampling.clamping import clamp_to_limits
 from rigmap.sampling.reproducible_npz import leftover_temporaries, save_npz_atomically
@@ -39,7 +40,7 @@ DEFAULT_CHUNK_SIZE = 10_000
 FILE_FORMAT_VERSION = 1
 
 
-class SupersampleError(ValueError):
+class SupersampleError(RigmapError, ValueError):
     """The runner was given something it cannot use, or the rig returned bad poses."""
 
 

@@ -16,10 +16,11 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from rigmap.errors import RigmapError
 from rigmap.store.atomic import atomic_file
 
 
-class TableFileError(ValueError):
+class TableFileError(RigmapError, ValueError):
     """A table file is unreadable, or not the kind of file its reader expects."""
 
 

@@ -20,6 +20,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from rigmap.errors import RigmapError
+
 MAX_KEY_LENGTH = 250
 MAX_PARAM_VALUE_LENGTH = 6000
 MAX_TAG_VALUE_LENGTH = 8000
@@ -28,7 +30,7 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9_.\-]+")
 _KEY_ALLOWED = re.compile(r"^[A-Za-z0-9_.\-/]+$")
 
 
-class TrackingKeyError(ValueError):
+class TrackingKeyError(RigmapError, ValueError):
     """A name that cannot become an MLflow key, or two names that become the same key."""
 
 

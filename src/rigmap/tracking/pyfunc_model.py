@@ -31,6 +31,7 @@ from mlflow.models import ModelSignature
 from mlflow.pyfunc import PythonModel
 from mlflow.types import ColSpec, Schema
 
+from rigmap.errors import RigmapError
 from rigmap.tracking.keys import safe_name
 
 ENTRY_FILE = Path(__file__).with_name("pyfunc_entry.py")
@@ -39,7 +40,7 @@ INTERFACE_ARTIFACT = "interface"
 INTERFACE_FORMAT = "rigmap.pyfunc_interface/1"
 
 
-class MappingLoggingError(ValueError):
+class MappingLoggingError(RigmapError, ValueError):
     """A mapping that cannot be logged as a pyfunc model (no save/load, not importable...)."""
 
 

@@ -21,6 +21,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from rigmap.errors import RigmapError
+
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 DEFAULT_STORE_FILE = "mlruns.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
@@ -34,7 +36,7 @@ HTTP_RETRY_DEFAULTS = {
 }
 
 
-class TrackingUnavailableError(RuntimeError):
+class TrackingUnavailableError(RigmapError, RuntimeError):
     """The tracking store named by a URI cannot be used (server down, folder not writable)."""
 
 

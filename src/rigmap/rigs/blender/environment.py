@@ -15,6 +15,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from rigmap.errors import RigmapError
+
 ENV_VAR = "RIGMAP_BLENDER"
 ENV_DIR_NAME = ".venv-blender"
 WORKER_SCRIPT = Path(__file__).resolve().parent / "in_blender" / "worker.py"
@@ -25,7 +27,7 @@ INSTALL_HINT = (
 )
 
 
-class BlenderNotFoundError(RuntimeError):
+class BlenderNotFoundError(RigmapError, RuntimeError):
     """No Blender to start workers with."""
 
 

@@ -16,6 +16,7 @@ import subprocess
 import time
 from pathlib import Path
 
+from rigmap.errors import RigmapError
 from rigmap.rigs.blender.in_blender import protocol
 
 _COUNTER = itertools.count()
@@ -29,7 +30,7 @@ class RequestTimeout(WorkerCrashed):
     """The worker did not answer in time; it has been killed."""
 
 
-class WorkerError(RuntimeError):
+class WorkerError(RigmapError, RuntimeError):
     """The worker ran the request and reported an exception."""
 
     def __init__(self, message: str, remote_traceback: str = ""):
