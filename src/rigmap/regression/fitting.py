@@ -45,6 +45,7 @@ from rigmap.regression.base import Regressor
 from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
 from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import Placement, find_placement
+from rigmap.sampling import sampler_name
 from rigmap.sampling.supersample import load_samples
 from rigmap.store import Layout, ModelId, json_ready, write_folder_atomic, write_json_atomic
 
@@ -268,7 +269,7 @@ def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
 def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     import hydra.utils
 
-    sampler = str(cfg.sampler.name)
+    sampler = sampler_name(cfg.sampler)
     model = hydra.utils.instantiate(cfg.regressor, _convert_="all")
     if not isinstance(model, Regressor):
         raise FitInputError(
