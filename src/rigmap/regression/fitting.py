@@ -136,33 +136,11 @@ def load_training_data(rig, data_dir: str | os.PathLike, sampler: str) -> Traini
     controls = [corpus.values()]
     corpus_rows = len(controls[0])
 
-    defaults = rig.controls.defaults[rig.controls.used_indices]
-    distance = np.abs(controls[0] - defaults).max(axis=1)
-    matches = np.flatnonzero(distance <= _REST_TOLERANCE)
-    if len(matches):
-        rest_index, added = int(matches[0]), False
-        clip, frame = corpus_keys[rest_index]
-        rest_pose = (
-            f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
-        )
-    else:
-        rest_index, added = corpus_rows, True
-        pose = rig.pose(rig.default_controls(1))
-        features.append(
-            inverse_features(
-                np.asarray(pose.positions),
-                np.asarray(pose.cog),
-                np.asarray(pose.cog_rotation),
-                n_joints=rig.n_joints,
-                where=f"rig {rig.name!r} default pose",
-            )
-        )
-        controls.append(defaults[None])
-        rest_pose = (
-            f"no corpus frame is the rig's default pose (closest differs by "
-            f"{distance.min():.3g} in some used control), so the default pose was added as "
-            f"row {rest_index}"
-        )
+    rest_index, rest_pose, rest_row = _rest_pose(rig, controls[0], corpus_keys)
+    added = rest_row is not None
+    if added:
+        features.append(rest_row[0])
+        controls.append(rest_row[1])
 
     samples_source = None
     sample_rows = 0
@@ -186,6 +164,37 @@ def load_training_data(rig, data_dir: str | os.PathLike, sampler: str) -> Traini
             "samples": samples_source,
         },
     )
+
+
+def _rest_pose(rig, corpus_controls: np.ndarray, corpus_keys: np.ndarray):
+    """The row of the rig's default pose: a corpus frame that is it, else one more row.
+
+    Returns the row's index, a sentence saying why, and ``(features, controls)`` of
+    the added row (``None`` when a corpus frame is the rest pose).
+    """
+    defaults = rig.controls.defaults[rig.controls.used_indices]
+    distance = np.abs(corpus_controls - defaults).max(axis=1)
+    matches = np.flatnonzero(distance <= _REST_TOLERANCE)
+    if len(matches):
+        rest_index = int(matches[0])
+        clip, frame = corpus_keys[rest_index]
+        note = f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
+        return rest_index, note, None
+    rest_index = len(corpus_controls)
+    pose = rig.pose(rig.default_controls(1))
+    features = inverse_features(
+        np.asarray(pose.positions),
+        np.asarray(pose.cog),
+        np.asarray(pose.cog_rotation),
+        n_joints=rig.n_joints,
+        where=f"rig {rig.name!r} default pose",
+    )
+    note = (
+        f"no corpus frame is the rig's default pose (closest differs by "
+        f"{distance.min():.3g} in some used control), so the default pose was added as "
+        f"row {rest_index}"
+    )
+    return rest_index, note, (features, defaults[None])
 
 
 def _read_samples(rig, path: Path, sampler: str) -> tuple[np.ndarray, np.ndarray]:
@@ -266,16 +275,22 @@ def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
         return _fit_with_rig(cfg, rig, started, log)
 
 
-def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
+def _regressor_from_config(regressor_cfg: DictConfig) -> Regressor:
+    """The unfitted regressor a ``conf/regressor`` node builds (``hydra.utils.instantiate``)."""
     import hydra.utils
 
-    sampler = sampler_name(cfg.sampler)
-    model = hydra.utils.instantiate(cfg.regressor, _convert_="all")
+    model = hydra.utils.instantiate(regressor_cfg, _convert_="all")
     if not isinstance(model, Regressor):
         raise FitInputError(
-            f"regressor config: _target_ {cfg.regressor.get('_target_')!r} built a "
+            f"regressor config: _target_ {regressor_cfg.get('_target_')!r} built a "
             f"{type(model).__name__}, expected a rigmap.regression.Regressor"
         )
+    return model
+
+
+def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
+    sampler = sampler_name(cfg.sampler)
+    model = _regressor_from_config(cfg.regressor)
     regressor, kernel_label = model.name, model.kernel_name
     model_id = ModelId(regressor, sampler, kernel_label)
     folder = Layout(models=Path(cfg.paths.models)).model(rig.name, model_id)
@@ -319,12 +334,33 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     )
 
     record = {
+        **_fit_record(rig, model_id, data, placement, seconds, error),
+        **details,
+        "config": OmegaConf.to_container(cfg, resolve=True),
+    }
+
+    def fill(staging: Path) -> None:
+        fitted.save(staging)
+        if learned is not None:
+            learned.save(staging / LEARNED_JACOBIAN_FOLDER)
+        write_json_atomic(staging / "fit.json", json_ready(record))
+
+    write_folder_atomic(folder, fill)
+    log(f"  wrote {folder} in {seconds['total']:.1f} s")
+    return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
+
+
+def _fit_record(
+    rig, model_id: ModelId, data: TrainingData, placement: Placement, seconds, error
+) -> dict[str, Any]:
+    """The parts of ``fit.json`` every regressor has (the model adds its own facts)."""
+    return {
         "format": FIT_FORMAT,
         "rig": rig.name,
-        "regressor": regressor,
-        "sampler": sampler,
-        "kernel": kernel_label,
-        "model_file": f"{fitted.regressor.name}.json",
+        "regressor": model_id.regressor,
+        "sampler": model_id.sampler,
+        "kernel": model_id.kernel,
+        "model_file": f"{model_id.regressor}.json",
         "rows": {
             "total": data.rows,
             "corpus": data.corpus_rows,
@@ -342,19 +378,7 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
         "outputs": {"count": len(rig.used_controls), "controls": list(rig.used_controls)},
         "inputs": data.sources,
         "training_error": error,
-        **details,
-        "config": OmegaConf.to_container(cfg, resolve=True),
     }
-
-    def fill(staging: Path) -> None:
-        fitted.save(staging)
-        if learned is not None:
-            learned.save(staging / LEARNED_JACOBIAN_FOLDER)
-        write_json_atomic(staging / "fit.json", json_ready(record))
-
-    write_folder_atomic(folder, fill)
-    log(f"  wrote {folder} in {seconds['total']:.1f} s")
-    return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
 
 
 def placement_of(rig, data: TrainingData) -> Placement:
