@@ -72,6 +72,9 @@ def test_a_sum_shares_one_length_scale_and_spans_its_parts_ranges():
     assert total.length_scale == 0.5
     assert total.with_length_scale(3.0) == MultiquadricKernel(3.0) + GaussianKernel(3.0)
     assert total.search_range == (1e-4, 1e4)
+    assert total.label == "multiquadric_plus_gaussian"
+    assert (2.0 * total).label == "scaled_multiquadric_plus_gaussian"
+    assert GaussianProcessRegressor(kernel=total).kernel_name == total.label
     with pytest.raises(ValueError, match="needs at least two kernels"):
         SumKernel((MultiquadricKernel(),))
     with pytest.raises(ValueError, match="outputscale must be a positive number"):
@@ -127,3 +130,13 @@ def test_a_sum_kernel_gpr_searches_fits_and_predicts_the_arm(tmp_path):
     loaded = GaussianProcessRegressor.load(tmp_path)
     assert loaded.kernel_ == model.kernel_
     np.testing.assert_array_equal(loaded.predict(X_test), model.predict(X_test))
+
+
+def test_the_composite_kernel_config_builds_a_gpr_with_its_label():
+    from hydra import compose, initialize
+
+    with initialize(config_path="../conf", version_base="1.3"):
+        cfg = compose("config", overrides=["regressor=gpr", "kernel=multiquadric_plus_linear"])
+    model = instantiate(cfg.regressor, _convert_="all")
+    assert model.kernel == MultiquadricKernel(1.0) + LinearKernel(1.0, offset=1.0)
+    assert model.kernel_name == "multiquadric_plus_linear"

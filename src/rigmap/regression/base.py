@@ -70,9 +70,9 @@ class Regressor(BaseEstimator):
 
     @property
     def kernel_name(self) -> str:
-        """The kernel part of the model id: the kernel's name, or ``none``."""
+        """The kernel part of the model id: the kernel's label, or ``none``."""
         kernel = getattr(self, "kernel", None)
-        return kernel.name if kernel is not None else NO_KERNEL
+        return kernel.label if kernel is not None else NO_KERNEL
 
     def learned_jacobian(self) -> tuple[np.ndarray, LearnedJacobian] | None:
         """Rows at which to learn the rig's Jacobian, and the unfitted model to learn it.

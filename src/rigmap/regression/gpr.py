@@ -342,7 +342,7 @@ class GaussianProcessRegressor(Regressor):
 
     @property
     def kernel_name(self) -> str:
-        return self._kernel().name
+        return self._kernel().label
 
     def learned_jacobian(self):
         """§4.3-4.4: the multiquadric GPR's Jacobian, learned at its support poses.

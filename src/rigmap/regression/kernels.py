@@ -57,6 +57,11 @@ class Kernel(ABC):
     def diag(self, A: np.ndarray) -> np.ndarray:
         """``k(x, x)`` for every row, without forming the Gram matrix."""
 
+    @property
+    def label(self) -> str:
+        """The kernel part of a model id: the name, or how a composite is built."""
+        return self.name
+
     def columns(self, A: np.ndarray) -> Callable[[int], np.ndarray]:
         """``i -> k(A, a_i)``, one Gram column at a time (for greedy subsampling)."""
         return GramColumns(self, A)
@@ -284,6 +289,10 @@ class SumKernel(Kernel):
         parts = [k.columns(A) for k in self.kernels]
         return lambda i: sum(part(i) for part in parts)
 
+    @property
+    def label(self) -> str:
+        return "_plus_".join(k.label for k in self.kernels)
+
     def with_length_scale(self, length_scale: float) -> SumKernel:
         return SumKernel(tuple(k.with_length_scale(length_scale) for k in self.kernels))
 
@@ -329,6 +338,10 @@ class ScaleKernel(Kernel):
     def columns(self, A):
         base = self.base_kernel.columns(A)
         return lambda i: self.outputscale * base(i)
+
+    @property
+    def label(self) -> str:
+        return f"scaled_{self.base_kernel.label}"
 
     def with_length_scale(self, length_scale: float) -> ScaleKernel:
         return ScaleKernel(self.base_kernel.with_length_scale(length_scale), self.outputscale)
