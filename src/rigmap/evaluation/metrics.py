@@ -1,21 +1,9 @@
 """The errors of paper §6.1 and the result of one method on a rig's test clips.
 
-*Joint error* is the visual error: the mean squared difference between the
-joint positions the method's controls produce and the target positions. It is
-the mean over frames and over the ``3J`` coordinates of ``x`` (the paper's
-joint vector, §3.2), in the rig's length unit squared — the same per-frame
-number refinement minimises. Multiply by 3 for the mean squared joint distance.
-
-*Ground-truth error* is the naturalness error: the mean squared difference
-between the method's controls and the animator's, each control divided by its
-standard deviation in the training corpus (rotations in radians before
-scaling), so rotations, translations and custom attributes weigh alike.
-
-A control whose training standard deviation is (nearly) zero has no scale: the
-animators never moved it in the training clips. Dividing by a tiny number would
-let one such control swamp every other, and any floor would be an arbitrary
-unit. Such controls are left out of the mean and reported instead — how many,
-which, and the largest raw difference seen on them — so nothing is hidden.
+The two errors — *joint error* (cm², the visual error) and *ground-truth
+error* (controls in training-std units, the naturalness error) — are defined
+in :mod:`rigmap.error_measures`, which the fit's training error shares; they
+are re-exported here.
 
 A ``MethodResult`` gathers per-clip results, averages them over all test
 frames (each frame weighs the same, so ``fps`` = frames / seconds), and writes
