@@ -37,6 +37,7 @@ from rigmap.evaluation import (
     run_method,
     write_per_frame_csv,
 )
+from rigmap.sampling import sampler_name
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "conf"
 SWAPPED_GROUPS = ("regressor", "sampler", "kernel", "refine")
@@ -53,7 +54,7 @@ def run(cfg: DictConfig, *, overrides: Sequence[str] = ()) -> list[Path]:
         methods=list(settings.methods),
         samplers=list(settings.samplers),
         kernels=list(settings.kernels),
-        nn_sampler=str(cfg.sampler.name),
+        nn_sampler=sampler_name(cfg.sampler),
         gpr_kernel=kernel_name(cfg.kernel),
     )
     models = ModelFolders(Path(cfg.paths.models) / rig.name, rig)

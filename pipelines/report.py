@@ -23,6 +23,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.reports import ReportFiles, ReportInputError, ReportSettings, build_report
+from rigmap.sampling import sampler_name
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
@@ -33,8 +34,8 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
         for key in ("methods", "samplers", "kernels", "clips"):
             if evaluate.get(key) is not None:
                 values[key] = list(evaluate[key])
-    if cfg.get("sampler") is not None and cfg.sampler.get("name") is not None:
-        values["nn_sampler"] = str(cfg.sampler.name)
+    if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
+        values["nn_sampler"] = sampler_name(cfg.sampler)
     report = cfg.get("report")
     if report is not None:
         values.update(OmegaConf.to_container(report, resolve=True))

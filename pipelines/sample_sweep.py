@@ -26,6 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from animate import rig_from_config
 from rigmap.evaluation.methods import TestSet, run_method
 from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
+from rigmap.sampling import sampler_name
 
 DEFAULT_FRACTIONS = (0.0625, 0.125, 0.25, 0.5, 1.0)
 SWEEP_FOLDER = "sample_sweep"
@@ -51,7 +52,7 @@ def run(cfg: DictConfig) -> list[Path]:
     regressor = getattr(hydra.utils.instantiate(cfg.regressor, _convert_="all"), "name", None)
     if regressor != "nn":
         raise ValueError(f"sample_sweep fits the network: expected regressor=nn, got {regressor!r}")
-    sampler = str(cfg.sampler.name)
+    sampler = sampler_name(cfg.sampler)
     if sampler == "none":
         raise ValueError("sample_sweep needs a sampler that draws samples, got sampler=none")
     fractions = OmegaConf.select(cfg, "sweep.fractions", default=list(DEFAULT_FRACTIONS))

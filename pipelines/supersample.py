@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from animate import rig_from_config
 from rigmap.animation.corpus import Corpus
-from rigmap.sampling import SupersampleResult, make_sampler, supersample
+from rigmap.sampling import SupersampleResult, make_sampler, sampler_name, supersample
 from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE
 
 
@@ -39,7 +39,7 @@ def sampler_seed(seed: int, sampler_name: str) -> int:
 def sampler_from_config(sampler_cfg: DictConfig, rig):
     """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
     options = OmegaConf.to_container(sampler_cfg, resolve=True)
-    if options.get("name") == "uniform" and options.get("range") == "soft":
+    if sampler_name(options) == "uniform" and options.get("range") == "soft":
         used = rig.controls.used_indices
         if options.get("lower") is None:
             options["lower"] = rig.controls.lower[used]

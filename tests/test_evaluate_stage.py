@@ -22,6 +22,7 @@ from hydra import compose, initialize_config_dir
 from rigmap.evaluation import evaluation_jobs
 from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor
 from rigmap.regression.features import feature_names, inverse_features
+from rigmap.sampling import sampler_name
 from test_methods import build_rig_data, fit_tiny_models
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -152,19 +153,23 @@ def test_each_method_composes_its_own_config(face):
         configs = {name: stage.method_config(job, overrides) for name, job in jobs.items()}
     computed = configs["gpr_computed_jacobian"]
     assert computed.regressor._target_.endswith("GaussianProcessRegressor")
-    assert computed.sampler.name == "none" and computed.kernel._target_.endswith("GaussianKernel")
+    assert sampler_name(computed.sampler) == "none" and computed.kernel._target_.endswith(
+        "GaussianKernel"
+    )
     assert computed.refine.name == "computed_jacobian"
     assert computed.refine.jacobian == "finite_difference"  # the method decides, not the override
     assert computed.refine.damping == 0.3 and computed.refine.max_iterations == 4
     assert configs["nn_autodiff_jacobian"].refine.jacobian == "autodiff"
-    assert configs["nn_autodiff_jacobian"].sampler.name == "uniform"
+    assert sampler_name(configs["nn_autodiff_jacobian"].sampler) == "uniform"
     assert configs["nn"].regressor._target_.endswith("FeedForwardRegressor")
     assert configs["gpr"].refine == {"name": "none"}  # refine.* overrides left out
     learned = configs["nn_learned_jacobian"].refine
     assert (
         learned.name == "learned_jacobian" and learned.damping == 0.3 and "jacobian" not in learned
     )
-    assert configs["script"].sampler.name == "none" and configs["script"].rig.name == "face"
+    assert (
+        sampler_name(configs["script"].sampler) == "none" and configs["script"].rig.name == "face"
+    )
 
 
 def test_missing_model_folders_are_named_before_any_work(face, tmp_path):

@@ -27,9 +27,10 @@ from rigmap.regression import (
     load_learned_jacobian,
     load_regressor,
 )
-from rigmap.regression.fitting import load_training_data, write_model_folder
+from rigmap.regression.fitting import load_training_data
 from rigmap.regression.mapping import InverseMapping
 from rigmap.sampling import make_sampler, supersample
+from rigmap.store import write_folder_atomic as write_model_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SAMPLES = 300
@@ -195,8 +196,8 @@ def test_network_fits_corpus_plus_samples(nn_fit, data_dir, biped):
     assert folder.name == "nn-pca_gaussian-none"
     assert sorted(p.name for p in folder.iterdir()) == [
         "fit.json",
-        "network.json",
-        "network.pt",
+        "nn.json",
+        "nn.pt",
         "placement.json",
     ]
     record = json.loads((folder / "fit.json").read_text())

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hydra.utils import instantiate
 from omegaconf import OmegaConf
 from scipy.spatial import cKDTree
 
@@ -22,6 +23,7 @@ from rigmap.sampling import (
     available,
     clamp_to_limits,
     make_sampler,
+    sampler_name,
 )
 
 CONF = Path(__file__).resolve().parents[1] / "conf" / "sampler"
@@ -371,14 +373,16 @@ def test_unknown_sampler_names_the_available_ones():
 @pytest.mark.parametrize("name", available())
 def test_each_config_builds_its_strategy_with_the_class_defaults(name):
     config = OmegaConf.load(CONF / f"{name}.yaml")
-    assert config.name == name
-    sampler = make_sampler(**config)
+    assert "name" not in config  # the class knows its name; the yaml does not restate it
+    assert sampler_name(config) == name
+    sampler = instantiate(config, _convert_="all")
     assert type(sampler) is SAMPLERS[name]
     assert sampler.get_params() == type(sampler)().get_params()
+    assert type(make_sampler(**config)) is SAMPLERS[name]  # the compatibility door agrees
 
 
 def test_config_target_must_match_its_name():
-    with pytest.raises(ValueError, match=r"is not rigmap\.sampling\.gmm\.GaussianMixtureSampler"):
+    with pytest.raises(ValueError, match=r"PCAGaussianSampler' is the 'pca_gaussian' sampler"):
         make_sampler("gmm", _target_="rigmap.sampling.PCAGaussianSampler")
     # Hydra's instantiate would get the class itself from _target_
     assert isinstance(

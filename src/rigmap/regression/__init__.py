@@ -1,9 +1,10 @@
 """Inverse rig mappings learned by regression (paper §4-5): kernels, GPR, network, Jacobian.
 
-Every model is scikit-learn style (hyper-parameters in ``__init__``, ``fit``,
-``predict``) and saves to a folder as ``<kind>.json`` plus a data file; a
-loaded model refuses inputs of the wrong width, NaNs, and rigs it was not
-fitted for.
+Every model is a :class:`~rigmap.regression.base.Regressor` (scikit-learn's
+estimator contract: hyper-parameters in ``__init__``, ``fit``, ``predict``),
+built from its config with ``hydra.utils.instantiate``, and saves to a folder as
+``<name>.json`` plus a data file (:mod:`rigmap.regression.model_io`); a loaded
+model refuses inputs of the wrong width, NaNs, and rigs it was not fitted for.
 """
 
 from __future__ import annotations
@@ -12,68 +13,44 @@ import os
 from pathlib import Path
 from typing import Any
 
-from rigmap.regression.gpr import (
-    GaussianProcessRegressor,
-    ModelFileError,
-    ModelFingerprint,
-    ModelMismatchError,
-    RegressionInputError,
-    greedy_subsample,
-    length_scale_cv_errors,
-    solve_regularized,
-)
+from rigmap.regression.base import Regressor, regressor_classes
+from rigmap.regression.errors import ModelFileError, ModelMismatchError, RegressionInputError
+from rigmap.regression.fingerprint import ModelFingerprint
+from rigmap.regression.gpr import GaussianProcessRegressor
 from rigmap.regression.kernels import (
-    KERNELS,
     GaussianKernel,
     Kernel,
     LinearKernel,
     MultiquadricKernel,
     PolynomialKernel,
+    ScaleKernel,
+    SumKernel,
     kernel_from_dict,
-    make_kernel,
 )
 from rigmap.regression.learned_jacobian import LearnedJacobian
+from rigmap.regression.length_scale_search import length_scale_cv_errors
+from rigmap.regression.linear_solve import solve_regularized
 from rigmap.regression.network import FeedForwardRegressor
-
-REGRESSORS: dict[str, type] = {
-    "gpr": GaussianProcessRegressor,
-    "nn": FeedForwardRegressor,
-}
-
-
-def make_regressor(name: str, **params: Any):
-    """An inverse-mapping regressor by its config name (``gpr`` or ``nn``).
-
-    For ``gpr``, ``kernel`` may be a kernel object or a mapping with a ``name``
-    field (as written by ``Kernel.to_dict``).
-    """
-    try:
-        cls = REGRESSORS[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown regressor {name!r}; available regressors: {sorted(REGRESSORS)}"
-        ) from None
-    kernel = params.get("kernel")
-    if kernel is not None and not isinstance(kernel, Kernel):
-        params["kernel"] = kernel_from_dict(dict(kernel))
-    return cls(**params)
+from rigmap.regression.subsampling import greedy_subsample
 
 
 def load_regressor(folder: str | os.PathLike, rig: Any = None):
-    """The inverse mapping saved in ``folder`` (``gpr.json`` or ``network.json``).
+    """The inverse mapping saved in ``folder`` (``<name>.json`` of one known regressor).
 
     A folder written by a fit also holds ``placement.json``: the regressor then comes
     wrapped in its :class:`~rigmap.regression.mapping.InverseMapping` (pose rows in).
     """
     from rigmap.regression.mapping import InverseMapping, has_placement
+    from rigmap.regression.model_io import has_model_file
 
     folder = Path(folder)
     if has_placement(folder):
         return InverseMapping.load(folder, rig=rig)
-    found = [cls for cls in REGRESSORS.values() if (folder / f"{cls.file_stem}.json").is_file()]
+    classes = [cls for cls in regressor_classes() if cls is not LearnedJacobian]
+    found = [cls for cls in classes if has_model_file(folder, (cls.name, *cls.legacy_names))]
     if len(found) != 1:
-        expected = " or ".join(f"{cls.file_stem}.json" for cls in REGRESSORS.values())
-        what = "both" if found else "neither"
+        expected = " or ".join(f"{cls.name}.json" for cls in classes)
+        what = "several" if found else "none"
         raise ModelFileError(f"{folder}: expected exactly one of {expected}, found {what}")
     return found[0].load(folder, rig=rig)
 
@@ -88,8 +65,6 @@ def load_learned_jacobian(folder: str | os.PathLike, rig: Any = None):
 
 
 __all__ = [
-    "KERNELS",
-    "REGRESSORS",
     "FeedForwardRegressor",
     "GaussianKernel",
     "GaussianProcessRegressor",
@@ -102,12 +77,14 @@ __all__ = [
     "MultiquadricKernel",
     "PolynomialKernel",
     "RegressionInputError",
+    "Regressor",
+    "ScaleKernel",
+    "SumKernel",
     "greedy_subsample",
     "kernel_from_dict",
     "length_scale_cv_errors",
     "load_learned_jacobian",
     "load_regressor",
-    "make_kernel",
-    "make_regressor",
+    "regressor_classes",
     "solve_regularized",
 ]

@@ -27,12 +27,7 @@ a killed fit never leaves a half-written model behind.
 
 from __future__ import annotations
 
-import inspect
-import json
 import os
-import re
-import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -44,20 +39,19 @@ from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
+from rigmap.error_measures import control_std, ground_truth_error, joint_error
 from rigmap.errors import RigmapError
-from rigmap.evaluation.metrics import control_std, ground_truth_error, joint_error
+from rigmap.regression.base import Regressor
 from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
-from rigmap.regression.gpr import GaussianProcessRegressor
-from rigmap.regression.kernels import MultiquadricKernel
-from rigmap.regression.learned_jacobian import LearnedJacobian
 from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import Placement, find_placement
+from rigmap.sampling import sampler_name
 from rigmap.sampling.supersample import load_samples
+from rigmap.store import Layout, ModelId, json_ready, write_folder_atomic, write_json_atomic
 
 FIT_FORMAT = "rigmap.fit/1"
 TRAIN_SPLIT = "train"
 LEARNED_JACOBIAN_FOLDER = "learned_jacobian"
-NO_KERNEL = "none"  # the kernel label of regressors that have none (the network)
 # a corpus frame counts as the rest pose when every used control is within this of its default
 _REST_TOLERANCE = 1e-9
 # corpus frames (evenly spaced, plus the rest pose) at which the root channels are probed
@@ -95,11 +89,11 @@ class TrainingData:
 
 def training_files(data_dir: str | os.PathLike, rig_name: str, sampler: str) -> dict[str, Path]:
     """The files a fit reads: train corpus, train poses and the sampler's samples."""
-    rig_data = Path(data_dir) / rig_name
+    layout = Layout(data=Path(data_dir))
     return {
-        "corpus": rig_data / "corpus" / f"{TRAIN_SPLIT}.parquet",
-        "poses": rig_data / "poses" / f"{TRAIN_SPLIT}.parquet",
-        "samples": rig_data / "samples" / f"{sampler}.npz",
+        "corpus": layout.corpus(rig_name, TRAIN_SPLIT),
+        "poses": layout.poses(rig_name, TRAIN_SPLIT),
+        "samples": layout.samples(rig_name, sampler),
     }
 
 
@@ -142,33 +136,11 @@ def load_training_data(rig, data_dir: str | os.PathLike, sampler: str) -> Traini
     controls = [corpus.values()]
     corpus_rows = len(controls[0])
 
-    defaults = rig.controls.defaults[rig.controls.used_indices]
-    distance = np.abs(controls[0] - defaults).max(axis=1)
-    matches = np.flatnonzero(distance <= _REST_TOLERANCE)
-    if len(matches):
-        rest_index, added = int(matches[0]), False
-        clip, frame = corpus_keys[rest_index]
-        rest_pose = (
-            f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
-        )
-    else:
-        rest_index, added = corpus_rows, True
-        pose = rig.pose(rig.default_controls(1))
-        features.append(
-            inverse_features(
-                np.asarray(pose.positions),
-                np.asarray(pose.cog),
-                np.asarray(pose.cog_rotation),
-                n_joints=rig.n_joints,
-                where=f"rig {rig.name!r} default pose",
-            )
-        )
-        controls.append(defaults[None])
-        rest_pose = (
-            f"no corpus frame is the rig's default pose (closest differs by "
-            f"{distance.min():.3g} in some used control), so the default pose was added as "
-            f"row {rest_index}"
-        )
+    rest_index, rest_pose, rest_row = _rest_pose(rig, controls[0], corpus_keys)
+    added = rest_row is not None
+    if added:
+        features.append(rest_row[0])
+        controls.append(rest_row[1])
 
     samples_source = None
     sample_rows = 0
@@ -192,6 +164,37 @@ def load_training_data(rig, data_dir: str | os.PathLike, sampler: str) -> Traini
             "samples": samples_source,
         },
     )
+
+
+def _rest_pose(rig, corpus_controls: np.ndarray, corpus_keys: np.ndarray):
+    """The row of the rig's default pose: a corpus frame that is it, else one more row.
+
+    Returns the row's index, a sentence saying why, and ``(features, controls)`` of
+    the added row (``None`` when a corpus frame is the rest pose).
+    """
+    defaults = rig.controls.defaults[rig.controls.used_indices]
+    distance = np.abs(corpus_controls - defaults).max(axis=1)
+    matches = np.flatnonzero(distance <= _REST_TOLERANCE)
+    if len(matches):
+        rest_index = int(matches[0])
+        clip, frame = corpus_keys[rest_index]
+        note = f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
+        return rest_index, note, None
+    rest_index = len(corpus_controls)
+    pose = rig.pose(rig.default_controls(1))
+    features = inverse_features(
+        np.asarray(pose.positions),
+        np.asarray(pose.cog),
+        np.asarray(pose.cog_rotation),
+        n_joints=rig.n_joints,
+        where=f"rig {rig.name!r} default pose",
+    )
+    note = (
+        f"no corpus frame is the rig's default pose (closest differs by "
+        f"{distance.min():.3g} in some used control), so the default pose was added as "
+        f"row {rest_index}"
+    )
+    return rest_index, note, (features, defaults[None])
 
 
 def _read_samples(rig, path: Path, sampler: str) -> tuple[np.ndarray, np.ndarray]:
@@ -251,14 +254,9 @@ class FitResult:
     """What a fit produced: the folder written, the models and the ``fit.json`` record."""
 
     folder: Path
-    model: Any
-    learned_jacobian: LearnedJacobian | None
+    model: InverseMapping
+    learned_jacobian: JacobianMapping | None
     record: dict[str, Any]
-
-
-def model_folder_name(regressor: str, sampler: str, kernel: str) -> str:
-    """``<regressor>-<sampler>-<kernel>``, e.g. ``gpr-none-multiquadric``, ``nn-uniform-none``."""
-    return f"{regressor}-{sampler}-{kernel}"
 
 
 def rig_from_config(rig_cfg: DictConfig):
@@ -277,15 +275,25 @@ def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
         return _fit_with_rig(cfg, rig, started, log)
 
 
-def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
+def _regressor_from_config(regressor_cfg: DictConfig) -> Regressor:
+    """The unfitted regressor a ``conf/regressor`` node builds (``hydra.utils.instantiate``)."""
     import hydra.utils
 
-    sampler = str(cfg.sampler.name)
-    model = hydra.utils.instantiate(cfg.regressor, _convert_="all")
-    regressor = str(getattr(model, "name", type(model).__name__))
-    kernel = getattr(model, "kernel", None)
-    kernel_label = kernel.name if kernel is not None else NO_KERNEL
-    folder = Path(cfg.paths.models) / rig.name / model_folder_name(regressor, sampler, kernel_label)
+    model = hydra.utils.instantiate(regressor_cfg, _convert_="all")
+    if not isinstance(model, Regressor):
+        raise FitInputError(
+            f"regressor config: _target_ {regressor_cfg.get('_target_')!r} built a "
+            f"{type(model).__name__}, expected a rigmap.regression.Regressor"
+        )
+    return model
+
+
+def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
+    sampler = sampler_name(cfg.sampler)
+    model = _regressor_from_config(cfg.regressor)
+    regressor, kernel_label = model.name, model.kernel_name
+    model_id = ModelId(regressor, sampler, kernel_label)
+    folder = Layout(models=Path(cfg.paths.models)).model(rig.name, model_id)
     log(f"fit {rig.name}: {regressor} (kernel {kernel_label}, sampler {sampler}) -> {folder}")
 
     data = load_training_data(rig, cfg.paths.data, sampler)
@@ -304,13 +312,12 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     clock = time.perf_counter()
     fitted = fit_regressor(model, rig, data, placement, log=log)
     seconds["model"] = time.perf_counter() - clock
-    details = describe_fitted(fitted.regressor)
+    details = fitted.regressor.fit_facts()
 
     learned = None
-    if isinstance(fitted.regressor, GaussianProcessRegressor) and isinstance(
-        fitted.kernel_, MultiquadricKernel
-    ):
-        learned, jacobian_details = fit_learned_jacobian(fitted, rig, data, log=log)
+    wanted = fitted.regressor.learned_jacobian()
+    if wanted is not None:
+        learned, jacobian_details = fit_learned_jacobian(fitted, wanted, rig, data, log=log)
         details["learned_jacobian"] = jacobian_details
         seconds["jacobians"] = jacobian_details["seconds"]["finite_differences"]
         seconds["learned_jacobian"] = jacobian_details["seconds"]["fit"]
@@ -327,12 +334,33 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     )
 
     record = {
+        **_fit_record(rig, model_id, data, placement, seconds, error),
+        **details,
+        "config": OmegaConf.to_container(cfg, resolve=True),
+    }
+
+    def fill(staging: Path) -> None:
+        fitted.save(staging)
+        if learned is not None:
+            learned.save(staging / LEARNED_JACOBIAN_FOLDER)
+        write_json_atomic(staging / "fit.json", json_ready(record))
+
+    write_folder_atomic(folder, fill)
+    log(f"  wrote {folder} in {seconds['total']:.1f} s")
+    return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
+
+
+def _fit_record(
+    rig, model_id: ModelId, data: TrainingData, placement: Placement, seconds, error
+) -> dict[str, Any]:
+    """The parts of ``fit.json`` every regressor has (the model adds its own facts)."""
+    return {
         "format": FIT_FORMAT,
         "rig": rig.name,
-        "regressor": regressor,
-        "sampler": sampler,
-        "kernel": kernel_label,
-        "model_file": f"{fitted.regressor.file_stem}.json",
+        "regressor": model_id.regressor,
+        "sampler": model_id.sampler,
+        "kernel": model_id.kernel,
+        "model_file": f"{model_id.regressor}.json",
         "rows": {
             "total": data.rows,
             "corpus": data.corpus_rows,
@@ -350,20 +378,7 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
         "outputs": {"count": len(rig.used_controls), "controls": list(rig.used_controls)},
         "inputs": data.sources,
         "training_error": error,
-        **details,
-        "config": OmegaConf.to_container(cfg, resolve=True),
     }
-
-    def fill(staging: Path) -> None:
-        fitted.save(staging)
-        if learned is not None:
-            learned.save(staging / LEARNED_JACOBIAN_FOLDER)
-        text = json.dumps(_json_ready(record), indent=2, allow_nan=False) + "\n"
-        (staging / "fit.json").write_text(text)
-
-    write_model_folder(folder, fill)
-    log(f"  wrote {folder} in {seconds['total']:.1f} s")
-    return FitResult(folder=folder, model=fitted, learned_jacobian=learned, record=record)
 
 
 def placement_of(rig, data: TrainingData) -> Placement:
@@ -375,86 +390,29 @@ def placement_of(rig, data: TrainingData) -> Placement:
 
 
 def fit_regressor(
-    model, rig, data: TrainingData, placement: Placement, *, log: Log = _print
+    model: Regressor, rig, data: TrainingData, placement: Placement, *, log: Log = _print
 ) -> InverseMapping:
-    """``model.fit`` on the training rows behind ``placement``; a GPR also gets the rest row."""
+    """``model.fit`` on the training rows behind ``placement``, with the model's own options."""
     options: dict[str, Any] = {"rig_name": rig.name, "control_names": list(rig.used_controls)}
-    if "rest_index" in inspect.signature(model.fit).parameters:
-        options["rest_index"] = data.rest_index
-    if isinstance(model, GaussianProcessRegressor):
-        _announce_gpr(model, data.rows, log)
-    else:
-        log(f"  training {model!r} on {data.rows} rows")
+    options.update(model.fit_options(rest_index=data.rest_index))
+    log(f"  {model.describe_plan(data.rows)}")
     mapping = InverseMapping(model, placement).fit(data.features, data.controls, **options)
-    if isinstance(model, GaussianProcessRegressor):
-        phases = model.fit_seconds_
-        log(
-            f"  GPR length-scale search {phases['length_scale_search']:.1f} s -> "
-            f"{model.length_scale_:.3g}; subsampling {phases['subsampling']:.1f} s -> "
-            f"{len(model.support_indices_)} support points; solve {phases['solve']:.1f} s "
-            f"({model.solver_}, reciprocal condition {model.rcond_:.1e})"
-        )
-        if model.search_length_scale:
-            curve = ", ".join(
-                f"{scale:.3g}: {error:.3g}"
-                for scale, error in zip(model.length_scales_, model.cv_errors_, strict=True)
-            )
-            log(f"  CV error by length scale (standardised units²): {curve}")
+    for line in model.describe_result():
+        log(f"  {line}")
     return mapping
 
 
-def _announce_gpr(model: GaussianProcessRegressor, rows: int, log: Log) -> None:
-    target = rows if model.n_points is None else min(int(model.n_points), rows)
-    steps = []
-    if model.search_length_scale:
-        low, high = model.search_range
-        search_rows = min(rows, int(model.search_points) if model.search_points else target)
-        steps.append(
-            f"length-scale search ({model.n_length_scales} values in [{low:g}, {high:g}] x "
-            f"{model.cv_splits} half-splits on {search_rows} rows)"
-        )
-    if target < rows:
-        steps.append(f"greedy subsampling to {target} of {rows} rows")
-    steps.append("solve")
-    kernel = model.kernel.name if model.kernel is not None else MultiquadricKernel.name
-    log(f"  GPR ({kernel} kernel): " + ", then ".join(steps))
-
-
-def describe_fitted(model) -> dict[str, Any]:
-    """Model-specific facts for ``fit.json``: the GPR's search and support, the loss curve."""
-    if isinstance(model, GaussianProcessRegressor):
-        return {
-            "gpr": {
-                "length_scale": float(model.length_scale_),
-                "length_scale_search": {
-                    "searched": bool(model.search_length_scale),
-                    "candidates": [float(v) for v in model.length_scales_],
-                    "cv_errors": [float(v) for v in model.cv_errors_],
-                },
-                "support_points": len(model.support_indices_),
-                "solver": model.solver_,
-                "reciprocal_condition": float(model.rcond_),
-                "phase_seconds": dict(model.fit_seconds_),
-            }
-        }
-    history = getattr(model, "loss_history_", None)
-    if history is not None:
-        return {"network": {"loss_history": [float(v) for v in history]}}
-    return {}
-
-
 def fit_learned_jacobian(
-    mapping: InverseMapping, rig, data: TrainingData, *, log: Log = _print
+    mapping: InverseMapping, wanted, rig, data: TrainingData, *, log: Log = _print
 ) -> tuple[JacobianMapping, dict[str, Any]]:
-    """§4.3-4.4: finite-difference Jacobians at the GPR's support poses, learned by a GPR.
+    """§4.3-4.4: finite-difference Jacobians at the rows the model names, learned by its model.
 
-    The Jacobian GPR takes the inverse mapping's settings (regularisation, search range,
-    splits, seed) and its placement; every support pose is one of its support points.
+    ``wanted`` is ``regressor.learned_jacobian()``: the training rows (the GPR's support
+    poses) and the unfitted learned Jacobian; it learns behind the mapping's placement.
     """
-    model: GaussianProcessRegressor = mapping.regressor
     from rigmap.refine import jacobian
 
-    support = np.asarray(model.support_indices_)
+    support, regressor = wanted
     n_used = len(rig.used_controls)
     log(
         f"  finite-difference Jacobians at {len(support)} support poses "
@@ -463,17 +421,6 @@ def fit_learned_jacobian(
     clock = time.perf_counter()
     jacobians = jacobian(rig, rig.expand_used(data.controls[support]), "finite_difference")
     fd_seconds = time.perf_counter() - clock
-    regressor = LearnedJacobian(
-        kernel=model.kernel_,
-        regularization=model.regularization,
-        search_length_scale=model.search_length_scale,
-        length_scale_range=model.search_range,
-        n_length_scales=model.n_length_scales,
-        cv_splits=model.cv_splits,
-        cv_max_outputs=model.cv_max_outputs,
-        normalize=model.normalize,
-        seed=model.seed,
-    )
     learned = JacobianMapping(regressor, mapping.placement)
     log(
         f"  learned Jacobian: GPR {len(support)} poses -> {jacobians.shape[1]} x "
@@ -544,67 +491,3 @@ def feature_layout(rig, placement: Placement) -> dict[str, Any]:
         "joint_names": list(rig.joint_names),
         "placement_columns": names[-PLACEMENT_WIDTH:],
     }
-
-
-# --------------------------------------------------------------------------- the folder
-def write_model_folder(folder: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
-    """Fill a hidden sibling folder with ``fill(staging)``, then rename it to ``folder``.
-
-    An existing ``folder`` is replaced only once the new one is complete. A fit killed
-    mid-way leaves at most a hidden ``.<name>.<pid>.*`` sibling, which the next fit of
-    the same model removes once its process is gone.
-    """
-    folder = Path(folder)
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    _remove_abandoned(folder)
-    prefix = f".{folder.name}.{os.getpid()}."
-    staging = Path(tempfile.mkdtemp(prefix=prefix, suffix=".tmp", dir=folder.parent))
-    try:
-        fill(staging)
-        staging.chmod(0o755)
-        if folder.exists():
-            retired = Path(tempfile.mkdtemp(prefix=prefix, suffix=".old", dir=folder.parent))
-            os.replace(folder, retired / folder.name)
-            os.replace(staging, folder)
-            shutil.rmtree(retired)
-        else:
-            os.replace(staging, folder)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return folder
-
-
-def _remove_abandoned(folder: Path) -> None:
-    pattern = re.compile(rf"^\.{re.escape(folder.name)}\.(\d+)\..*\.(tmp|old)$")
-    for candidate in folder.parent.iterdir():
-        match = pattern.match(candidate.name)
-        if match and candidate.is_dir() and not _process_alive(int(match.group(1))):
-            shutil.rmtree(candidate, ignore_errors=True)
-
-
-def _process_alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return False  # our own leftovers can only be from an earlier, failed call
-    try:
-        os.kill(pid, 0)  # signal 0: only asks whether the process exists
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _json_ready(value: Any) -> Any:
-    """Plain JSON: numpy scalars as numbers, non-finite numbers as null."""
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_ready(value.tolist())
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value

@@ -2,464 +2,49 @@
 
 The prediction is the regularised GP mean of Eq. 6,
 ``y* = K* (K + theta1 I)^-1 Y``, for every output at once. Fitting has two
-parts, both from the paper:
+parts, both from the paper, each in its own module:
 
-- **length-scale line search** (§4.1.1): candidate values spaced regularly in
-  log scale over a range; for each, 10 times train on a random half of the
-  data and validate on the other half; keep the value with the lowest mean
-  error;
-- **greedy subsampling** (§4.2): start from the rest pose, add a few farthest
-  points (Eq. 7), then repeatedly the point the current GP predicts worst
-  (Eq. 10) until ``n_points`` are chosen.
+- **length-scale line search** (§4.1.1, :mod:`~rigmap.regression.length_scale_search`):
+  candidate values spaced regularly in log scale over a range; for each, 10
+  times train on a random half of the data and validate on the other half;
+  keep the value with the lowest mean error;
+- **greedy subsampling** (§4.2, :mod:`~rigmap.regression.subsampling`): start
+  from the rest pose, add a few farthest points (Eq. 7), then repeatedly the
+  point the current GP predicts worst (Eq. 10) until ``n_points`` are chosen.
 
-The multiquadric Gram matrix is indefinite, so every solve is an LU
-factorisation, with a least-squares fallback when the matrix is numerically
-singular — never Cholesky.
-
-The subsampling never refits from scratch. Adding support point ``p`` to a GP
-is one step of Gaussian elimination on ``G = K + theta1 I`` over all
-candidates: with ``u = G[:, p] - L (L[p] / d)`` the new column of the partial
-``L D L^T`` factor and ``d_p = u[p]`` its (signed) pivot, every candidate's
-residual updates as ``R -= u (R[p] / d_p)``. The residual at a candidate is
-then exactly ``y - K_xS (K_SS + theta1 I)^-1 Y_S``, the error of Eq. 10. Each
-addition costs ``O(N (m + D + C))`` for ``N`` candidates, ``m`` points so far,
-``D`` inputs and ``C`` outputs; memory is ``8 N n_points`` bytes for the
-factor, which is why ``max_candidates`` bounds ``N``.
+The solve is :func:`~rigmap.regression.linear_solve.solve_regularized` (LU,
+never Cholesky: the multiquadric Gram matrix is indefinite).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-import tempfile
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Literal, NamedTuple
+from typing import Any, Literal
 
 import numpy as np
-import scipy.linalg
-from scipy.linalg import blas, lapack
 from threadpoolctl import threadpool_limits
-from tqdm.auto import tqdm
 
-from rigmap.errors import RigmapError
-from rigmap.regression.kernels import GramColumns, Kernel, MultiquadricKernel, kernel_from_dict
-from rigmap.rigs.base import RigInputError
+from rigmap.regression.base import Regressor
+from rigmap.regression.errors import ModelFileError, RegressionInputError
+from rigmap.regression.fingerprint import ModelFingerprint
+from rigmap.regression.kernels import Kernel, MultiquadricKernel, kernel_from_dict
+from rigmap.regression.length_scale_search import length_scale_cv_errors
+from rigmap.regression.linear_solve import solve_regularized
+from rigmap.regression.model_io import arrays_from_bytes, params_for_file, params_from_file
+from rigmap.regression.normalisation import column_scale
+from rigmap.regression.subsampling import greedy_subsample
+from rigmap.regression.validation import check_training_data
 
-# A dimension whose spread is below this fraction of the largest one is centred
-# but not scaled: scaling it would blow round-off noise up to unit variance.
-_MIN_RELATIVE_STD = 1e-6
-# LU solutions with a reciprocal condition number below this are not trusted.
-_MIN_RCOND = 1e-13
 # Below this the fitted model warns that its predictions may amplify round-off.
 _WARN_RCOND = 1e-12
-# A pivot this small relative to its kernel diagonal means the candidate is
-# numerically a combination of the chosen points; it is skipped.
-_PIVOT_TOLERANCE = 1e-12
 _PREDICT_CHUNK = 8192
 
-
-# --------------------------------------------------------------------------- errors
-class RegressionInputError(RigInputError):
-    """Inputs given to a regressor have the wrong shape or bad values."""
-
-
-class ModelMismatchError(RigmapError, ValueError):
-    """A saved model does not belong to the rig or data it is used with."""
-
-
-class ModelFileError(RigmapError, ValueError):
-    """A model folder is incomplete, corrupt or of another kind of model."""
-
-
-# --------------------------------------------------------------------------- fingerprint
-@dataclass(frozen=True)
-class ModelFingerprint:
-    """What a fitted model expects, so it refuses inputs or rigs it was not made for.
-
-    ``control_names`` names the outputs (the rig's used controls for an inverse
-    mapping); ``rig_name`` is the rig the training data came from. Both are
-    optional: synthetic problems have neither.
-    """
-
-    input_dim: int
-    output_dim: int
-    rig_name: str | None = None
-    control_names: tuple[str, ...] | None = None
-
-    @classmethod
-    def build(
-        cls,
-        input_dim: int,
-        output_dim: int,
-        rig_name: str | None = None,
-        control_names: Sequence[str] | None = None,
-    ) -> ModelFingerprint:
-        if control_names is not None:
-            control_names = tuple(str(n) for n in control_names)
-            if len(control_names) != output_dim:
-                raise RegressionInputError(
-                    f"control_names: expected {output_dim} names (one per output column), "
-                    f"got {len(control_names)}"
-                )
-        return cls(int(input_dim), int(output_dim), rig_name, control_names)
-
-    def describe(self, model: str) -> str:
-        return f"{model} fitted for rig {self.rig_name!r}" if self.rig_name else model
-
-    def check_inputs(self, X: Any, model: str) -> tuple[np.ndarray, bool]:
-        """``X`` as a finite float64 ``(M, input_dim)`` array, and whether it was one row."""
-        X = as_float_array(X, f"{self.describe(model)}: inputs")
-        squeeze = X.ndim == 1
-        if squeeze:
-            X = X[None]
-        if X.ndim != 2 or X.shape[1] != self.input_dim:
-            raise RegressionInputError(
-                f"{self.describe(model)}: expected inputs of shape (M, {self.input_dim}) "
-                f"or ({self.input_dim},), got {tuple(np.shape(X))}"
-            )
-        check_finite(X, f"{self.describe(model)}: inputs")
-        return X, squeeze
-
-    def check_rig(self, rig: Any, source: str) -> None:
-        """Raise unless ``rig`` (a Rig or a rig name) is the one this model was fitted for."""
-        if rig is None:
-            return
-        name = rig if isinstance(rig, str) else getattr(rig, "name", None)
-        if self.rig_name is not None and name != self.rig_name:
-            raise ModelMismatchError(
-                f"{source} was fitted for rig {self.rig_name!r}, but it is used with rig {name!r}"
-            )
-        rig_controls = None if isinstance(rig, str) else getattr(rig, "control_names", None)
-        if rig_controls is not None and self.control_names is not None:
-            missing = [n for n in self.control_names if n not in set(rig_controls)]
-            if missing:
-                raise ModelMismatchError(
-                    f"{source} predicts controls the rig {name!r} does not have: {missing[:5]}"
-                    f"{' …' if len(missing) > 5 else ''} ({len(missing)} of "
-                    f"{len(self.control_names)})"
-                )
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "input_dim": self.input_dim,
-            "output_dim": self.output_dim,
-            "rig_name": self.rig_name,
-            "control_names": list(self.control_names) if self.control_names else None,
-        }
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ModelFingerprint:
-        names = data.get("control_names")
-        return cls(
-            int(data["input_dim"]),
-            int(data["output_dim"]),
-            data.get("rig_name"),
-            tuple(names) if names else None,
-        )
-
-
-def as_float_array(values: Any, where: str) -> np.ndarray:
-    try:
-        array = np.asarray(values)
-    except (TypeError, ValueError) as error:
-        raise RegressionInputError(f"{where}: expected a numeric array, got {error}") from None
-    if array.dtype.kind not in "fiub":
-        raise RegressionInputError(f"{where}: expected numbers, got dtype {array.dtype}")
-    return array.astype(np.float64, copy=False)
-
-
-def check_finite(array: np.ndarray, where: str) -> None:
-    if not np.isfinite(array).all():
-        row, column = np.argwhere(~np.isfinite(array))[0][:2]
-        raise RegressionInputError(
-            f"{where} contain NaN or infinity (first at row {row}, column {column}); "
-            "expected finite numbers"
-        )
-
-
-def check_training_data(X: Any, Y: Any, model: str) -> tuple[np.ndarray, np.ndarray]:
-    """Finite 2-D ``X (N, D)`` and ``Y (N, C)`` with the same number of rows."""
-    X = as_float_array(X, f"{model}.fit: inputs X")
-    Y = as_float_array(Y, f"{model}.fit: targets Y")
-    if Y.ndim == 1:
-        Y = Y[:, None]
-    if X.ndim != 2:
-        raise RegressionInputError(f"{model}.fit: expected inputs X of shape (N, D), got {X.shape}")
-    if Y.ndim != 2:
-        raise RegressionInputError(
-            f"{model}.fit: expected targets Y of shape (N, C) or (N,), got {Y.shape}"
-        )
-    if len(X) != len(Y):
-        raise RegressionInputError(
-            f"{model}.fit: X has {len(X)} rows but Y has {len(Y)}; expected one target row "
-            "per input row"
-        )
-    if len(X) == 0 or X.shape[1] == 0 or Y.shape[1] == 0:
-        raise RegressionInputError(
-            f"{model}.fit: expected non-empty data, got X {X.shape} and Y {Y.shape}"
-        )
-    check_finite(X, f"{model}.fit: inputs X")
-    check_finite(Y, f"{model}.fit: targets Y")
-    return X, Y
-
-
-# --------------------------------------------------------------------------- normalisation
-def column_scale(values: np.ndarray, shared: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and spread per column (or one spread for all columns when ``shared``)."""
-    mean = values.mean(axis=0)
-    if shared:
-        spread = float(np.sqrt(np.mean((values - mean) ** 2)))
-        std = np.full(values.shape[1], spread if spread > 0 else 1.0)
-        return mean, std
-    std = values.std(axis=0)
-    floor = _MIN_RELATIVE_STD * float(std.max(initial=0.0))
-    std = np.where((std > floor) & (std > 0), std, 1.0)
-    return mean, std
-
-
-# --------------------------------------------------------------------------- linear algebra
-class Solution(NamedTuple):
-    """Weights of Eq. 6, the solver that produced them and the LU's reciprocal condition."""
-
-    weights: np.ndarray
-    solver: str
-    rcond: float
-
-
-def solve_regularized(K: np.ndarray, Y: np.ndarray, regularization: float) -> Solution:
-    """``(K + theta1 I)^-1 Y`` by LU; least squares when LU is numerically singular.
-
-    With an indefinite kernel (multiquadric) ``+ theta1 I`` can also move a
-    negative eigenvalue of ``K`` *onto* zero; the condition estimate catches
-    that as well as plain rank deficiency.
-    """
-    A = K + regularization * np.eye(len(K))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-        with np.errstate(all="ignore"):
-            lu, pivots = scipy.linalg.lu_factor(A, check_finite=False)
-            rcond, _ = lapack.dgecon(lu, float(np.abs(A).sum(axis=0).max()), norm="1")
-            rcond = float(rcond) if np.isfinite(rcond) else 0.0
-            if rcond > _MIN_RCOND:
-                W = scipy.linalg.lu_solve((lu, pivots), Y, check_finite=False)
-                if np.isfinite(W).all():
-                    return Solution(W, "lu", rcond)
-    W = scipy.linalg.lstsq(A, Y, cond=1e-12, check_finite=False)[0]
-    return Solution(W, "lstsq", rcond)
-
-
-# --------------------------------------------------------------------------- length-scale search
-def length_scale_cv_errors(
-    X: np.ndarray,
-    Y: np.ndarray,
-    kernel: Kernel,
-    regularization: float,
-    length_scales: np.ndarray,
-    splits: int,
-    rng: np.random.Generator,
-) -> np.ndarray:
-    """Mean validation error for each length scale (§4.1.1).
-
-    The same ``splits`` random halves are used for every candidate so the
-    comparison is not blurred by which half was drawn. The error is the mean
-    squared error over the validation rows and the given output columns.
-    """
-    n = len(X)
-    if n < 4:
-        raise RegressionInputError(
-            f"length-scale search needs at least 4 samples to split in halves, got {n}"
-        )
-    statistic = kernel.statistic(X, X)
-    halves = [rng.permutation(n) for _ in range(splits)]
-    errors = np.empty(len(length_scales))
-    for i, length_scale in enumerate(length_scales):
-        candidate = kernel.with_length_scale(float(length_scale))
-        split_errors = []
-        for order in halves:
-            train, validate = order[: n - n // 2], order[n - n // 2 :]
-            K_train = candidate.from_statistic(statistic[np.ix_(train, train)])
-            K_validate = candidate.from_statistic(statistic[np.ix_(validate, train)])
-            with np.errstate(all="ignore"):
-                W = solve_regularized(K_train, Y[train], regularization).weights
-                error = float(np.mean((K_validate @ W - Y[validate]) ** 2))
-            split_errors.append(error if np.isfinite(error) else np.inf)
-        errors[i] = float(np.mean(split_errors))
-    return errors
-
-
-# --------------------------------------------------------------------------- subsampling
-@dataclass
-class Subsample:
-    """The chosen support rows (in the order picked) and the worst error at each greedy step."""
-
-    indices: np.ndarray
-    max_errors: np.ndarray
-    skipped: int
-
-
-def greedy_subsample(
-    X: np.ndarray,
-    Y: np.ndarray,
-    kernel: Kernel,
-    regularization: float,
-    n_points: int,
-    rest_index: int = 0,
-    n_farthest: int = 10,
-    progress: bool = False,
-) -> Subsample:
-    """§4.2 on (normalised) data: rest pose, farthest points (Eq. 7), worst-predicted (Eq. 10).
-
-    See the module docstring for the incremental elimination that makes each
-    addition cheap. Candidates whose pivot vanishes (duplicates of chosen
-    points, to round-off) are skipped; the result then has fewer points only if
-    every remaining candidate is such a duplicate.
-    """
-    n = len(X)
-    target = min(int(n_points), n)
-    factor = np.empty((n, target))
-    pivots = np.empty(target)
-    residual = np.asfortranarray(Y, dtype=np.float64).copy(order="F")  # for in-place BLAS ger
-    kernel_column = GramColumns(kernel, X)
-    available = np.ones(n, dtype=bool)
-    nearest_sq = np.full(n, np.inf)  # squared distance to the closest chosen point
-    chosen: list[int] = []
-    max_errors: list[float] = []
-    skipped = 0
-    bar = tqdm(total=target, desc="GPR subsampling", unit="pt", disable=not progress, leave=False)
-    while len(chosen) < target and available.any():
-        step = len(chosen)
-        worst_error = None
-        if step == 0:
-            index = rest_index
-        elif step <= n_farthest:
-            index = int(np.argmax(np.where(available, nearest_sq, -1.0)))
-        else:
-            errors = np.einsum("ij,ij->i", residual, residual)
-            errors[~available] = -1.0
-            index = int(np.argmax(errors))
-            worst_error = float(np.sqrt(errors[index]))
-        available[index] = False
-        column = kernel_column(index)
-        scale = abs(column[index]) + regularization
-        column[index] += regularization
-        if step:
-            column -= factor[:, :step] @ (factor[index, :step] / pivots[:step])
-        pivot = column[index]
-        if not np.isfinite(pivot) or abs(pivot) <= _PIVOT_TOLERANCE * scale:
-            skipped += 1
-            continue
-        factor[:, step] = column
-        pivots[step] = pivot
-        # residual -= column ⊗ residual[index] / pivot, in place
-        blas.dger(-1.0 / pivot, column, residual[index].copy(), a=residual, overwrite_a=True)
-        residual[index] = 0.0
-        if step < n_farthest:
-            delta = X - X[index]
-            np.minimum(nearest_sq, np.einsum("ij,ij->i", delta, delta), out=nearest_sq)
-        chosen.append(index)
-        if worst_error is not None:
-            max_errors.append(worst_error)
-        bar.update(1)
-    bar.close()
-    return Subsample(np.asarray(chosen, dtype=np.int64), np.asarray(max_errors), skipped)
-
-
-# --------------------------------------------------------------------------- model files
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(data)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temporary, 0o644)  # mkstemp makes 0600; model files are for everyone to read
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
-def write_model_files(
-    folder: str | os.PathLike, stem: str, payload: bytes, payload_suffix: str, meta: dict
-) -> Path:
-    """Payload first, then the JSON that names it and its hash (the JSON is the commit).
-
-    A save interrupted between the two leaves a payload whose hash the old JSON
-    does not match, which ``read_model_meta``/``read_payload`` report instead of
-    loading mixed files.
-    """
-    folder = Path(folder)
-    payload_path = folder / f"{stem}{payload_suffix}"
-    write_atomic(payload_path, payload)
-    meta = {**meta, "payload": payload_path.name, "payload_sha256": _sha256(payload)}
-    write_atomic(folder / f"{stem}.json", (json.dumps(meta, indent=2) + "\n").encode())
-    return folder
-
-
-def read_model_files(folder: str | os.PathLike, stem: str, kind: str) -> tuple[dict, bytes]:
-    """The JSON metadata and the verified payload bytes of a saved model."""
-    folder = Path(folder)
-    meta_path = folder / f"{stem}.json"
-    if not meta_path.is_file():
-        present = sorted(p.name for p in folder.glob("*.json")) if folder.is_dir() else []
-        raise ModelFileError(
-            f"{folder}: no {kind} model here (expected {meta_path.name}"
-            f"{'; found ' + ', '.join(present) if present else ''})"
-        )
-    try:
-        meta = json.loads(meta_path.read_text())
-    except json.JSONDecodeError as error:
-        raise ModelFileError(f"{meta_path}: not valid JSON ({error})") from None
-    if meta.get("kind") != kind:
-        raise ModelFileError(
-            f"{meta_path}: field 'kind' is {meta.get('kind')!r}, expected {kind!r}"
-        )
-    payload_path = folder / str(meta.get("payload", ""))
-    if not payload_path.is_file():
-        raise ModelFileError(f"{meta_path}: its data file {payload_path.name!r} is missing")
-    payload = payload_path.read_bytes()
-    if _sha256(payload) != meta.get("payload_sha256"):
-        raise ModelFileError(
-            f"{payload_path}: contents do not match the hash in {meta_path.name} "
-            "(an interrupted save, or files from two different models)"
-        )
-    return meta, payload
-
-
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
-
-
-def arrays_to_bytes(arrays: dict[str, np.ndarray]) -> bytes:
-    import io
-
-    buffer = io.BytesIO()
-    np.savez(buffer, **arrays)
-    return buffer.getvalue()
-
-
-def arrays_from_bytes(payload: bytes, where: str, names: Sequence[str]) -> dict[str, np.ndarray]:
-    import io
-
-    with np.load(io.BytesIO(payload), allow_pickle=False) as data:
-        missing = [n for n in names if n not in data.files]
-        if missing:
-            raise ModelFileError(f"{where}: arrays {missing} are missing (have {data.files})")
-        return {n: data[n] for n in names}
-
-
-# --------------------------------------------------------------------------- the regressor
 OutputScale = Literal["per_output", "shared"]
 
 
-class GaussianProcessRegressor:
+class GaussianProcessRegressor(Regressor):
     """GPR inverse mapping: joint positions ``(N, D)`` -> controls ``(N, C)`` (§4.1-4.2).
 
     Parameters (the paper's values are the defaults):
@@ -501,9 +86,8 @@ class GaussianProcessRegressor:
       (measured 10x); prediction is untouched and uses every thread.
     """
 
-    name = "gpr"  # the regressor config group's choice
-    kind = "gpr"
-    file_stem = "gpr"
+    name = "gpr"
+    kernel_params = ("kernel",)
 
     def __init__(
         self,
@@ -540,31 +124,6 @@ class GaussianProcessRegressor:
         self.seed = seed
         self.progress = progress
         self.fit_threads = fit_threads
-
-    # ------------------------------------------------------------------ sklearn-style params
-    _PARAM_NAMES = (
-        "regularization",
-        "n_points",
-        "search_length_scale",
-        "length_scale_range",
-        "n_length_scales",
-        "cv_splits",
-        "search_points",
-        "cv_max_outputs",
-        "n_farthest",
-        "max_candidates",
-        "normalize",
-        "output_scale",
-        "seed",
-        "progress",
-        "fit_threads",
-    )
-
-    def get_params(self) -> dict[str, Any]:
-        params = {name: getattr(self, name) for name in self._PARAM_NAMES}
-        params["length_scale_range"] = [float(v) for v in self.search_range]
-        params["kernel"] = self._kernel().to_dict()
-        return params
 
     def __repr__(self) -> str:
         return (
@@ -641,7 +200,7 @@ class GaussianProcessRegressor:
             )
         rng = np.random.default_rng(self.seed)
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y2.shape[1], rig_name, control_names)
-        self._output_was_vector = np.ndim(Y) == 1
+        self.output_was_vector_ = np.ndim(Y) == 1
 
         if self.normalize:
             self.x_mean_, self.x_std_ = column_scale(X)
@@ -764,7 +323,7 @@ class GaussianProcessRegressor:
             )
         out *= self.y_std_
         out += self.y_mean_
-        if self._output_was_vector:
+        if self.output_was_vector_:
             out = out[:, 0]
         return out[0] if squeeze else out
 
@@ -777,8 +336,87 @@ class GaussianProcessRegressor:
         if not hasattr(self, "weights_"):
             raise RuntimeError("GaussianProcessRegressor is not fitted: call fit(X, Y) first")
 
+    # ------------------------------------------------------------------ hooks for the fit stage
+    def fit_options(self, *, rest_index: int) -> dict[str, Any]:
+        return {"rest_index": rest_index}  # subsampling starts from the rest pose (§4.2)
+
+    @property
+    def kernel_name(self) -> str:
+        return self._kernel().label
+
+    def learned_jacobian(self):
+        """§4.3-4.4: the multiquadric GPR's Jacobian, learned at its support poses.
+
+        The Jacobian GPR takes this model's settings (regularisation, search range,
+        splits, seed) and its fitted kernel.
+        """
+        self._check_fitted()
+        if not isinstance(self.kernel_, MultiquadricKernel):
+            return None
+        from rigmap.regression.learned_jacobian import LearnedJacobian
+
+        learned = LearnedJacobian(
+            kernel=self.kernel_,
+            regularization=self.regularization,
+            search_length_scale=self.search_length_scale,
+            length_scale_range=self.search_range,
+            n_length_scales=self.n_length_scales,
+            cv_splits=self.cv_splits,
+            cv_max_outputs=self.cv_max_outputs,
+            normalize=self.normalize,
+            seed=self.seed,
+        )
+        return np.asarray(self.support_indices_), learned
+
+    def describe_plan(self, rows: int) -> str:
+        target = rows if self.n_points is None else min(int(self.n_points), rows)
+        steps = []
+        if self.search_length_scale:
+            low, high = self.search_range
+            search_rows = min(rows, int(self.search_points) if self.search_points else target)
+            steps.append(
+                f"length-scale search ({self.n_length_scales} values in [{low:g}, {high:g}] x "
+                f"{self.cv_splits} half-splits on {search_rows} rows)"
+            )
+        if target < rows:
+            steps.append(f"greedy subsampling to {target} of {rows} rows")
+        steps.append("solve")
+        return f"GPR ({self._kernel().name} kernel): " + ", then ".join(steps)
+
+    def describe_result(self) -> list[str]:
+        phases = self.fit_seconds_
+        lines = [
+            f"GPR length-scale search {phases['length_scale_search']:.1f} s -> "
+            f"{self.length_scale_:.3g}; subsampling {phases['subsampling']:.1f} s -> "
+            f"{len(self.support_indices_)} support points; solve {phases['solve']:.1f} s "
+            f"({self.solver_}, reciprocal condition {self.rcond_:.1e})"
+        ]
+        if self.search_length_scale:
+            curve = ", ".join(
+                f"{scale:.3g}: {error:.3g}"
+                for scale, error in zip(self.length_scales_, self.cv_errors_, strict=True)
+            )
+            lines.append(f"CV error by length scale (standardised units²): {curve}")
+        return lines
+
+    def fit_facts(self) -> dict[str, Any]:
+        return {
+            "gpr": {
+                "length_scale": float(self.length_scale_),
+                "length_scale_search": {
+                    "searched": bool(self.search_length_scale),
+                    "candidates": [float(v) for v in self.length_scales_],
+                    "cv_errors": [float(v) for v in self.cv_errors_],
+                },
+                "support_points": len(self.support_indices_),
+                "solver": self.solver_,
+                "reciprocal_condition": float(self.rcond_),
+                "phase_seconds": dict(self.fit_seconds_),
+            }
+        }
+
     # ------------------------------------------------------------------ save / load
-    _ARRAY_NAMES = (
+    saved_arrays = (
         "x_mean",
         "x_std",
         "y_mean",
@@ -791,35 +429,28 @@ class GaussianProcessRegressor:
         "selection_errors",
     )
 
-    def save(self, folder: str | os.PathLike) -> Path:
-        """Write ``gpr.json`` and ``gpr.npz`` into ``folder`` (created if needed)."""
-        meta, arrays = self.state()
-        meta = {"kind": self.kind, "format_version": 1, **meta}
-        return write_model_files(folder, self.file_stem, arrays_to_bytes(arrays), ".npz", meta)
+    def _file_meta(self) -> dict[str, Any]:
+        return {
+            "kernel": self.kernel_.to_dict(),
+            "output_was_vector": bool(self.output_was_vector_),
+            "solver": self.solver_,
+            "rcond": float(self.rcond_),
+            "length_scale": float(self.length_scale_),
+        }
 
-    @classmethod
-    def load(cls, folder: str | os.PathLike, rig: Any = None) -> GaussianProcessRegressor:
-        """Read a saved model; with ``rig`` (a Rig or its name), refuse a model of another rig."""
-        meta, payload = read_model_files(folder, cls.file_stem, cls.kind)
-        source = f"GPR model in {folder}"
-        ModelFingerprint.from_dict(meta["fingerprint"]).check_rig(rig, source)
-        arrays = arrays_from_bytes(payload, source, cls._ARRAY_NAMES)
-        return cls.from_state(meta, arrays, source)
+    def _restore(self, meta: dict[str, Any], payload: bytes, source: str) -> None:
+        arrays = arrays_from_bytes(payload, source, self.saved_arrays)
+        self._restore_state(meta, arrays, source)
 
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """JSON-able metadata and the arrays of a fitted model (for models that embed a GPR)."""
         self._check_fitted()
         meta = {
-            "params": self.get_params(),
-            "kernel": self.kernel_.to_dict(),
+            "params": params_for_file(self.get_params()),
             "fingerprint": self.fingerprint_.to_dict(),
-            "output_was_vector": bool(self._output_was_vector),
-            "solver": self.solver_,
-            "rcond": float(self.rcond_),
-            "length_scale": float(self.length_scale_),
+            **self._file_meta(),
         }
-        arrays = {name: getattr(self, f"{name}_") for name in self._ARRAY_NAMES}
-        return meta, arrays
+        return meta, {name: getattr(self, f"{name}_") for name in self.saved_arrays}
 
     @classmethod
     def from_state(
@@ -827,18 +458,29 @@ class GaussianProcessRegressor:
     ) -> GaussianProcessRegressor:
         """Rebuild a fitted model from ``state()``; array shapes must match the fingerprint."""
         try:
-            fingerprint = ModelFingerprint.from_dict(meta["fingerprint"])
-            params = dict(meta["params"])
-            model = cls(kernel=kernel_from_dict(params.pop("kernel")), **params)
-            model.kernel_ = kernel_from_dict(meta["kernel"])
-            model.length_scale_ = float(meta["length_scale"])
-            model.solver_ = str(meta["solver"])
-            model.rcond_ = float(meta["rcond"])
-            model._output_was_vector = bool(meta["output_was_vector"])
+            model = cls(**params_from_file(meta["params"], cls.kernel_params))
+            model.fingerprint_ = ModelFingerprint.from_dict(meta["fingerprint"])
         except (KeyError, TypeError, ValueError) as error:
             raise ModelFileError(
                 f"{source}: metadata is incomplete or invalid ({error!r})"
             ) from None
+        model._restore_state(meta, arrays, source)
+        return model
+
+    def _restore_state(
+        self, meta: dict[str, Any], arrays: dict[str, np.ndarray], source: str
+    ) -> None:
+        try:
+            self.kernel_ = kernel_from_dict(meta["kernel"])
+            self.length_scale_ = float(meta["length_scale"])
+            self.solver_ = str(meta["solver"])
+            self.rcond_ = float(meta["rcond"])
+            self.output_was_vector_ = bool(meta["output_was_vector"])
+        except (KeyError, TypeError, ValueError) as error:
+            raise ModelFileError(
+                f"{source}: metadata is incomplete or invalid ({error!r})"
+            ) from None
+        fingerprint = self.fingerprint_
         n_support = len(arrays["support_inputs"])
         expected = {
             "x_mean": (fingerprint.input_dim,),
@@ -854,7 +496,5 @@ class GaussianProcessRegressor:
                     f"{source}: array {name!r} has shape {arrays[name].shape}, expected {shape} "
                     "from the model's fingerprint"
                 )
-        model.fingerprint_ = fingerprint
-        for name in cls._ARRAY_NAMES:
-            setattr(model, f"{name}_", arrays[name])
-        return model
+        for name in self.saved_arrays:
+            setattr(self, f"{name}_", arrays[name])

@@ -3,12 +3,16 @@
 Each kernel is a small immutable object holding its hyper-parameters, in the
 spirit of GPyTorch's kernel modules but on numpy. Every kernel has a
 ``length_scale`` because the GPR's line search (§4.1.1) varies exactly that one
-scalar, whatever the kernel.
+scalar, whatever the kernel; :class:`LengthScaleKernel` holds it, checks it and
+says where the search looks. Kernels compose as GPyTorch's do: ``k1 + k2`` is a
+:class:`SumKernel` (Gram matrices added) and ``c * k`` a :class:`ScaleKernel`
+(Gram matrix times ``c``).
 
 A kernel is split in two steps so the line search can reuse work: ``statistic``
 computes what does not depend on the hyper-parameters (squared distances for
-stationary kernels, inner products for dot-product kernels) and
-``from_statistic`` turns it into the Gram matrix. ``kernel(A, B)`` does both.
+stationary kernels, inner products for dot-product kernels, one of each per
+part for a sum) and ``from_statistic`` turns it into the Gram matrix.
+``kernel(A, B)`` does both.
 """
 
 from __future__ import annotations
@@ -16,18 +20,24 @@ from __future__ import annotations
 import dataclasses
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
+
+# Where the line search looks unless the kernel or the GPR says otherwise: six decades.
+# Ours: the paper's multiquadric range (1e-4..1e2) left the CV error of these kernels
+# still falling at 1e2 on every rig.
+DEFAULT_SEARCH_RANGE = (1e-2, 1e4)
 
 
 class Kernel(ABC):
     """``k(x, x')`` on rows of ``(N, D)`` arrays; subclasses are frozen dataclasses."""
 
     name: ClassVar[str]
-    # where the GPR's length-scale search looks unless told otherwise (six decades)
-    search_range: ClassVar[tuple[float, float]]
-    # what ``statistic`` computes: "squared_distance" or "inner_product"
+    # where the GPR's length-scale search looks unless told otherwise
+    search_range: ClassVar[tuple[float, float]] = DEFAULT_SEARCH_RANGE
+    # what ``statistic`` computes: "squared_distance", "inner_product" or "stacked" (sums)
     statistic_kind: ClassVar[str]
     length_scale: float
 
@@ -47,6 +57,15 @@ class Kernel(ABC):
     def diag(self, A: np.ndarray) -> np.ndarray:
         """``k(x, x)`` for every row, without forming the Gram matrix."""
 
+    @property
+    def label(self) -> str:
+        """The kernel part of a model id: the name, or how a composite is built."""
+        return self.name
+
+    def columns(self, A: np.ndarray) -> Callable[[int], np.ndarray]:
+        """``i -> k(A, a_i)``, one Gram column at a time (for greedy subsampling)."""
+        return GramColumns(self, A)
+
     def with_length_scale(self, length_scale: float) -> Kernel:
         """A copy with another length scale (the kernel itself is immutable)."""
         return dataclasses.replace(self, length_scale=float(length_scale))  # type: ignore[type-var]
@@ -55,6 +74,19 @@ class Kernel(ABC):
         """Plain data for a JSON model file; ``kernel_from_dict`` reverses it."""
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
         return {"name": self.name, **fields}
+
+    def __add__(self, other: Kernel) -> SumKernel:
+        if not isinstance(other, Kernel):
+            return NotImplemented
+        parts = [*_summands(self), *_summands(other)]
+        return SumKernel(tuple(parts))
+
+    def __mul__(self, scale: float) -> ScaleKernel:
+        if isinstance(scale, Kernel) or isinstance(scale, bool):
+            return NotImplemented
+        return ScaleKernel(self, scale)
+
+    __rmul__ = __mul__
 
     def _set_number(self, field: str, *, positive: bool) -> None:
         """Coerce a hyper-parameter to a plain float (numpy / YAML ints) and check its range."""
@@ -72,6 +104,20 @@ class Kernel(ABC):
             wanted = "a positive number" if positive else "a number >= 0"
             raise ValueError(f"{type(self).__name__}: {field} must be {wanted}, got {value!r}")
         object.__setattr__(self, field, number)
+
+
+def _summands(kernel: Kernel) -> tuple[Kernel, ...]:
+    return kernel.kernels if isinstance(kernel, SumKernel) else (kernel,)
+
+
+@dataclasses.dataclass(frozen=True)
+class LengthScaleKernel(Kernel):
+    """A kernel of one length scale (and perhaps more hyper-parameters after it)."""
+
+    length_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        self._set_number("length_scale", positive=True)
 
 
 def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -104,7 +150,7 @@ def inner_products(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True)
-class MultiquadricKernel(Kernel):
+class MultiquadricKernel(LengthScaleKernel):
     """Eq. 1: ``sqrt(||x - x'||^2 + theta0^2)`` with ``theta0 = length_scale``.
 
     It grows with distance, so far from the data the GPR behaves like a
@@ -113,13 +159,9 @@ class MultiquadricKernel(Kernel):
     least squares, never Cholesky.
     """
 
-    length_scale: float = 1.0
     name: ClassVar[str] = "multiquadric"
     search_range: ClassVar[tuple[float, float]] = (1e-4, 1e2)  # the paper's range (§4.1.1)
     statistic_kind: ClassVar[str] = "squared_distance"
-
-    def __post_init__(self) -> None:
-        self._set_number("length_scale", positive=True)
 
     def statistic(self, A, B):
         return squared_distances(A, B)
@@ -132,17 +174,11 @@ class MultiquadricKernel(Kernel):
 
 
 @dataclasses.dataclass(frozen=True)
-class GaussianKernel(Kernel):
+class GaussianKernel(LengthScaleKernel):
     """Squared exponential ``exp(-||x - x'||^2 / (2 l^2))``; decays to the mean far away."""
 
-    length_scale: float = 1.0
     name: ClassVar[str] = "gaussian"
-    # the paper's multiquadric range left its CV error still falling at 1e2 on every rig
-    search_range: ClassVar[tuple[float, float]] = (1e-2, 1e4)
     statistic_kind: ClassVar[str] = "squared_distance"
-
-    def __post_init__(self) -> None:
-        self._set_number("length_scale", positive=True)
 
     def statistic(self, A, B):
         return squared_distances(A, B)
@@ -155,68 +191,180 @@ class GaussianKernel(Kernel):
 
 
 @dataclasses.dataclass(frozen=True)
-class LinearKernel(Kernel):
-    """``x.x' / l^2 + offset``: Bayesian linear regression (affine with ``offset > 0``).
+class DotProductKernel(LengthScaleKernel):
+    """``(x.x' / l^2 + offset)^degree``; the linear kernel is degree 1.
 
     The length scale divides the inputs; against the fixed regularisation
     ``theta1`` it sets how strongly the weights are shrunk.
     """
 
-    length_scale: float = 1.0
     offset: float = 1.0
-    name: ClassVar[str] = "linear"
-    # the paper's multiquadric range left its CV error still falling at 1e2 on every rig
-    search_range: ClassVar[tuple[float, float]] = (1e-2, 1e4)
     statistic_kind: ClassVar[str] = "inner_product"
+    degree: ClassVar[int] = 1
 
     def __post_init__(self) -> None:
-        self._set_number("length_scale", positive=True)
+        super().__post_init__()
         self._set_number("offset", positive=False)
 
     def statistic(self, A, B):
         return inner_products(A, B)
 
     def from_statistic(self, S):
-        return S / self.length_scale**2 + self.offset
+        return self._power(S / self.length_scale**2 + self.offset)
 
     def diag(self, A):
         A = np.asarray(A, dtype=np.float64)
-        return np.einsum("ij,ij->i", A, A) / self.length_scale**2 + self.offset
+        return self._power(np.einsum("ij,ij->i", A, A) / self.length_scale**2 + self.offset)
+
+    def _power(self, base: np.ndarray) -> np.ndarray:
+        return base if self.degree == 1 else base**self.degree
 
 
 @dataclasses.dataclass(frozen=True)
-class PolynomialKernel(Kernel):
+class LinearKernel(DotProductKernel):
+    """``x.x' / l^2 + offset``: Bayesian linear regression (affine with ``offset > 0``)."""
+
+    name: ClassVar[str] = "linear"
+
+
+@dataclasses.dataclass(frozen=True)
+class PolynomialKernel(DotProductKernel):
     """``(x.x' / l^2 + offset)^degree``."""
 
-    length_scale: float = 1.0
-    degree: int = 2
-    offset: float = 1.0
+    degree: int = 2  # type: ignore[assignment]  # a field here, fixed at 1 for the linear kernel
     name: ClassVar[str] = "polynomial"
-    # the paper's multiquadric range left its CV error still falling at 1e2 on every rig
-    search_range: ClassVar[tuple[float, float]] = (1e-2, 1e4)
-    statistic_kind: ClassVar[str] = "inner_product"
 
     def __post_init__(self) -> None:
-        self._set_number("length_scale", positive=True)
-        self._set_number("offset", positive=False)
+        super().__post_init__()
         degree = self.degree
         if isinstance(degree, bool) or int(degree) != degree or degree < 1:
             raise ValueError(f"PolynomialKernel: degree must be an integer >= 1, got {degree!r}")
         object.__setattr__(self, "degree", int(degree))
 
+
+@dataclasses.dataclass(frozen=True)
+class SumKernel(Kernel):
+    """``k1 + k2 + …``: the Gram matrices of the parts added (GPyTorch's ``AdditiveKernel``).
+
+    The line search varies one scalar (§4.1.1), so the parts share it:
+    ``with_length_scale`` gives every part the same length scale, and
+    ``length_scale`` is the first part's. The search range spans the parts'.
+    """
+
+    kernels: tuple[Kernel, ...] = ()
+    name: ClassVar[str] = "sum"
+    statistic_kind: ClassVar[str] = "stacked"
+
+    def __post_init__(self) -> None:
+        parts = tuple(_as_kernel(k, "SumKernel: kernels") for k in self.kernels)
+        if len(parts) < 2:
+            raise ValueError(f"SumKernel: needs at least two kernels, got {len(parts)}")
+        object.__setattr__(self, "kernels", parts)
+
+    @property
+    def length_scale(self) -> float:  # type: ignore[override]
+        return self.kernels[0].length_scale
+
+    @property
+    def search_range(self) -> tuple[float, float]:  # type: ignore[override]
+        return (
+            min(k.search_range[0] for k in self.kernels),
+            max(k.search_range[1] for k in self.kernels),
+        )
+
     def statistic(self, A, B):
-        return inner_products(A, B)
+        """Each part's statistic, stacked on a last axis (rows and columns index as usual)."""
+        return np.stack([k.statistic(A, B) for k in self.kernels], axis=-1)
 
     def from_statistic(self, S):
-        return (S / self.length_scale**2 + self.offset) ** self.degree
+        total = self.kernels[0].from_statistic(S[..., 0])
+        for i, kernel in enumerate(self.kernels[1:], start=1):
+            total = total + kernel.from_statistic(S[..., i])
+        return total
 
     def diag(self, A):
-        A = np.asarray(A, dtype=np.float64)
-        return (np.einsum("ij,ij->i", A, A) / self.length_scale**2 + self.offset) ** self.degree
+        return sum(k.diag(A) for k in self.kernels)
+
+    def columns(self, A):
+        parts = [k.columns(A) for k in self.kernels]
+        return lambda i: sum(part(i) for part in parts)
+
+    @property
+    def label(self) -> str:
+        return "_plus_".join(k.label for k in self.kernels)
+
+    def with_length_scale(self, length_scale: float) -> SumKernel:
+        return SumKernel(tuple(k.with_length_scale(length_scale) for k in self.kernels))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "kernels": [k.to_dict() for k in self.kernels]}
+
+
+@dataclasses.dataclass(frozen=True)
+class ScaleKernel(Kernel):
+    """``outputscale * k``: the base kernel's Gram matrix scaled (GPyTorch's ``ScaleKernel``)."""
+
+    base_kernel: Kernel = dataclasses.field(default_factory=lambda: MultiquadricKernel())
+    outputscale: float = 1.0
+    name: ClassVar[str] = "scale"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "base_kernel", _as_kernel(self.base_kernel, "ScaleKernel: base_kernel")
+        )
+        self._set_number("outputscale", positive=True)
+
+    @property
+    def length_scale(self) -> float:  # type: ignore[override]
+        return self.base_kernel.length_scale
+
+    @property
+    def search_range(self) -> tuple[float, float]:  # type: ignore[override]
+        return self.base_kernel.search_range
+
+    @property
+    def statistic_kind(self) -> str:  # type: ignore[override]
+        return self.base_kernel.statistic_kind
+
+    def statistic(self, A, B):
+        return self.base_kernel.statistic(A, B)
+
+    def from_statistic(self, S):
+        return self.outputscale * self.base_kernel.from_statistic(S)
+
+    def diag(self, A):
+        return self.outputscale * self.base_kernel.diag(A)
+
+    def columns(self, A):
+        base = self.base_kernel.columns(A)
+        return lambda i: self.outputscale * base(i)
+
+    @property
+    def label(self) -> str:
+        return f"scaled_{self.base_kernel.label}"
+
+    def with_length_scale(self, length_scale: float) -> ScaleKernel:
+        return ScaleKernel(self.base_kernel.with_length_scale(length_scale), self.outputscale)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "base_kernel": self.base_kernel.to_dict(),
+            "outputscale": self.outputscale,
+        }
+
+
+def _as_kernel(value: Any, where: str) -> Kernel:
+    """A kernel, or a ``to_dict`` mapping of one (as a kernel file or a plain config holds)."""
+    if isinstance(value, Kernel):
+        return value
+    if isinstance(value, dict):
+        return kernel_from_dict(value)
+    raise ValueError(f"{where}: expected a kernel, got {type(value).__name__}")
 
 
 class GramColumns:
-    """Columns ``k(A, a_i)`` of the Gram matrix of ``A``, one at a time.
+    """Columns ``k(A, a_i)`` of the Gram matrix of ``A``, one at a time (one-part kernels).
 
     Greedy algorithms need one column per step; this centres ``A`` and takes
     its row norms once instead of at every call, which makes a column one
@@ -242,29 +390,35 @@ class GramColumns:
         return self.kernel.from_statistic(statistic)
 
 
-KERNELS: dict[str, type[Kernel]] = {
-    cls.name: cls for cls in (MultiquadricKernel, GaussianKernel, LinearKernel, PolynomialKernel)
-}
-
-
-def make_kernel(name: str, **params: Any) -> Kernel:
-    """A kernel by its name (``multiquadric``, ``gaussian``, ``linear``, ``polynomial``)."""
-    try:
-        cls = KERNELS[name]
-    except KeyError:
-        raise ValueError(f"unknown kernel {name!r}; available kernels: {sorted(KERNELS)}") from None
-    try:
-        return cls(**params)
-    except TypeError as error:
-        allowed = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
-        raise ValueError(
-            f"kernel {name!r}: bad parameters {sorted(params)}; it takes {allowed}"
-        ) from error
+def kernel_classes() -> dict[str, type[Kernel]]:
+    """Every kernel class by its ``name`` (the built-in ones and any other imported subclass)."""
+    found: dict[str, type[Kernel]] = {}
+    pending = list(Kernel.__subclasses__())
+    while pending:
+        cls = pending.pop(0)
+        pending += cls.__subclasses__()
+        if isinstance(cls.__dict__.get("name"), str):
+            found.setdefault(cls.name, cls)
+    return found
 
 
 def kernel_from_dict(data: dict[str, Any]) -> Kernel:
-    """Inverse of ``Kernel.to_dict``."""
+    """Inverse of ``Kernel.to_dict`` (a kernel saved in a model file; no code is imported)."""
     data = dict(data)
     if "name" not in data:
         raise ValueError(f"kernel description has no 'name' field: keys {sorted(data)}")
-    return make_kernel(data.pop("name"), **data)
+    name = data.pop("name")
+    classes = kernel_classes()
+    if name not in classes:
+        raise ValueError(f"unknown kernel {name!r}; available kernels: {sorted(classes)}")
+    cls = classes[name]
+    if cls is SumKernel:
+        parts = data.get("kernels", ())
+        data["kernels"] = tuple(_as_kernel(k, "SumKernel: kernels") for k in parts)
+    try:
+        return cls(**data)
+    except TypeError as error:
+        allowed = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+        raise ValueError(
+            f"kernel {name!r}: bad parameters {sorted(data)}; it takes {allowed}"
+        ) from error

@@ -14,29 +14,21 @@ kernel methods approximate values much better than derivatives (§7.1).
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rigmap.regression.gpr import (
-    GaussianProcessRegressor,
-    ModelFileError,
-    ModelFingerprint,
-    RegressionInputError,
-    arrays_from_bytes,
-    arrays_to_bytes,
-    as_float_array,
-    check_finite,
-    read_model_files,
-    write_model_files,
-)
+from rigmap.regression.base import Regressor
+from rigmap.regression.errors import ModelFileError, RegressionInputError
+from rigmap.regression.fingerprint import ModelFingerprint
+from rigmap.regression.gpr import GaussianProcessRegressor
 from rigmap.regression.kernels import Kernel
+from rigmap.regression.model_io import arrays_from_bytes, arrays_to_bytes
+from rigmap.regression.validation import as_float_array, check_finite
 
 
-class LearnedJacobian:
+class LearnedJacobian(Regressor):
     """GPR from poses ``(N, D)`` to Jacobians ``(N, R, C)`` (R = 3 x joints, C = used controls).
 
     Every given pose is a support point (no subsampling: the poses are already
@@ -47,8 +39,8 @@ class LearnedJacobian:
     GPR's ``kernel_``).
     """
 
-    kind = "learned_jacobian"
-    file_stem = "learned_jacobian"
+    name = "learned_jacobian"
+    kernel_params = ("kernel",)
 
     def __init__(
         self,
@@ -129,53 +121,30 @@ class LearnedJacobian:
         J = flat.reshape(len(X), *self.jacobian_shape_)
         return J[0] if squeeze else J
 
-    def save(self, folder: str | os.PathLike) -> Path:
-        """Write ``learned_jacobian.json`` and ``.npz`` into ``folder`` (beside a ``gpr`` model)."""
-        if not hasattr(self, "regressor_"):
-            raise RuntimeError("LearnedJacobian is not fitted: nothing to save")
-        gpr_meta, arrays = self.regressor_.state()
-        meta = {
-            "kind": self.kind,
-            "format_version": 1,
-            "fingerprint": self.fingerprint_.to_dict(),
-            "jacobian_shape": list(self.jacobian_shape_),
-            "params": {
-                "regularization": self.regularization,
-                "search_length_scale": self.search_length_scale,
-                "length_scale_range": [float(v) for v in self.length_scale_range],
-                "n_length_scales": self.n_length_scales,
-                "cv_splits": self.cv_splits,
-                "cv_max_outputs": self.cv_max_outputs,
-                "normalize": self.normalize,
-                "seed": self.seed,
-            },
-            "gpr": gpr_meta,
-        }
-        return write_model_files(folder, self.file_stem, arrays_to_bytes(arrays), ".npz", meta)
+    def is_fitted(self) -> bool:
+        return hasattr(self, "regressor_")
 
-    @classmethod
-    def load(cls, folder: str | os.PathLike, rig: Any = None) -> LearnedJacobian:
-        """Read a saved model; with ``rig`` (a Rig or its name), refuse a model of another rig."""
-        meta, payload = read_model_files(folder, cls.file_stem, cls.kind)
-        source = f"learned Jacobian in {folder}"
+    def _file_meta(self) -> dict[str, Any]:
+        gpr_meta, _ = self.regressor_.state()
+        return {"jacobian_shape": list(self.jacobian_shape_), "gpr": gpr_meta}
+
+    def _payload(self) -> bytes:
+        return arrays_to_bytes(self.regressor_.state()[1])
+
+    def _restore(self, meta: dict[str, Any], payload: bytes, source: str) -> None:
         try:
-            fingerprint = ModelFingerprint.from_dict(meta["fingerprint"])
             shape = tuple(int(v) for v in meta["jacobian_shape"])
             gpr_meta = meta["gpr"]
-            model = cls(kernel=None, **meta["params"])
         except (KeyError, TypeError, ValueError) as error:
             raise ModelFileError(
                 f"{source}: metadata is incomplete or invalid ({error!r})"
             ) from None
-        fingerprint.check_rig(rig, source)
-        arrays = arrays_from_bytes(payload, source, GaussianProcessRegressor._ARRAY_NAMES)
-        model.regressor_ = GaussianProcessRegressor.from_state(gpr_meta, arrays, source)
-        model.kernel = model.regressor_.kernel_
-        if model.regressor_.fingerprint_.output_dim != shape[0] * shape[1]:
+        arrays = arrays_from_bytes(payload, source, GaussianProcessRegressor.saved_arrays)
+        self.regressor_ = GaussianProcessRegressor.from_state(gpr_meta, arrays, source)
+        self.kernel = self.regressor_.kernel_  # as fitted (older files do not store it)
+        if self.regressor_.fingerprint_.output_dim != shape[0] * shape[1]:
             raise ModelFileError(
-                f"{source}: the GPR predicts {model.regressor_.fingerprint_.output_dim} numbers, "
+                f"{source}: the GPR predicts {self.regressor_.fingerprint_.output_dim} numbers, "
                 f"expected {shape[0]} x {shape[1]} from jacobian_shape"
             )
-        model.jacobian_shape_ = (shape[0], shape[1])
-        model.fingerprint_ = fingerprint
-        return model
+        self.jacobian_shape_ = (shape[0], shape[1])

@@ -13,17 +13,17 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from rigmap.regression import REGRESSORS
-from rigmap.regression.gpr import ModelFileError, write_atomic
+from rigmap.regression.base import Regressor
+from rigmap.regression.errors import ModelFileError
 from rigmap.regression.learned_jacobian import LearnedJacobian
 from rigmap.regression.placement import Placement
+from rigmap.store import write_text_atomic
 
 PLACEMENT_FILE = "placement.json"
-_REGRESSOR_CLASSES = {cls.file_stem: cls for cls in REGRESSORS.values()}
 
 
 def has_placement(folder: str | os.PathLike) -> bool:
@@ -32,7 +32,7 @@ def has_placement(folder: str | os.PathLike) -> bool:
 
 def _write_placement(folder: Path, placement: Placement, regressor_file: str) -> None:
     data = {"regressor_file": regressor_file, "placement": placement.to_dict()}
-    write_atomic(folder / PLACEMENT_FILE, (json.dumps(data, indent=2) + "\n").encode("utf-8"))
+    write_text_atomic(folder / PLACEMENT_FILE, json.dumps(data, indent=2) + "\n")
 
 
 def _read_placement(folder: Path) -> tuple[str, Placement]:
@@ -46,23 +46,41 @@ def _read_placement(folder: Path) -> tuple[str, Placement]:
         raise ModelFileError(f"{path}: not a valid placement file ({error})") from None
 
 
-class InverseMapping:
+class _BehindPlacement:
+    """A fitted model with the placement it learns behind; unknown attributes are the model's."""
+
+    _inner: ClassVar[str]  # the attribute holding the wrapped model
+
+    def __init__(self, model: Any, placement: Placement):
+        setattr(self, self._inner, model)
+        self.placement = placement
+
+    def __getattr__(self, name: str) -> Any:
+        if name in (self._inner, "placement"):  # not set yet (copy, unpickling)
+            raise AttributeError(name)
+        return getattr(getattr(self, self._inner), name)
+
+    def _rows(self, X_pose: Any) -> tuple[np.ndarray, bool]:
+        X = np.asarray(X_pose, dtype=np.float64)
+        return (X[None], True) if X.ndim == 1 else (X, False)
+
+    def save(self, folder: str | os.PathLike) -> Path:
+        folder = Path(folder)
+        model = getattr(self, self._inner)
+        model.save(folder)
+        _write_placement(folder, self.placement, model.name)
+        return folder
+
+
+class InverseMapping(_BehindPlacement):
     """``predict(pose rows (N, 3J + 12)) -> used controls (N, C_used)``.
 
     Attributes the wrapper does not have (``kernel_``, ``length_scale_``,
     ``loss_history_`` …) are the regressor's.
     """
 
-    file_stem = "mapping"
-
-    def __init__(self, regressor: Any, placement: Placement):
-        self.regressor = regressor
-        self.placement = placement
-
-    def __getattr__(self, name: str) -> Any:
-        if name in ("regressor", "placement"):  # not set yet (copy, unpickling)
-            raise AttributeError(name)
-        return getattr(self.regressor, name)
+    _inner = "regressor"
+    regressor: Regressor
 
     def __repr__(self) -> str:
         return f"InverseMapping({self.regressor!r}; {self.placement.describe()})"
@@ -74,33 +92,24 @@ class InverseMapping:
         return self
 
     def predict(self, X_pose: Any) -> np.ndarray:
-        X = np.asarray(X_pose, dtype=np.float64)
-        single = X.ndim == 1
-        X = X[None] if single else X
+        X, single = self._rows(X_pose)
         where = f"{type(self.regressor).__name__} inverse mapping"
         inputs = self.placement.inputs(X, where)
         Y = self.placement.controls(np.asarray(self.regressor.predict(inputs)), X, where)
         return Y[0] if single else Y
 
-    def save(self, folder: str | os.PathLike) -> Path:
-        folder = Path(folder)
-        self.regressor.save(folder)
-        _write_placement(folder, self.placement, self.regressor.file_stem)
-        return folder
-
     @classmethod
     def load(cls, folder: str | os.PathLike, rig: Any = None) -> InverseMapping:
         folder = Path(folder)
-        stem, placement = _read_placement(folder)
-        if stem not in _REGRESSOR_CLASSES:
-            raise ModelFileError(
-                f"{folder / PLACEMENT_FILE}: regressor_file {stem!r} is not one of "
-                f"{sorted(_REGRESSOR_CLASSES)}"
-            )
-        return cls(_REGRESSOR_CLASSES[stem].load(folder, rig=rig), placement)
+        name, placement = _read_placement(folder)
+        try:
+            regressor_class = Regressor.subclass_named(name)
+        except ModelFileError as error:
+            raise ModelFileError(f"{folder / PLACEMENT_FILE}: regressor_file: {error}") from None
+        return cls(regressor_class.load(folder, rig=rig), placement)
 
 
-class JacobianMapping:
+class JacobianMapping(_BehindPlacement):
     """``predict(pose rows) -> (N, 3J, C_used)`` Jacobians of the COG-relative joints.
 
     The learned Jacobian is fitted in the placement's input frame (turned by the
@@ -108,16 +117,8 @@ class JacobianMapping:
     turns its predictions back into the world orientation refinement works in.
     """
 
-    file_stem = "jacobian_mapping"
-
-    def __init__(self, learned: LearnedJacobian, placement: Placement):
-        self.learned = learned
-        self.placement = placement
-
-    def __getattr__(self, name: str) -> Any:
-        if name in ("learned", "placement"):
-            raise AttributeError(name)
-        return getattr(self.learned, name)
+    _inner = "learned"
+    learned: LearnedJacobian
 
     def fit(self, X_pose: Any, jacobians: Any, **options: Any) -> JacobianMapping:
         inputs = self.placement.inputs(X_pose, "Jacobian poses")
@@ -126,18 +127,10 @@ class JacobianMapping:
         return self
 
     def predict(self, X_pose: Any) -> np.ndarray:
-        X = np.asarray(X_pose, dtype=np.float64)
-        single = X.ndim == 1
-        X = X[None] if single else X
+        X, single = self._rows(X_pose)
         J = self.learned.predict(self.placement.inputs(X, "learned Jacobian"))
         J = self.placement.jacobians_to_world(J, X)
         return J[0] if single else J
-
-    def save(self, folder: str | os.PathLike) -> Path:
-        folder = Path(folder)
-        self.learned.save(folder)
-        _write_placement(folder, self.placement, self.learned.file_stem)
-        return folder
 
     @classmethod
     def load(cls, folder: str | os.PathLike, rig: Any = None) -> JacobianMapping:

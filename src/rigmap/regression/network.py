@@ -30,24 +30,19 @@ from __future__ import annotations
 
 import io
 import math
-import os
 from collections.abc import Sequence
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from rigmap.regression.gpr import (
-    ModelFileError,
-    ModelFingerprint,
-    check_training_data,
-    column_scale,
-    read_model_files,
-    write_model_files,
-)
+from rigmap.regression.base import Regressor
+from rigmap.regression.errors import ModelFileError
+from rigmap.regression.fingerprint import ModelFingerprint
+from rigmap.regression.normalisation import column_scale
+from rigmap.regression.validation import check_training_data
 
 CostReduction = Literal["mean", "sum"]
 _PREDICT_CHUNK = 65_536
@@ -78,7 +73,7 @@ class OneHiddenLayer(torch.nn.Module):
         return torch.addmm(self.b1, hidden, self.W1.T)
 
 
-class FeedForwardRegressor:
+class FeedForwardRegressor(Regressor):
     """Network inverse mapping: joint positions ``(N, D)`` -> controls ``(N, C)`` (§5.3).
 
     Parameters (the paper's values are the defaults, except where it gives none):
@@ -97,9 +92,9 @@ class FeedForwardRegressor:
       Prediction is untouched and uses every thread.
     """
 
-    name = "nn"  # the regressor config group's choice
-    kind = "network"
-    file_stem = "network"
+    name = "nn"
+    legacy_names = ("network",)  # model folders written before the one-name change
+    payload_suffix = ".pt"
 
     def __init__(
         self,
@@ -122,21 +117,6 @@ class FeedForwardRegressor:
         self.seed = seed
         self.progress = progress
         self.threads = threads
-
-    _PARAM_NAMES = (
-        "hidden",
-        "alpha",
-        "cost_reduction",
-        "learning_rate",
-        "batch_size",
-        "epochs",
-        "seed",
-        "progress",
-        "threads",
-    )
-
-    def get_params(self) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self._PARAM_NAMES}
 
     def __repr__(self) -> str:
         return (
@@ -177,7 +157,7 @@ class FeedForwardRegressor:
         self._check_params()
         X, Y2 = check_training_data(X, Y, "FeedForwardRegressor")
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y2.shape[1], rig_name, control_names)
-        self._output_was_vector = np.ndim(Y) == 1
+        self.output_was_vector_ = np.ndim(Y) == 1
         self.x_mean_, self.x_std_ = column_scale(X)
         self.y_mean_, self.y_std_ = column_scale(Y2)
         inputs = torch.from_numpy(((X - self.x_mean_) / self.x_std_).astype(np.float32))
@@ -274,7 +254,7 @@ class FeedForwardRegressor:
                 x = torch.from_numpy(X[start : start + _PREDICT_CHUNK].astype(np.float32))
                 hidden = torch.addmm(b0, x, W0).relu_()
                 out[start : start + _PREDICT_CHUNK] = torch.addmm(b1, hidden, W1).numpy()
-        if self._output_was_vector:
+        if self.output_was_vector_:
             out = out[:, 0]
         return out[0] if squeeze else out
 
@@ -298,45 +278,42 @@ class FeedForwardRegressor:
         if not hasattr(self, "network_"):
             raise RuntimeError("FeedForwardRegressor is not fitted: call fit(X, Y) first")
 
-    # ------------------------------------------------------------------ save / load
-    def save(self, folder: str | os.PathLike) -> Path:
-        """Write ``network.json`` and ``network.pt`` (a torch state dict) into ``folder``."""
-        self._check_fitted()
+    # ------------------------------------------------------------------ fit stage, files
+    def fit_facts(self) -> dict[str, Any]:
+        return {"network": {"loss_history": [float(v) for v in self.loss_history_]}}
+
+    def is_fitted(self) -> bool:
+        return hasattr(self, "network_")
+
+    def _file_meta(self) -> dict[str, Any]:
+        return {
+            "output_was_vector": bool(self.output_was_vector_),
+            "loss_history": list(self.loss_history_),
+        }
+
+    def _payload(self) -> bytes:
+        """The torch state dict of the network plus the standardisation, as ``.pt`` bytes."""
         state = {name: value.detach().clone() for name, value in self.network_.state_dict().items()}
         for name in ("x_mean", "x_std", "y_mean", "y_std"):
             state[name] = torch.from_numpy(np.asarray(getattr(self, f"{name}_")))
         buffer = io.BytesIO()
         torch.save(state, buffer)
-        meta = {
-            "kind": self.kind,
-            "format_version": 1,
-            "params": self.get_params(),
-            "fingerprint": self.fingerprint_.to_dict(),
-            "output_was_vector": bool(self._output_was_vector),
-            "loss_history": list(self.loss_history_),
-        }
-        return write_model_files(folder, self.file_stem, buffer.getvalue(), ".pt", meta)
+        return buffer.getvalue()
 
-    @classmethod
-    def load(cls, folder: str | os.PathLike, rig: Any = None) -> FeedForwardRegressor:
-        """Read a saved model; with ``rig`` (a Rig or its name), refuse a model of another rig."""
-        meta, payload = read_model_files(folder, cls.file_stem, cls.kind)
-        source = f"network model in {folder}"
+    def _restore(self, meta: dict[str, Any], payload: bytes, source: str) -> None:
         try:
-            fingerprint = ModelFingerprint.from_dict(meta["fingerprint"])
-            model = cls(**meta["params"])
-            output_was_vector = bool(meta["output_was_vector"])
-            loss_history = [float(v) for v in meta["loss_history"]]
+            self.output_was_vector_ = bool(meta["output_was_vector"])
+            self.loss_history_ = [float(v) for v in meta["loss_history"]]
         except (KeyError, TypeError, ValueError) as error:
             raise ModelFileError(
                 f"{source}: metadata is incomplete or invalid ({error!r})"
             ) from None
-        fingerprint.check_rig(rig, source)
+        fingerprint, hidden = self.fingerprint_, int(self.hidden)
         state = torch.load(io.BytesIO(payload), weights_only=True)
         expected = {
-            "W0": (int(model.hidden), fingerprint.input_dim),
-            "b0": (int(model.hidden),),
-            "W1": (fingerprint.output_dim, int(model.hidden)),
+            "W0": (hidden, fingerprint.input_dim),
+            "b0": (hidden,),
+            "W1": (fingerprint.output_dim, hidden),
             "b1": (fingerprint.output_dim,),
             "x_mean": (fingerprint.input_dim,),
             "x_std": (fingerprint.input_dim,),
@@ -348,18 +325,14 @@ class FeedForwardRegressor:
                 found = tuple(state[name].shape) if name in state else "missing"
                 raise ModelFileError(f"{source}: tensor {name!r} is {found}, expected {shape}")
         network = OneHiddenLayer(
-            fingerprint.input_dim, int(model.hidden), fingerprint.output_dim, torch.Generator()
+            fingerprint.input_dim, hidden, fingerprint.output_dim, torch.Generator()
         )
         network.load_state_dict({k: state[k] for k in ("W0", "b0", "W1", "b1")})
         network.eval()
-        model.network_ = network
+        self.network_ = network
         for name in ("x_mean", "x_std", "y_mean", "y_std"):
-            setattr(model, f"{name}_", state[name].numpy().astype(np.float64))
-        model.fingerprint_ = fingerprint
-        model._output_was_vector = output_was_vector
-        model.loss_history_ = loss_history
-        model._folded = None
-        return model
+            setattr(self, f"{name}_", state[name].numpy().astype(np.float64))
+        self._folded = None
 
 
 def _adam(parameters: list[torch.nn.Parameter], learning_rate: float) -> torch.optim.Adam:

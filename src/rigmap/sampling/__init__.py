@@ -4,13 +4,24 @@ Six strategies of the paper's Table 2, each a class with ``fit(Y_corpus)`` and
 ``sample(n, rng)``; ``supersample`` draws, clamps and poses them resumably.
 """
 
-from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError
+from rigmap.sampling.base import (
+    Sampler,
+    SamplerInputError,
+    SamplerNotFittedError,
+    sampler_classes,
+)
 from rigmap.sampling.clamping import ClampResult, clamp_to_limits
 from rigmap.sampling.gmm import GaussianMixtureSampler
 from rigmap.sampling.multivariate_gaussian import MultivariateGaussianSampler
 from rigmap.sampling.none import NoExtraSamples
 from rigmap.sampling.pca_gaussian import PCAGaussianSampler
-from rigmap.sampling.registry import SAMPLERS, available, make_sampler
+from rigmap.sampling.registry import (
+    SAMPLERS,
+    available,
+    instantiate_sampler,
+    make_sampler,
+    sampler_name,
+)
 from rigmap.sampling.supersample import (
     SupersampleError,
     SupersampleResult,
@@ -36,7 +47,10 @@ __all__ = [
     "UnivariateGaussianSampler",
     "available",
     "clamp_to_limits",
+    "instantiate_sampler",
     "load_samples",
     "make_sampler",
+    "sampler_classes",
+    "sampler_name",
     "supersample",
 ]

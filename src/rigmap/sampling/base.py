@@ -36,9 +36,15 @@ class Sampler:
     used controls the sampler was fitted on.
     """
 
+    #: the one name: the ``sampler`` config choice, the samples file's stem, the model id part
     name: ClassVar[str] = ""
     #: Fewest corpus frames the strategy can estimate its model from.
     min_corpus_frames: ClassVar[int] = 1
+    #: row of the paper's Table 2 (the built-in strategies' order); ``None`` for others
+    paper_row: ClassVar[int | None] = None
+
+    def __init__(self) -> None:
+        """No hyper-parameters (strategies that have some store them, scikit-learn style)."""
 
     def fit(self, Y_corpus) -> Sampler:
         """Learn the strategy's model from ``(N, C_used)`` corpus control values."""
@@ -86,6 +92,17 @@ class Sampler:
 
     def _sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
+
+
+def sampler_classes() -> list[type[Sampler]]:
+    """Every imported sampler class that has a ``name`` (built-in ones and any other)."""
+    found, pending = [], list(Sampler.__subclasses__())
+    while pending:
+        cls = pending.pop(0)
+        pending += cls.__subclasses__()
+        if cls.name:
+            found.append(cls)
+    return found
 
 
 def check_corpus(Y_corpus, who: str, min_frames: int = 1) -> np.ndarray:

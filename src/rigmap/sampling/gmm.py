@@ -30,6 +30,7 @@ class GaussianMixtureSampler(Sampler):
     """
 
     name = "gmm"
+    paper_row = 4
 
     def __init__(
         self,

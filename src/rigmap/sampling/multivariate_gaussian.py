@@ -18,10 +18,8 @@ class MultivariateGaussianSampler(Sampler):
     """
 
     name = "multivariate_gaussian"
+    paper_row = 3
     min_corpus_frames = 2
-
-    def __init__(self):
-        pass
 
     def _fit(self, corpus: np.ndarray) -> None:
         self.mean_ = corpus.mean(axis=0)

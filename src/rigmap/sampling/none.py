@@ -15,9 +15,7 @@ class NoExtraSamples(Sampler):
     """
 
     name = "none"
-
-    def __init__(self):
-        pass
+    paper_row = 0
 
     def _fit(self, corpus: np.ndarray) -> None:
         pass

@@ -57,6 +57,7 @@ class PCAGaussianSampler(Sampler):
     """
 
     name = "pca_gaussian"
+    paper_row = 5
     min_corpus_frames = 2
 
     def __init__(self, scale: float = 1.0, whiten: bool = True, n_components=None):

@@ -35,6 +35,7 @@ from rigmap.errors import RigmapError
 from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError, check_count
 from rigmap.sampling.clamping import clamp_to_limits
 from rigmap.sampling.reproducible_npz import leftover_temporaries, save_npz_atomically
+from rigmap.store import json_ready
 
 DEFAULT_CHUNK_SIZE = 10_000
 FILE_FORMAT_VERSION = 1
@@ -95,66 +96,20 @@ def supersample(
     del drawn
     controls = clamped.values
     n_samples = len(controls)
-    n_joints = len(rig.joint_names)
-    positions = np.empty((n_samples, n_joints, 3))
-    cog = np.empty((n_samples, 3))
-    cog_rotation = np.empty((n_samples, 3, 3))
-
     chunk_folder = path.parent / f"{path.stem}.chunks"
-    chunk_folder.mkdir(parents=True, exist_ok=True)
-    rig_id = _rig_fingerprint(rig)
-    starts = range(0, n_samples, chunk_size)
-    evaluated = resumed = 0
-    with tqdm(
-        total=n_samples,
-        unit="sample",
-        desc=f"supersample {rig.name}/{sampler.name}",
-        disable=not progress,
-    ) as bar:
-        for index, start in enumerate(starts):
-            rows = slice(start, min(start + chunk_size, n_samples))
-            chunk_file = chunk_folder / f"chunk_{index:06d}.npz"
-            finished = _load_finished_chunk(chunk_file, controls[rows], rig_id)
-            if finished is None:
-                finished = _pose_chunk(rig, controls[rows], n_joints, index, rows)
-                save_npz_atomically(
-                    chunk_file,
-                    {"rig": rig_id, "controls": controls[rows], **finished},
-                )
-                evaluated += 1
-            else:
-                resumed += 1
-            positions[rows] = finished["positions"]
-            cog[rows] = finished["cog"]
-            cog_rotation[rows] = finished["cog_rotation"]
-            del finished
-            bar.update(rows.stop - rows.start)
-            bar.set_postfix(resumed=resumed, refresh=False)
-
-    meta = {
-        "format": FILE_FORMAT_VERSION,
-        "rig": rig.name,
-        "length_unit": getattr(rig, "length_unit", "cm"),
-        "rotation_unit": "radians",
-        "sampler": sampler.name,
-        "sampler_class": f"{type(sampler).__module__}.{type(sampler).__name__}",
-        "sampler_params": _jsonable(sampler.get_params()),
-        "seed": seed,
-        "n_requested": n,
-        "n_samples": n_samples,
-        "limits": "given" if limits_given else "rig controls lower/upper",
-        "n_clamped": clamped.n_values,
-        "n_rows_clamped": clamped.n_rows,
-    }
+    posed, evaluated, resumed = _pose_in_chunks(
+        rig, sampler, controls, chunk_folder, chunk_size, progress
+    )
+    meta = _samples_meta(rig, sampler, seed, n, n_samples, limits_given, clamped)
     for stale in leftover_temporaries(path):
         stale.unlink(missing_ok=True)
     save_npz_atomically(
         path,
         {
             "controls": controls,
-            "positions": positions,
-            "cog": cog,
-            "cog_rotation": cog_rotation,
+            "positions": posed["positions"],
+            "cog": posed["cog"],
+            "cog_rotation": posed["cog_rotation"],
             "control_names": np.array([rig.controls.names[i] for i in used], dtype=str),
             "joint_names": np.array(list(rig.joint_names), dtype=str),
             "lower": np.asarray(lower, dtype=np.float64),
@@ -171,10 +126,75 @@ def supersample(
         n_samples=n_samples,
         n_clamped=clamped.n_values,
         n_rows_clamped=clamped.n_rows,
-        n_chunks=len(starts),
+        n_chunks=len(range(0, n_samples, chunk_size)),
         chunks_evaluated=evaluated,
         chunks_resumed=resumed,
     )
+
+
+def _samples_meta(rig, sampler, seed, n, n_samples, limits_given, clamped) -> dict:
+    """The samples file's ``meta``: rig, sampler and its hyper-parameters, seed, counts."""
+    return {
+        "format": FILE_FORMAT_VERSION,
+        "rig": rig.name,
+        "length_unit": getattr(rig, "length_unit", "cm"),
+        "rotation_unit": "radians",
+        "sampler": sampler.name,
+        "sampler_class": f"{type(sampler).__module__}.{type(sampler).__name__}",
+        "sampler_params": json_ready(sampler.get_params(), nonfinite_to_null=False),
+        "seed": seed,
+        "n_requested": n,
+        "n_samples": n_samples,
+        "limits": "given" if limits_given else "rig controls lower/upper",
+        "n_clamped": clamped.n_values,
+        "n_rows_clamped": clamped.n_rows,
+    }
+
+
+def _pose_in_chunks(
+    rig, sampler: Sampler, controls: np.ndarray, chunk_folder: Path, chunk_size: int, progress
+) -> tuple[dict[str, np.ndarray], int, int]:
+    """Positions, COG and COG rotation of every control vector, chunk by chunk.
+
+    Each finished chunk is saved in ``chunk_folder``; a chunk an earlier run left
+    for the same rig and controls is reused. Returns the arrays and how many
+    chunks were evaluated and resumed.
+    """
+    n_samples = len(controls)
+    n_joints = len(rig.joint_names)
+    posed = {
+        "positions": np.empty((n_samples, n_joints, 3)),
+        "cog": np.empty((n_samples, 3)),
+        "cog_rotation": np.empty((n_samples, 3, 3)),
+    }
+    chunk_folder.mkdir(parents=True, exist_ok=True)
+    rig_id = _rig_fingerprint(rig)
+    evaluated = resumed = 0
+    with tqdm(
+        total=n_samples,
+        unit="sample",
+        desc=f"supersample {rig.name}/{sampler.name}",
+        disable=not progress,
+    ) as bar:
+        for index, start in enumerate(range(0, n_samples, chunk_size)):
+            rows = slice(start, min(start + chunk_size, n_samples))
+            chunk_file = chunk_folder / f"chunk_{index:06d}.npz"
+            finished = _load_finished_chunk(chunk_file, controls[rows], rig_id)
+            if finished is None:
+                finished = _pose_chunk(rig, controls[rows], n_joints, index, rows)
+                save_npz_atomically(
+                    chunk_file,
+                    {"rig": rig_id, "controls": controls[rows], **finished},
+                )
+                evaluated += 1
+            else:
+                resumed += 1
+            for key, values in posed.items():
+                values[rows] = finished[key]
+            del finished
+            bar.update(rows.stop - rows.start)
+            bar.set_postfix(resumed=resumed, refresh=False)
+    return posed, evaluated, resumed
 
 
 def load_samples(path: str | os.PathLike) -> dict:
@@ -261,15 +281,3 @@ def _check_seed(seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise SamplerInputError(f"supersample: seed must be an integer >= 0, got {seed!r}")
     return int(seed)
-
-
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -29,6 +29,7 @@ class UniformSampler(Sampler):
     """
 
     name = "uniform"
+    paper_row = 1
 
     def __init__(self, range: str = "corpus", lower=None, upper=None):
         self.range = range

@@ -19,10 +19,8 @@ class UnivariateGaussianSampler(Sampler):
     """
 
     name = "univariate_gaussian"
+    paper_row = 2
     min_corpus_frames = 2
-
-    def __init__(self):
-        pass
 
     def _fit(self, corpus: np.ndarray) -> None:
         self.mean_ = corpus.mean(axis=0)
