@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.library import SPLITS, Variation, build_corpus, motion_library
 from rigmap.rigs import load
+from rigmap.stage import run_stage
 
 
 def rig_from_config(rig_cfg: DictConfig):
@@ -49,10 +49,5 @@ def run(cfg: DictConfig) -> list[Path]:
     return written
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

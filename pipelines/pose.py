@@ -11,13 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import hydra
 from omegaconf import DictConfig
 
 from animate import rig_from_config
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.library import SPLITS
 from rigmap.animation.posing import pose_corpus
+from rigmap.stage import run_stage
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> list[Path]:
@@ -42,10 +42,5 @@ def run(cfg: DictConfig, *, progress: bool = True) -> list[Path]:
     return written
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

@@ -16,13 +16,12 @@ rigmap.reports.settings.ReportSettings):
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from rigmap.reports import ReportFiles, ReportInputError, ReportSettings, build_report
+from rigmap.reports import ReportFiles, ReportSettings, build_report
+from rigmap.stage import run_stage
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
@@ -58,14 +57,5 @@ def run(cfg: DictConfig) -> ReportFiles:
     return files
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        run(cfg)
-    except ReportInputError as error:  # a missing or bad input file: say which, no traceback
-        print(f"report: error: {error}", file=sys.stderr)
-        raise SystemExit(1) from None
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

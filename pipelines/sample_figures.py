@@ -13,13 +13,13 @@ from __future__ import annotations
 from contextlib import ExitStack
 from pathlib import Path
 
-import hydra
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from animate import rig_from_config
 from rigmap.animation.corpus import Corpus
 from rigmap.sampling import available
+from rigmap.stage import run_stage
 from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
 
 # The view each rig's poses read best in; other rigs are drawn from the side.
@@ -63,10 +63,5 @@ def run(cfg: DictConfig) -> SampleFigure:
     return figure
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

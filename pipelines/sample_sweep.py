@@ -26,6 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from animate import rig_from_config
 from rigmap.evaluation.methods import TestSet, run_method
 from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
+from rigmap.stage import run_stage
 
 DEFAULT_FRACTIONS = (0.0625, 0.125, 0.25, 0.5, 1.0)
 SWEEP_FOLDER = "sample_sweep"
@@ -94,10 +95,5 @@ def run(cfg: DictConfig) -> list[Path]:
     return written
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

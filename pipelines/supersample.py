@@ -20,7 +20,6 @@ import time
 import zlib
 from pathlib import Path
 
-import hydra
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
@@ -28,6 +27,7 @@ from animate import rig_from_config
 from rigmap.animation.corpus import Corpus
 from rigmap.sampling import SupersampleResult, make_sampler, supersample
 from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE
+from rigmap.stage import run_stage
 
 
 def sampler_seed(seed: int, sampler_name: str) -> int:
@@ -81,10 +81,5 @@ def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
     return result
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)
