@@ -11,6 +11,9 @@ A stage script is ``run(cfg)`` plus ``if __name__ == "__main__": run_stage(run)`
 - anything else is a bug and keeps its full traceback (exit 1);
 - ``RIGMAP_DEBUG=1`` shows the traceback of every error.
 
+Before ``run`` sees the config, the chosen rig's ``_overrides_`` are merged over it
+(:func:`apply_rig_overrides`: a slow rig's smaller budgets).
+
 Hydra's own error printing (its trimmed traceback and the ``HYDRA_FULL_ERROR`` hint) is
 switched off while the stage runs, so the message above is the only one.
 """
@@ -31,6 +34,7 @@ USER_ERROR_EXIT = 2  # the exit status of an error the user can fix (as argparse
 DEBUG_VARIABLE = "RIGMAP_DEBUG"
 CONFIG_NAME = "config"
 FILE_ERRORS = (FileNotFoundError, PermissionError)
+RIG_OVERRIDES = "_overrides_"  # config values a rig fixes for every stage (apply_rig_overrides)
 
 
 def run_stage(
@@ -54,7 +58,7 @@ def run_stage(
         # errors inside the task are sorted here: past this point Hydra would print
         # "Error executing job ..." before re-raising
         try:
-            return task(cfg)
+            return task(apply_rig_overrides(cfg))
         except Exception as error:
             _exit_if_users(name, error)
             raise
@@ -77,6 +81,26 @@ def _exit_if_users(name: str, error: Exception) -> None:
     sys.stderr.write(f"error: {name}: {error_message(error)}\n")
     sys.stderr.flush()
     raise SystemExit(USER_ERROR_EXIT) from None
+
+
+def apply_rig_overrides(cfg: Any) -> Any:
+    """``cfg`` with the chosen rig's ``_overrides_`` merged over it (in place), then dropped.
+
+    A rig config may fix values every stage run on it must use, over the experiment and the
+    command line: a Blender rig (a slow black box) keeps smaller budgets than the built-in
+    rigs whatever ``experiment`` says (``conf/rig/rigify_wolf.yaml``). The key starts with
+    ``_`` so ``rigmap.rigs.load`` ignores it where a config is read without this step.
+    """
+    from omegaconf import DictConfig, open_dict
+
+    rig = cfg.get("rig") if isinstance(cfg, DictConfig) else None
+    overrides = rig.get(RIG_OVERRIDES) if rig is not None else None
+    if overrides is None:
+        return cfg
+    with open_dict(cfg):
+        cfg.merge_with(overrides)
+        del cfg.rig[RIG_OVERRIDES]
+    return cfg
 
 
 def debugging() -> bool:
