@@ -16,12 +16,11 @@ rigmap.reports.settings.ReportSettings):
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.reports import ReportFiles, ReportSettings, build_report
 from rigmap.stage import run_stage
+from rigmap.stage.inputs import layout_of
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
@@ -41,10 +40,11 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
 
 
 def run(cfg: DictConfig) -> ReportFiles:
+    layout = layout_of(cfg)
     files = build_report(
-        metrics_root=Path(cfg.paths.metrics),
-        data_root=Path(cfg.paths.data),
-        reports_root=Path(cfg.paths.reports),
+        metrics_root=layout.metrics,
+        data_root=layout.data,
+        reports_root=layout.reports,
         settings=report_settings(cfg),
     )
     for name, paths in files.tables.items():

@@ -133,7 +133,7 @@ def test_samplers_draw_from_different_seeds_and_uniform_soft_uses_the_rigs_range
 KILLABLE_STAGE = """
 import runpy, sys, time
 sys.path.insert(0, {pipelines!r})
-import animate
+import rigmap.stage.inputs as stage_inputs
 
 class SlowRig:
     # the real rig, posing slowly enough that the test can kill the run between chunks
@@ -145,8 +145,8 @@ class SlowRig:
         time.sleep(0.4)
         return self._rig.pose(Y)
 
-real = animate.rig_from_config
-animate.rig_from_config = lambda rig_cfg: SlowRig(real(rig_cfg))  # what the stage imports
+real = stage_inputs.rig_from_config
+stage_inputs.rig_from_config = lambda rig_cfg: SlowRig(real(rig_cfg))  # what the stage imports
 sys.argv = [{stage!r}, *{overrides!r}]
 runpy.run_path({stage!r}, run_name="__main__")
 """
