@@ -73,6 +73,23 @@ def test_a_corrupted_corpus_file_is_one_message_naming_it(tmp_path):
     assert files_under(tmp_path) == ["data/face/corpus/train.parquet"]
 
 
+@pytest.mark.parametrize(
+    ("stage", "overrides", "expected"),
+    [
+        ("fit", ["rig=face", "regressor=gpr", "sampler=none"], "the train corpus of rig 'face'"),
+        ("report", ["paths.metrics=m", "paths.data=d", "paths.reports=r"], "m/quadruped/methods/"),
+        ("supersample", ["rig=face", "sampler=nope"], "Could not find 'sampler/nope'"),
+    ],
+)
+def test_other_stages_print_their_errors_as_one_message(tmp_path, stage, overrides, expected):
+    result = run_script(stage, *overrides, cwd=tmp_path)
+    assert result.returncode == USER_ERROR_EXIT, result.stderr
+    assert "Traceback" not in result.stderr and "HYDRA_FULL_ERROR" not in result.stderr
+    assert result.stderr.startswith(f"error: {stage}: ")
+    assert expected in result.stderr
+    assert files_under(tmp_path) == []
+
+
 def test_rigmap_debug_shows_the_traceback_of_a_user_error(tmp_path):
     result = run_script("pose", "rig=face", "paths.data=data", cwd=tmp_path, debug=True)
     assert result.returncode == 1
