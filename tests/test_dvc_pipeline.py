@@ -19,7 +19,7 @@ from rigmap.animation.library import libraries
 from rigmap.pipeline_params import compose_params, write_params
 from rigmap.rigs import available as available_rigs
 from rigmap.sampling import available as available_samplers
-from rigmap.stage import RIG_OVERRIDES, apply_rig_overrides
+from rigmap.stage import RIG_OVERRIDES, apply_rig_overrides, stage_config
 
 ROOT = Path(__file__).resolve().parents[1]
 KERNELS = ["multiquadric", "gaussian", "linear", "polynomial"]
@@ -149,6 +149,7 @@ def test_the_wolf_budget_comes_from_its_rig_config_over_the_command_line():
     assert "nn_autodiff_jacobian" not in cfg.evaluate.methods
     assert RIG_OVERRIDES not in cfg.rig
     assert apply_rig_overrides(built_in).budget.gpr_points == 250  # experiment=quick's
+    assert "pipeline" in built_in and "pipeline" not in stage_config(built_in)  # dvc.yaml's lists
 
 
 def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):

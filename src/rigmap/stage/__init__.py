@@ -9,6 +9,7 @@ from rigmap.stage.runner import (
     error_message,
     is_user_error,
     run_stage,
+    stage_config,
 )
 
 __all__ = [
@@ -19,4 +20,5 @@ __all__ = [
     "error_message",
     "is_user_error",
     "run_stage",
+    "stage_config",
 ]

@@ -12,7 +12,8 @@ A stage script is ``run(cfg)`` plus ``if __name__ == "__main__": run_stage(run)`
 - ``RIGMAP_DEBUG=1`` shows the traceback of every error.
 
 Before ``run`` sees the config, the chosen rig's ``_overrides_`` are merged over it
-(:func:`apply_rig_overrides`: a slow rig's smaller budgets).
+(:func:`apply_rig_overrides`: a slow rig's smaller budgets) and dvc.yaml's ``pipeline``
+lists are dropped (:func:`stage_config`).
 
 Hydra's own error printing (its trimmed traceback and the ``HYDRA_FULL_ERROR`` hint) is
 switched off while the stage runs, so the message above is the only one.
@@ -34,6 +35,7 @@ USER_ERROR_EXIT = 2  # the exit status of an error the user can fix (as argparse
 DEBUG_VARIABLE = "RIGMAP_DEBUG"
 CONFIG_NAME = "config"
 FILE_ERRORS = (FileNotFoundError, PermissionError)
+PIPELINE_LISTS = "pipeline"  # dvc.yaml's lists of rigs (conf/config.yaml), not a stage's input
 RIG_OVERRIDES = "_overrides_"  # config values a rig fixes for every stage (apply_rig_overrides)
 
 
@@ -58,7 +60,7 @@ def run_stage(
         # errors inside the task are sorted here: past this point Hydra would print
         # "Error executing job ..." before re-raising
         try:
-            return task(apply_rig_overrides(cfg))
+            return task(stage_config(cfg))
         except Exception as error:
             _exit_if_users(name, error)
             raise
@@ -81,6 +83,21 @@ def _exit_if_users(name: str, error: Exception) -> None:
     sys.stderr.write(f"error: {name}: {error_message(error)}\n")
     sys.stderr.flush()
     raise SystemExit(USER_ERROR_EXIT) from None
+
+
+def stage_config(cfg: Any) -> Any:
+    """The config a stage runs with: the rig's ``_overrides_`` applied, ``pipeline`` dropped.
+
+    ``pipeline`` lists what dvc.yaml runs (rigs per family); no stage reads it, so it stays
+    out of what a stage records (``fit.json``'s config), as before the lists existed.
+    """
+    from omegaconf import DictConfig, open_dict
+
+    cfg = apply_rig_overrides(cfg)
+    if isinstance(cfg, DictConfig) and PIPELINE_LISTS in cfg:
+        with open_dict(cfg):
+            del cfg[PIPELINE_LISTS]
+    return cfg
 
 
 def apply_rig_overrides(cfg: Any) -> Any:
