@@ -13,14 +13,13 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from rigmap.animation.corpus_files import write_corpora
-from rigmap.animation.library import motion_library
+from rigmap.animation.corpus_files import require_motion_library, write_corpora
 from rigmap.stage import run_stage
 from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config
 
 
 def run(cfg: DictConfig) -> list[Path]:
-    motion_library(cfg.rig.name)  # a rig without clips fails here, before it is built
+    require_motion_library(cfg.rig.name)  # a rig without clips fails here, before it is built
     return write_corpora(
         rig_from_config(cfg.rig),
         layout_of(cfg),

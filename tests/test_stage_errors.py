@@ -79,6 +79,7 @@ def test_a_corrupted_corpus_file_is_one_message_naming_it(tmp_path):
         ("fit", ["rig=face", "regressor=gpr", "sampler=none"], "the train corpus of rig 'face'"),
         ("report", ["paths.metrics=m", "paths.data=d", "paths.reports=r"], "m/quadruped/methods/"),
         ("supersample", ["rig=face", "sampler=nope"], "Could not find 'sampler/nope'"),
+        ("animate", ["rig=rigify_human"], "no motion library for rig 'rigify_human'"),
     ],
 )
 def test_other_stages_print_their_errors_as_one_message(tmp_path, stage, overrides, expected):

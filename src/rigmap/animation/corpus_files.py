@@ -12,10 +12,25 @@ from collections.abc import Callable
 from pathlib import Path
 
 from rigmap.animation.corpus import Corpus
+from rigmap.errors import RigmapError
 from rigmap.store import Layout
 from rigmap.store.layout import SPLITS
 
 Log = Callable[[str], None]
+
+
+class NoMotionLibraryError(RigmapError, KeyError):
+    """The rig has no motion library, so no corpus can be played for it."""
+
+
+def require_motion_library(rig_name: str):
+    """The rig's motion library; a rig without one is a :class:`NoMotionLibraryError`."""
+    from rigmap.animation.library import motion_library
+
+    try:
+        return motion_library(rig_name)
+    except KeyError as error:
+        raise NoMotionLibraryError(error.args[0] if error.args else str(error)) from None
 
 
 def read_corpus_split(rig, layout: Layout, split: str) -> Corpus:
@@ -32,9 +47,9 @@ def write_corpora(
 
     ``variation`` scales the seeded timing/value variation of the clips (0 = nominal).
     """
-    from rigmap.animation.library import Variation, build_corpus, motion_library
+    from rigmap.animation.library import Variation, build_corpus
 
-    motion_library(rig.name)  # a rig without clips fails here, before any file is written
+    require_motion_library(rig.name)  # a rig without clips fails here, before any file is written
     scaled = Variation().scaled(float(variation))
     written = []
     for split in SPLITS:
