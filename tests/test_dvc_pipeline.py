@@ -137,6 +137,15 @@ def test_evaluations_declare_metrics_and_per_frame_plots(stages):
     assert {"metrics", "data", "conf"} <= set(paths(report.deps))
 
 
+def test_only_the_report_depends_on_the_lists_of_rigs(stages):
+    """Adding a rig to conf/pipeline/ re-runs that rig's stages and the report, no other."""
+    for name, stage in stages.items():
+        if name == "report":
+            continue
+        for dep in paths(stage.deps):
+            assert dep != "conf" and not dep.startswith("conf/pipeline"), (name, dep)
+
+
 def test_the_wolf_budget_comes_from_its_rig_config_over_the_command_line():
     """fit_gpr_blender passes params.yaml's gpr_points (250); the rig's _overrides_ win (150)."""
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
@@ -159,7 +168,7 @@ def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
     shutil.copytree(ROOT / "conf", project / "conf")
     shutil.copy(ROOT / "dvc.yaml", project / "dvc.yaml")
     shutil.copy(ROOT / "conf" / "sampler" / "uniform.yaml", project / "conf/sampler/toy.yaml")
-    config = project / "conf" / "config.yaml"
+    config = project / "conf" / "pipeline" / "default.yaml"
     rigs = "rigs: [quadruped, biped, face, squirrel"
     config.write_text(config.read_text().replace(rigs, f"{rigs}, toy_rig"))
     evaluate = project / "conf" / "evaluate" / "default.yaml"
