@@ -11,48 +11,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from rigmap.animation.library import SPLITS, Variation, build_corpus, motion_library
-from rigmap.rigs import load
-
-
-def rig_from_config(rig_cfg: DictConfig):
-    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's)."""
-    options = OmegaConf.to_container(rig_cfg, resolve=True)
-    options.pop("corpus", None)
-    return load(options)
+from rigmap.animation.corpus_files import require_motion_library, write_corpora
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config
 
 
 def run(cfg: DictConfig) -> list[Path]:
-    motion_library(cfg.rig.name)  # a rig without clips fails here, before it is built
-    rig = rig_from_config(cfg.rig)
-    corpus_options = cfg.rig.get("corpus") or {}
-    variation = Variation().scaled(float(cfg.corpus.variation))
-    out = Path(cfg.paths.data) / rig.name / "corpus"
-    written = []
-    for split in SPLITS:
-        corpus = build_corpus(
-            rig,
-            split,
-            seed=int(cfg.seed),
-            fps=int(corpus_options.get("fps", 24)),
-            variation=variation,
-        )
-        written.append(corpus.write(out / f"{split}.parquet"))
-        meta = corpus.metadata
-        print(
-            f"{rig.name} {split}: {len(meta['clips'])} clips, {meta['frame_count']} frames at "
-            f"{meta['fps']} fps, {meta['keyed_frame_count']} keyed frames -> {written[-1]}"
-        )
-    return written
-
-
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
+    require_motion_library(cfg.rig.name)  # a rig without clips fails here, before it is built
+    return write_corpora(
+        rig_from_config(cfg.rig),
+        layout_of(cfg),
+        seed=int(cfg.seed),
+        fps=corpus_fps(cfg.rig),
+        variation=float(cfg.corpus.variation),
+    )
 
 
 if __name__ == "__main__":
-    main()
+    run_stage(run)

@@ -13,20 +13,15 @@ in :mod:`rigmap.regression.fitting`, shared with ``rigmap fit``.
 
 from __future__ import annotations
 
-import hydra
 from omegaconf import DictConfig
 
 from rigmap.regression.fitting import FitResult, fit_from_config
+from rigmap.stage import run_stage
 
 
 def run(cfg: DictConfig) -> FitResult:
     return fit_from_config(cfg)
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

@@ -11,41 +11,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import hydra
 from omegaconf import DictConfig
 
-from animate import rig_from_config
-from rigmap.animation.corpus import Corpus
-from rigmap.animation.library import SPLITS
-from rigmap.animation.posing import pose_corpus
+from rigmap.animation.corpus_files import pose_corpora
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import layout_of, rig_from_config
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> list[Path]:
     rig = rig_from_config(cfg.rig)
-    data = Path(cfg.paths.data) / rig.name
-    written = []
-    for split in SPLITS:
-        source = data / "corpus" / f"{split}.parquet"
-        corpus = Corpus.read(source, rig=rig.name, control_names=rig.used_controls, split=split)
-        poses = pose_corpus(
-            rig,
-            corpus,
-            batch_size=int(cfg.pose.batch_size),
-            progress=progress,
-            source=source.as_posix(),
-        )
-        written.append(poses.write(data / "poses" / f"{split}.parquet"))
-        print(
-            f"{rig.name} {split}: {len(poses.table)} frames, {poses.n_joints} joints "
-            f"-> {written[-1]}"
-        )
-    return written
-
-
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
+    return pose_corpora(rig, layout_of(cfg), batch_size=int(cfg.pose.batch_size), progress=progress)
 
 
 if __name__ == "__main__":
-    main()
+    run_stage(run)

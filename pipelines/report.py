@@ -16,18 +16,16 @@ rigmap.reports.settings.ReportSettings):
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from rigmap.reports import ReportFiles, ReportInputError, ReportSettings, build_report
+from rigmap.reports import ReportFiles, ReportSettings, build_report
 from rigmap.sampling import sampler_name
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import layout_of
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
-    """Expected rows: the ``evaluate`` lists, ``sampler.name`` for the network, then ``report``."""
+    """Expected rows: the ``evaluate`` lists, the network's sampler, then ``report``."""
     values: dict = {}
     evaluate = cfg.get("evaluate")
     if evaluate is not None:
@@ -43,10 +41,11 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
 
 
 def run(cfg: DictConfig) -> ReportFiles:
+    layout = layout_of(cfg)
     files = build_report(
-        metrics_root=Path(cfg.paths.metrics),
-        data_root=Path(cfg.paths.data),
-        reports_root=Path(cfg.paths.reports),
+        metrics_root=layout.metrics,
+        data_root=layout.data,
+        reports_root=layout.reports,
         settings=report_settings(cfg),
     )
     for name, paths in files.tables.items():
@@ -59,14 +58,5 @@ def run(cfg: DictConfig) -> ReportFiles:
     return files
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        run(cfg)
-    except ReportInputError as error:  # a missing or bad input file: say which, no traceback
-        print(f"report: error: {error}", file=sys.stderr)
-        raise SystemExit(1) from None
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

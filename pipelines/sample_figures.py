@@ -11,15 +11,14 @@ corpus, and writes ``<paths.reports>/figures/samples_<rig>.png``: one row per st
 from __future__ import annotations
 
 from contextlib import ExitStack
-from pathlib import Path
 
-import hydra
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from animate import rig_from_config
-from rigmap.animation.corpus import Corpus
+from rigmap.animation.corpus_files import read_corpus_split
 from rigmap.sampling import available
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import layout_of, rig_from_config
 from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
 
 # The view each rig's poses read best in; other rigs are drawn from the side.
@@ -29,14 +28,9 @@ VIEWS = {"face": "front"}
 
 def run(cfg: DictConfig) -> SampleFigure:
     rig = rig_from_config(cfg.rig)
-    data = Path(cfg.paths.data) / rig.name
-    corpus = Corpus.read(
-        data / "corpus" / "train.parquet",
-        rig=rig.name,
-        control_names=rig.used_controls,
-        split="train",
-    )
-    paths = {name: data / "samples" / f"{name}.npz" for name in available()}
+    layout = layout_of(cfg)
+    corpus = read_corpus_split(rig, layout, "train")
+    paths = {name: layout.samples(rig.name, name) for name in available()}
     for name, path in paths.items():
         if not path.is_file():
             raise FileNotFoundError(
@@ -56,17 +50,12 @@ def run(cfg: DictConfig) -> SampleFigure:
     figure = draw_sample_figure(
         rig,
         rows,
-        Path(cfg.paths.reports) / "figures" / f"samples_{rig.name}.png",
+        layout.figures() / f"samples_{rig.name}.png",
         view=OmegaConf.select(cfg, "figures.view", default=VIEWS.get(rig.name, "side")),
     )
     print(f"{rig.name}: {len(figure.rows)} rows ({figure.view} view) -> {figure.path}")
     return figure
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

@@ -17,46 +17,20 @@ run with the same ``seed`` do not share their random numbers.
 from __future__ import annotations
 
 import time
-import zlib
-from pathlib import Path
 
-import hydra
-import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from animate import rig_from_config
-from rigmap.animation.corpus import Corpus
-from rigmap.sampling import SupersampleResult, make_sampler, sampler_name, supersample
+from rigmap.animation.corpus_files import read_corpus_split
+from rigmap.sampling import SupersampleResult, supersample
 from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE
-
-
-def sampler_seed(seed: int, sampler_name: str) -> int:
-    """The draw's seed: the run's ``seed`` mixed with the strategy name (stable across runs)."""
-    entropy = [int(seed), zlib.crc32(sampler_name.encode("utf-8"))]
-    return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])
-
-
-def sampler_from_config(sampler_cfg: DictConfig, rig):
-    """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
-    options = OmegaConf.to_container(sampler_cfg, resolve=True)
-    if sampler_name(options) == "uniform" and options.get("range") == "soft":
-        used = rig.controls.used_indices
-        if options.get("lower") is None:
-            options["lower"] = rig.controls.lower[used]
-        if options.get("upper") is None:
-            options["upper"] = rig.controls.upper[used]
-    return make_sampler(**options)
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import layout_of, rig_from_config, sampler_from_config, sampler_seed
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
     rig = rig_from_config(cfg.rig)
-    data = Path(cfg.paths.data) / rig.name
-    corpus = Corpus.read(
-        data / "corpus" / "train.parquet",
-        rig=rig.name,
-        control_names=rig.used_controls,
-        split="train",
-    )
+    layout = layout_of(cfg)
+    corpus = read_corpus_split(rig, layout, "train")
     started = time.perf_counter()
     sampler = sampler_from_config(cfg.sampler, rig).fit(corpus.values())
     fitted = time.perf_counter()
@@ -64,7 +38,7 @@ def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
         rig,
         sampler,
         int(cfg.budget.samples),
-        data / "samples" / f"{sampler.name}.npz",
+        layout.samples(rig.name, sampler.name),
         seed=sampler_seed(int(cfg.seed), sampler.name),
         chunk_size=int(OmegaConf.select(cfg, "supersample.chunk_size", default=DEFAULT_CHUNK_SIZE)),
         progress=progress,
@@ -81,10 +55,5 @@ def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
     return result
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
-
-
 if __name__ == "__main__":
-    main()
+    run_stage(run)

@@ -10,14 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from hydra import compose, initialize_config_dir
 from scipy.spatial import cKDTree
 
 from rigmap.animation.corpus import Corpus
-from rigmap.animation.library import libraries
 from rigmap.animation.posing import PoseTable
-from rigmap.rigs import available, load
+from rigmap.rigs import load
 
 ROOT = Path(__file__).resolve().parents[1]
 _RUNS: dict = {}
@@ -140,31 +138,3 @@ def test_a_rig_without_a_motion_library_is_a_clear_error(tmp_path):
     with pytest.raises(KeyError, match="no motion library for rig 'rigify_human'"):
         _stage("animate").run(cfg)
     assert not any(tmp_path.iterdir())
-
-
-def test_dvc_matrix_covers_every_built_in_rig_with_a_library():
-    """Built-in rigs in the main matrices; Blender rigs in stages that depend on the backend."""
-    pipeline = yaml.safe_load((ROOT / "dvc.yaml").read_text())
-    with_library = [name for name in libraries() if name in available()]
-    blender = [name for name in with_library if name.startswith("rigify_")]
-    built_in = [name for name in with_library if name not in blender]
-    assert blender == ["rigify_wolf"]
-    for stage, out in (("animate", "corpus"), ("pose", "poses")):
-        for name, rigs in ((stage, built_in), (f"{stage}_blender", blender)):
-            spec = pipeline["stages"][name]
-            assert sorted(spec["matrix"]["rig"]) == sorted(rigs)
-            assert spec["outs"] == [f"data/${{item.rig}}/{out}"]
-            assert f"pipelines/{stage}.py" in spec["deps"]
-            assert "conf/rig/${item.rig}.yaml" in spec["deps"]
-        assert "src/rigmap/rigs/blender" in pipeline["stages"][f"{stage}_blender"]["deps"]
-    assert "data/${item.rig}/corpus" in pipeline["stages"]["pose"]["deps"]
-    for name in ("supersample", "fit_nn", "fit_gpr", "evaluate"):
-        spec = pipeline["stages"][f"{name}_blender"]
-        assert spec["matrix"]["rig"] == blender
-        assert {"src/rigmap/rigs/blender", "conf/rig/${item.rig}.yaml"} <= set(spec["deps"])
-    evaluate = pipeline["stages"]["evaluate_blender"]
-    assert "nn_autodiff_jacobian" not in evaluate["cmd"] and "frames_per_clip=" in evaluate["cmd"]
-    assert len(evaluate["metrics"]) == 7  # Table 1 without autodiff: the rig is a black box
-    report = pipeline["stages"]["report"]["deps"]
-    for rig in blender:
-        assert {f"metrics/{rig}", f"data/{rig}/corpus", f"conf/rig/{rig}.yaml"} <= set(report)

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from hydra import compose, initialize_config_dir
 
 from rigmap.animation.corpus import Corpus
@@ -134,7 +133,7 @@ def test_samplers_draw_from_different_seeds_and_uniform_soft_uses_the_rigs_range
 KILLABLE_STAGE = """
 import runpy, sys, time
 sys.path.insert(0, {pipelines!r})
-import animate
+import rigmap.stage.inputs as stage_inputs
 
 class SlowRig:
     # the real rig, posing slowly enough that the test can kill the run between chunks
@@ -146,8 +145,8 @@ class SlowRig:
         time.sleep(0.4)
         return self._rig.pose(Y)
 
-real = animate.rig_from_config
-animate.rig_from_config = lambda rig_cfg: SlowRig(real(rig_cfg))  # what the stage imports
+real = stage_inputs.rig_from_config
+stage_inputs.rig_from_config = lambda rig_cfg: SlowRig(real(rig_cfg))  # what the stage imports
 sys.argv = [{stage!r}, *{overrides!r}]
 runpy.run_path({stage!r}, run_name="__main__")
 """
@@ -245,20 +244,3 @@ def test_figure_stage_names_the_missing_samples_file(tmp_path):
         FileNotFoundError, match=r"face/samples/none\.npz does not exist.*sampler=none"
     ):
         _stage("sample_figures").run(config("rig=face", f"paths.data={data}"))
-
-
-def test_dvc_matrix_runs_every_sampler_on_every_rig():
-    pipeline = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
-    spec = pipeline["supersample"]
-    assert sorted(spec["matrix"]["rig"]) == sorted(RIGS)
-    assert spec["matrix"]["sampler"] == available()
-    assert spec["outs"] == ["data/${item.rig}/samples/${item.sampler}.npz"]  # not the chunks
-    for dep in ("pipelines/supersample.py", "src/rigmap/sampling", "data/${item.rig}/corpus"):
-        assert dep in spec["deps"]
-    assert "conf/sampler/${item.sampler}.yaml" in spec["deps"]
-    figures = pipeline["sample_figures"]
-    assert sorted(figures["matrix"]["rig"]) == sorted(RIGS)
-    # the figure is committed to git for the README, so DVC does not cache it
-    assert figures["outs"] == [{"reports/figures/samples_${item.rig}.png": {"cache": False}}]
-    for name in available():
-        assert f"data/${{item.rig}}/samples/{name}.npz" in figures["deps"]

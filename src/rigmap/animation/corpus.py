@@ -4,16 +4,13 @@ A corpus is a table with columns ``clip``, ``frame`` and one column per used
 control, one row per played frame (keys and the frames interpolated between them,
 §6.1). What a reader needs to trust the numbers travels inside the file, in the
 parquet schema metadata under ``rigmap``: the rig, frame rate, seed, split,
-control order, and per-clip frame ranges and key counts. Files are written
-atomically (temp file beside the target, then ``os.replace``) and deterministically:
-the same clips give byte-identical files.
+control order, and per-clip frame ranges and key counts. Files are written through
+:mod:`rigmap.store` (atomically, deterministically): the same clips give byte-identical files.
 """
 
 from __future__ import annotations
 
-import json
 import os
-import tempfile
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -21,12 +18,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from rigmap.animation.clip import Clip, check_known_controls
 from rigmap.animation.keyframes import KeyframeError
 from rigmap.errors import RigmapError
+from rigmap.store import read_table_file, write_table_file
 
 CORPUS_FORMAT = "rigmap.corpus/1"
 METADATA_KEY = b"rigmap"
@@ -251,32 +247,10 @@ def write_corpus(path: str | os.PathLike, table: pd.DataFrame, metadata: Mapping
     """Write ``table`` with ``metadata`` (JSON in the schema) to ``path``, atomically.
 
     Output is deterministic: no timestamps are stored, dictionary keys are sorted,
-    and the same table and metadata give the same bytes.
+    and the same table and metadata give the same bytes (:func:`rigmap.store.write_table_file`).
     """
-    path = Path(path)
     _check_table(table, metadata, source="table to write")
-    arrow = pa.Table.from_pandas(table, preserve_index=False)
-    schema_metadata = dict(arrow.schema.metadata or {})
-    try:
-        encoded = json.dumps(metadata, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    except (TypeError, ValueError) as error:
-        raise CorpusError(f"{path}: corpus metadata is not plain JSON data ({error})") from None
-    schema_metadata[METADATA_KEY] = encoded.encode()
-    arrow = arrow.replace_schema_metadata(schema_metadata)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            pq.write_table(arrow, stream, compression="zstd")
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temp_name, 0o644)  # mkstemp makes it private; a corpus is shared data
-        os.replace(temp_name, path)
-    except BaseException:
-        if os.path.exists(temp_name):
-            os.unlink(temp_name)
-        raise
-    return path
+    return write_table_file(path, table, METADATA_KEY, metadata, error=CorpusError, what="corpus")
 
 
 def read_corpus(
@@ -288,19 +262,7 @@ def read_corpus(
 ) -> tuple[pd.DataFrame, dict]:
     """Read a corpus file and check it against its own metadata (and the caller's needs)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"corpus file {path} does not exist")
-    try:
-        arrow = pq.read_table(path)
-    except (pa.ArrowException, OSError) as error:
-        raise CorpusError(f"{path}: not a readable parquet file ({error})") from None
-    raw = (arrow.schema.metadata or {}).get(METADATA_KEY)
-    if raw is None:
-        raise CorpusError(f"{path}: no '{METADATA_KEY.decode()}' metadata; not a rigmap corpus")
-    try:
-        metadata = json.loads(raw)
-    except json.JSONDecodeError as error:
-        raise CorpusError(f"{path}: corpus metadata is not valid JSON ({error})") from None
+    table, metadata = read_table_file(path, METADATA_KEY, error=CorpusError, what="corpus")
     if metadata.get("format") != CORPUS_FORMAT:
         raise CorpusError(
             f"{path}: corpus format {metadata.get('format')!r}, expected {CORPUS_FORMAT!r}"
@@ -320,7 +282,6 @@ def read_corpus(
             else "same names in a different order"
         )
         raise CorpusError(f"{path}: corpus controls differ from the rig's: {detail}")
-    table = arrow.to_pandas()
     _check_table(table, metadata, source=str(path))
     return table, metadata
 

@@ -16,20 +16,17 @@ names the file, column, clip and frame of anything wrong.
 
 from __future__ import annotations
 
-import json
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from rigmap.animation.corpus import KEY_COLUMNS, Corpus
 from rigmap.errors import RigmapError
+from rigmap.store import read_table_file, write_table_file
 
 POSES_FORMAT = "rigmap.poses/1"
 METADATA_KEY = b"rigmap"
@@ -208,31 +205,9 @@ def poses_table(
 
 # --- files ------------------------------------------------------------------------------
 def write_poses(path: str | os.PathLike, table: pd.DataFrame, metadata: Mapping) -> Path:
-    """Write atomically (temp file beside it, then rename); same input, same bytes."""
-    path = Path(path)
+    """Write atomically (:func:`rigmap.store.write_table_file`); same input, same bytes."""
     _check_table(table, metadata, source="poses table to write")
-    arrow = pa.Table.from_pandas(table, preserve_index=False)
-    schema_metadata = dict(arrow.schema.metadata or {})
-    try:
-        encoded = json.dumps(dict(metadata), sort_keys=True, separators=(",", ":"), allow_nan=False)
-    except (TypeError, ValueError) as error:
-        raise PosesError(f"{path}: poses metadata is not plain JSON data ({error})") from None
-    schema_metadata[METADATA_KEY] = encoded.encode()
-    arrow = arrow.replace_schema_metadata(schema_metadata)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            pq.write_table(arrow, stream, compression="zstd")
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temp_name, 0o644)
-        os.replace(temp_name, path)
-    except BaseException:
-        if os.path.exists(temp_name):
-            os.unlink(temp_name)
-        raise
-    return path
+    return write_table_file(path, table, METADATA_KEY, metadata, error=PosesError, what="poses")
 
 
 def read_poses(
@@ -244,19 +219,7 @@ def read_poses(
 ) -> tuple[pd.DataFrame, dict]:
     """Read a poses file and check it (and, when given, its rig, joint count and split)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"poses file {path} does not exist")
-    try:
-        arrow = pq.read_table(path)
-    except (pa.ArrowException, OSError) as error:
-        raise PosesError(f"{path}: not a readable parquet file ({error})") from None
-    raw = (arrow.schema.metadata or {}).get(METADATA_KEY)
-    if raw is None:
-        raise PosesError(f"{path}: no '{METADATA_KEY.decode()}' metadata; not a rigmap poses file")
-    try:
-        metadata = json.loads(raw)
-    except json.JSONDecodeError as error:
-        raise PosesError(f"{path}: poses metadata is not valid JSON ({error})") from None
+    table, metadata = read_table_file(path, METADATA_KEY, error=PosesError, what="poses")
     if metadata.get("format") != POSES_FORMAT:
         raise PosesError(f"{path}: format {metadata.get('format')!r}, expected {POSES_FORMAT!r}")
     for name, wanted in (("rig", rig), ("split", split)):
@@ -269,7 +232,6 @@ def read_poses(
             f"{path}: {len(metadata.get('joint_names', []))} joints, expected {n_joints} "
             f"(rig {metadata.get('rig')!r})"
         )
-    table = arrow.to_pandas()
     _check_table(table, metadata, source=str(path))
     return table, metadata
 

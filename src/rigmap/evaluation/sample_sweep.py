@@ -1,0 +1,99 @@
+"""The network's joint error against the number of supersamples it is trained with.
+
+Table 2 compares samplers at one sample count; the sweep asks how many samples a sampler
+needs. For every fraction ``f`` the network is fitted on the train corpus plus the first
+``n = round(f x total)`` samples of the sampler's file — independent draws, so the first
+``n`` are a draw of ``n`` — and scored on the rig's test clips. The results are written
+together as one folder, ``metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json``. Nothing is
+logged to MLflow: these are points of a curve, not methods.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from rigmap.errors import RigmapError
+from rigmap.store import Layout, write_folder_atomic
+
+DEFAULT_FRACTIONS = (0.0625, 0.125, 0.25, 0.5, 1.0)
+SWEEP_FOLDER = "sample_sweep"
+Log = Callable[[str], None]
+
+
+def _print(line: str) -> None:
+    print(line, flush=True)  # one line per fit, seen as it happens under DVC
+
+
+class SweepInputError(RigmapError, ValueError):
+    """A sweep that cannot run: wrong regressor or sampler, or fractions the file cannot give."""
+
+
+def sample_counts(fractions: Sequence[float], total: int, available: int) -> list[int]:
+    """``round(f x total)`` per fraction: distinct, positive, at most ``available``."""
+    counts = []
+    for fraction in fractions:
+        if not 0 < float(fraction) <= 1:
+            raise SweepInputError(f"sweep.fractions: expected numbers in (0, 1], got {fraction!r}")
+        counts.append(max(1, round(float(fraction) * total)))
+    too_many = [n for n in counts if n > available]
+    if too_many:
+        raise SweepInputError(
+            f"sweep: {too_many} samples asked for, but the samples file holds {available} "
+            f"(budget.samples = {total}); re-run the supersample stage"
+        )
+    return sorted(set(counts))
+
+
+def sample_sweep(
+    rig,
+    layout: Layout,
+    make_network: Callable[[], Any],
+    *,
+    sampler: str,
+    total_samples: int,
+    fractions: Sequence[float] = DEFAULT_FRACTIONS,
+    log: Log = _print,
+) -> list[Path]:
+    """Fit a fresh ``make_network()`` per sample count, score it, write the sweep's folder."""
+    from rigmap.evaluation.methods import TestSet, run_method
+    from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
+
+    regressor = getattr(make_network(), "name", None)
+    if regressor != "nn":
+        raise SweepInputError(
+            f"sample_sweep fits the network: expected regressor=nn, got {regressor!r}"
+        )
+    if sampler == "none":
+        raise SweepInputError("sample_sweep needs a sampler that draws samples, got sampler=none")
+    data = load_training_data(rig, layout.data, sampler)
+    counts = sample_counts(fractions, int(total_samples), data.sample_rows)
+    base_rows = data.rows - data.sample_rows  # the corpus (and the rest pose, if added)
+    placement = placement_of(rig, data)
+    test_set = TestSet.load(rig, layout.rig_data(rig.name))
+    folder = layout.metrics_folder(rig.name, SWEEP_FOLDER)
+    names: list[str] = []
+
+    def fill(staging: Path) -> None:
+        for n in counts:
+            rows = slice(0, base_rows + n)
+            subset = replace(
+                data, features=data.features[rows], controls=data.controls[rows], sample_rows=n
+            )
+            mapping = fit_regressor(make_network(), rig, subset, placement)
+            evaluation = run_method(
+                rig, "nn", test_set, regressor=mapping, sampler=sampler,
+                extra={"samples": n, "training_rows": subset.rows},
+            )  # fmt: skip
+            names.append(evaluation.result.write_json(staging / f"nn-{sampler}-{n}.json").name)
+            average = evaluation.result.average()
+            log(
+                f"{rig.name} nn + {n} {sampler} samples: joint error "
+                f"{average['joint_error']:.4g} {evaluation.result.length_unit}², ground truth "
+                f"{average['ground_truth_error']:.4g}"
+            )
+
+    write_folder_atomic(folder, fill)
+    return [folder / name for name in names]

@@ -1,0 +1,60 @@
+"""The plain objects a stage builds from its composed config, so the library never sees one.
+
+A stage (``pipelines/*.py``) composes its config with Hydra, turns it into these objects
+— the :class:`~rigmap.store.Layout` of its files, the rig, the unfitted sampler and its
+seed — and hands them to one library function.
+"""
+
+from __future__ import annotations
+
+import zlib
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from rigmap.store import Layout
+
+DEFAULT_FPS = 24  # the frame rate a rig config without ``corpus.fps`` is played at
+
+
+def layout_of(cfg: DictConfig) -> Layout:
+    """The experiment's folders, from the ``paths`` config."""
+    return Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
+
+
+def rig_from_config(rig_cfg: DictConfig):
+    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's)."""
+    from rigmap.rigs import load
+
+    options = OmegaConf.to_container(rig_cfg, resolve=True)
+    options.pop("corpus", None)
+    return load(options)
+
+
+def corpus_fps(rig_cfg: DictConfig) -> int:
+    """The frame rate the rig's corpus is played at (``rig.corpus.fps``)."""
+    return int((rig_cfg.get("corpus") or {}).get("fps", DEFAULT_FPS))
+
+
+def sampler_from_config(sampler_cfg: DictConfig, rig) -> Any:
+    """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
+    from rigmap.sampling import make_sampler
+
+    options = OmegaConf.to_container(sampler_cfg, resolve=True)
+    if options.get("name") == "uniform" and options.get("range") == "soft":
+        used = rig.controls.used_indices
+        if options.get("lower") is None:
+            options["lower"] = rig.controls.lower[used]
+        if options.get("upper") is None:
+            options["upper"] = rig.controls.upper[used]
+    return make_sampler(**options)
+
+
+def sampler_seed(seed: int, sampler_name: str) -> int:
+    """The draw's seed: the run's ``seed`` mixed with the strategy name (stable across runs).
+
+    Two strategies run with the same ``seed`` then do not share their random numbers.
+    """
+    entropy = [int(seed), zlib.crc32(sampler_name.encode("utf-8"))]
+    return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])

@@ -1,0 +1,191 @@
+"""dvc.yaml as DVC resolves it: the matrices read conf's lists, a new sampler or rig edits no stage.
+
+The stages are read through DVC's own API (``Repo.index.stages``), so matrices, params
+interpolation and YAML merges are expanded exactly as ``dvc repro`` expands them.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from hydra import compose, initialize_config_dir
+
+from rigmap.animation.library import libraries
+from rigmap.pipeline_params import compose_params, write_params
+from rigmap.rigs import available as available_rigs
+from rigmap.sampling import available as available_samplers
+from rigmap.stage import RIG_OVERRIDES, apply_rig_overrides, stage_config
+
+ROOT = Path(__file__).resolve().parents[1]
+KERNELS = ["multiquadric", "gaussian", "linear", "polynomial"]
+
+
+def resolved_stages(project: Path) -> dict:
+    """``{"animate@quadruped": stage, ...}`` as DVC builds them from ``project/dvc.yaml``."""
+    from dvc.repo import Repo
+
+    with Repo(str(project)) as repo:
+        return {stage.name: stage for stage in repo.index.stages}
+
+
+def paths(entries) -> list[str]:
+    return [entry.def_path for entry in entries]
+
+
+@pytest.fixture(scope="module")
+def stages():
+    return resolved_stages(ROOT)
+
+
+@pytest.fixture(scope="module")
+def params():
+    return yaml.safe_load((ROOT / "params.yaml").read_text())
+
+
+def test_params_yaml_is_composed_from_conf():
+    """The committed params.yaml is what `rigmap reproduce` / `dvc exp run` would write."""
+    assert (ROOT / "params.yaml").read_text() == compose_params(ROOT / "conf")
+
+
+def test_every_rig_with_a_motion_library_is_in_one_family(params):
+    with_library = sorted(name for name in libraries() if name in available_rigs())
+    pipeline = params["pipeline"]
+    assert sorted(pipeline["rigs"] + pipeline["blender_rigs"]) == with_library
+    assert pipeline["blender_rigs"] == ["rigify_wolf"]
+    assert set(pipeline["table1_rigs"]) <= set(pipeline["rigs"])
+
+
+def test_the_planned_work_per_stage_kind(stages, params):
+    """95 stages, as the hand-written 664-line dvc.yaml planned: counts by kind."""
+    rigs, blender = params["pipeline"]["rigs"], params["pipeline"]["blender_rigs"]
+    kinds: dict[str, int] = {}
+    for name in stages:
+        kind = name.split("@")[0].removesuffix("_blender")
+        kinds[kind] = kinds.get(kind, 0) + 1
+    assert kinds == {
+        "animate": 5,
+        "pose": 5,
+        "supersample": 6 * len(rigs) + 1,
+        "fit_nn": 6 * len(rigs) + 1,
+        "fit_gpr": 4 * len(rigs) + 1,
+        "sample_figures": len(rigs),
+        "evaluate": 3,
+        "evaluate_samplers": len(rigs),
+        "evaluate_kernels": len(rigs),
+        "sample_sweep": 2,
+        "report": 1,
+    }
+    assert len(stages) == 95 and len(blender) == 1
+
+
+def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
+    for rig in params["pipeline"]["rigs"]:
+        for sampler in available_samplers():
+            supersample = stages[f"supersample@{rig}-{sampler}"]
+            assert paths(supersample.outs) == [f"data/{rig}/samples/{sampler}.npz"]  # no chunks
+            assert f"sampler={sampler}" in supersample.cmd
+            fit = stages[f"fit_nn@{rig}-{sampler}"]
+            assert f"data/{rig}/samples/{sampler}.npz" in paths(fit.deps)
+            assert paths(fit.outs) == [f"models/{rig}/nn-{sampler}-none"]
+        for kernel in KERNELS:
+            fit = stages[f"fit_gpr@{rig}-{kernel}"]
+            assert paths(fit.outs) == [f"models/{rig}/gpr-none-{kernel}"]
+        figure = stages[f"sample_figures@{rig}"]
+        assert f"data/{rig}/samples" in paths(figure.deps)
+        assert [(o.def_path, o.use_cache) for o in figure.outs] == [
+            (f"reports/figures/samples_{rig}.png", False)  # committed to git for the README
+        ]
+        for stage in (f"animate@{rig}", f"pose@{rig}", f"supersample@{rig}-gmm"):
+            assert f"conf/rig/{rig}.yaml" in paths(stages[stage].deps)
+
+
+def test_the_blender_family_runs_table_1_only(stages):
+    wolf = "rigify_wolf"
+    for stage in (f"animate_blender@{wolf}", f"pose_blender@{wolf}"):
+        assert "src/rigmap/rigs" in paths(stages[stage].deps)
+    assert paths(stages[f"supersample_blender@{wolf}-pca_gaussian"].outs) == [
+        f"data/{wolf}/samples/pca_gaussian.npz"
+    ]
+    assert f"fit_nn_blender@{wolf}-pca_gaussian" in stages
+    assert f"fit_gpr_blender@{wolf}-multiquadric" in stages
+    evaluate = stages[f"evaluate_blender@{wolf}"]
+    assert (
+        "nn_autodiff_jacobian" not in evaluate.cmd and "evaluate.frames_per_clip=12" in evaluate.cmd
+    )
+    metrics = [o.def_path for o in evaluate.outs if o.metric]
+    assert len(metrics) == 7  # Table 1 without autodiff: the rig is a black box
+    assert all(not o.use_cache for o in evaluate.outs)
+
+
+def test_evaluations_declare_metrics_and_per_frame_plots(stages):
+    evaluate = stages["evaluate@quadruped"]
+    metrics = [o.def_path for o in evaluate.outs if o.metric]
+    plots = [o.def_path for o in evaluate.outs if o.plot]
+    assert len(metrics) == len(plots) == 8
+    assert [Path(p).with_suffix(".csv").as_posix() for p in metrics] == plots
+    assert "models/quadruped" in paths(evaluate.deps)
+    kernels = stages["evaluate_kernels@face"]
+    assert [Path(o.def_path).stem for o in kernels.outs if o.metric] == [
+        f"gpr-{k}" for k in KERNELS
+    ]
+    report = stages["report"]
+    assert {"metrics", "data", "conf"} <= set(paths(report.deps))
+
+
+def test_only_the_report_depends_on_the_lists_of_rigs(stages):
+    """Adding a rig to conf/pipeline/ re-runs that rig's stages and the report, no other."""
+    for name, stage in stages.items():
+        if name == "report":
+            continue
+        for dep in paths(stage.deps):
+            assert dep != "conf" and not dep.startswith("conf/pipeline"), (name, dep)
+
+
+def test_the_wolf_budget_comes_from_its_rig_config_over_the_command_line():
+    """fit_gpr_blender passes params.yaml's gpr_points (250); the rig's _overrides_ win (150)."""
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["rig=rigify_wolf", "regressor=gpr",
+                                                       "budget.gpr_points=250"])  # fmt: skip
+        built_in = compose(config_name="config", overrides=["rig=biped", "regressor=gpr"])
+    apply_rig_overrides(cfg)
+    assert cfg.budget.gpr_points == 150 and cfg.regressor.n_points == 150
+    assert cfg.evaluate.frames_per_clip == 12
+    assert "nn_autodiff_jacobian" not in cfg.evaluate.methods
+    assert RIG_OVERRIDES not in cfg.rig
+    assert apply_rig_overrides(built_in).budget.gpr_points == 250  # experiment=quick's
+    assert "pipeline" in built_in and "pipeline" not in stage_config(built_in)  # dvc.yaml's lists
+
+
+def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
+    """One yaml for the sampler, names in the conf lists: DVC plans its stages unchanged."""
+    project = tmp_path / "project"
+    project.mkdir()
+    shutil.copytree(ROOT / "conf", project / "conf")
+    shutil.copy(ROOT / "dvc.yaml", project / "dvc.yaml")
+    shutil.copy(ROOT / "conf" / "sampler" / "uniform.yaml", project / "conf/sampler/toy.yaml")
+    config = project / "conf" / "pipeline" / "default.yaml"
+    rigs = "rigs: [quadruped, biped, face, squirrel"
+    config.write_text(config.read_text().replace(rigs, f"{rigs}, toy_rig"))
+    evaluate = project / "conf" / "evaluate" / "default.yaml"
+    evaluate.write_text(
+        evaluate.read_text().replace("gmm, pca_gaussian]", "gmm, pca_gaussian, toy]")
+    )
+    write_params(project, defaults=False)
+    subprocess.run(
+        [sys.executable, "-m", "dvc", "init", "--no-scm", "-q"],
+        cwd=project,
+        check=True,
+        timeout=120,
+    )
+    stages = resolved_stages(project)
+    assert (project / "dvc.yaml").read_text() == (ROOT / "dvc.yaml").read_text()
+    assert paths(stages["supersample@quadruped-toy"].outs) == ["data/quadruped/samples/toy.npz"]
+    assert "sampler=toy" in stages["fit_nn@face-toy"].cmd
+    assert "conf/rig/toy_rig.yaml" in paths(stages["animate@toy_rig"].deps)
+    assert "fit_gpr@toy_rig-linear" in stages and "supersample@toy_rig-toy" in stages
+    assert "supersample_blender@rigify_wolf-toy" not in stages
