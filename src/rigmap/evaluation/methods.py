@@ -47,6 +47,7 @@ from rigmap.evaluation.metrics import (
     joint_error,
 )
 from rigmap.evaluation.timing import CountingRig, run_timed
+from rigmap.store import Layout
 
 GUESSES = ("script", "regressor")
 REFINEMENTS = ("none", "computed_jacobian", "learned_jacobian")
@@ -267,30 +268,28 @@ class TestSet:
 
     @classmethod
     def load(
-        cls, rig: Any, data_folder: str | Path, *, clips: Sequence[str] | None = None
+        cls, rig: Any, data: Layout | str | Path, *, clips: Sequence[str] | None = None
     ) -> TestSet:
-        """Read ``<data_folder>/poses/test.parquet`` and ``corpus/{test,train}.parquet``.
+        """Read the rig's test poses and its test and training corpus.
 
-        ``data_folder`` is the rig's folder (``data/<rig>``); ``clips`` picks test
-        clips by name (default: all, in file order).
+        ``data`` is a :class:`rigmap.store.Layout` or the rig's data folder
+        (``data/<rig>``); ``clips`` picks test clips by name (default: all, in file order).
         """
         from rigmap.animation.corpus import Corpus
         from rigmap.animation.posing import PoseTable
 
-        folder = Path(data_folder)
+        layout = _layout_of(data, rig.name)
+        folder = layout.rig_data(rig.name)
         used = list(rig.used_controls)
-        poses = PoseTable.read(
-            folder / "poses" / "test.parquet", rig=rig.name, n_joints=rig.n_joints, split="test"
-        )
+        poses_file = layout.poses(rig.name, "test")
+        poses = PoseTable.read(poses_file, rig=rig.name, n_joints=rig.n_joints, split="test")
         if poses.joint_names != list(rig.joint_names):
-            raise EvaluationSetupError(
-                f"{folder / 'poses' / 'test.parquet'}: joint names differ from rig {rig.name!r}'s"
-            )
+            raise EvaluationSetupError(f"{poses_file}: joint names differ from rig {rig.name!r}'s")
         test = Corpus.read(
-            folder / "corpus" / "test.parquet", rig=rig.name, control_names=used, split="test"
+            layout.corpus(rig.name, "test"), rig=rig.name, control_names=used, split="test"
         )
         train = Corpus.read(
-            folder / "corpus" / "train.parquet", rig=rig.name, control_names=used, split="train"
+            layout.corpus(rig.name, "train"), rig=rig.name, control_names=used, split="train"
         )
         keys = ["clip", "frame"]
         pose_keys = poses.table[keys].reset_index(drop=True)
@@ -330,6 +329,18 @@ class TestSet:
         kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
         std = control_std(train.table[used].to_numpy(dtype=np.float64))
         return cls(rig.name, test_clips, used, kinds, std)
+
+
+def _layout_of(data: Layout | str | Path, rig: str) -> Layout:
+    """``data`` as a Layout; a folder must be the rig's own (``<data root>/<rig>``)."""
+    if isinstance(data, Layout):
+        return data
+    folder = Path(data)
+    if folder.name != rig:
+        raise EvaluationSetupError(
+            f"test data folder {folder}: expected the rig's data folder <data>/{rig}, or a Layout"
+        )
+    return Layout(data=folder.parent)
 
 
 # --------------------------------------------------------------------------- results
@@ -586,81 +597,3 @@ def _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine) ->
         raise EvaluationSetupError(
             f"method {method.name!r} needs autodiff, but rig {rig.name!r} is not differentiable"
         )
-
-
-# --------------------------------------------------------------------------- what a stage runs
-@dataclass(frozen=True)
-class EvaluationJob:
-    """One method run of an evaluate stage: which models it reads and where its metrics go."""
-
-    method: Method
-    sampler: str  # the sampler the regressor's training data came from ("none" for gpr/script)
-    kernel: str | None  # the GPR kernel (None for nn and script)
-    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV beside it)
-    jacobian_kernel: str | None = None  # kernel of the GPR folder holding the learned Jacobian
-
-    @property
-    def model_folder_name(self) -> str | None:
-        """``<regressor>-<sampler>-<kernel>`` (contract layout), or None for the script."""
-        if self.method.regressor is None:
-            return None
-        return f"{self.method.regressor}-{self.sampler}-{self.kernel or 'none'}"
-
-    @property
-    def learned_jacobian_folder_name(self) -> str | None:
-        """The GPR folder whose ``learned_jacobian/`` refinement reads, if it needs one."""
-        if self.method.refine != "learned_jacobian":
-            return None
-        return f"gpr-none-{self.jacobian_kernel}"
-
-
-EVALUATION_SETS = ("methods", "samplers", "kernels")
-
-
-def evaluation_jobs(
-    set_name: str,
-    rig: str,
-    metrics_folder: str | Path,
-    *,
-    methods: Sequence[str] = tuple(METHODS),
-    samplers: Sequence[str] = (),
-    kernels: Sequence[str] = (),
-    nn_sampler: str = "pca_gaussian",
-    gpr_kernel: str = "multiquadric",
-) -> list[EvaluationJob]:
-    """The runs of one evaluate stage.
-
-    - ``methods``: each method once; GPR methods read ``gpr-none-<gpr_kernel>``,
-      network methods ``nn-<nn_sampler>-none``, learned-Jacobian refinement the
-      ``learned_jacobian/`` of ``gpr-none-<gpr_kernel>``; files
-      ``methods/<method>-<sampler>.json``.
-    - ``samplers``: ``nn`` once per sampler; files ``samplers/nn-<sampler>.json``.
-    - ``kernels``: ``gpr`` once per kernel; files ``kernels/gpr-<kernel>.json``.
-    """
-    root = Path(metrics_folder) / rig / set_name
-    jobs = []
-    if set_name == "methods":
-        for name in methods:
-            method = get_method(name)
-            sampler = nn_sampler if method.regressor == "nn" else "none"
-            kernel = gpr_kernel if method.regressor == "gpr" else None
-            jacobian_kernel = gpr_kernel if method.refine == "learned_jacobian" else None
-            path = root / f"{name}-{sampler}.json"
-            jobs.append(EvaluationJob(method, sampler, kernel, path, jacobian_kernel))
-    elif set_name == "samplers":
-        for sampler in samplers:
-            jobs.append(EvaluationJob(METHODS["nn"], sampler, None, root / f"nn-{sampler}.json"))
-    elif set_name == "kernels":
-        for kernel in kernels:
-            jobs.append(EvaluationJob(METHODS["gpr"], "none", kernel, root / f"gpr-{kernel}.json"))
-    else:
-        raise EvaluationSetupError(
-            f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
-        )
-    if not jobs:
-        raise EvaluationSetupError(f"evaluate.set={set_name}: nothing to run (empty list)")
-    stems = [job.metrics_path.name for job in jobs]
-    repeated = sorted({s for s in stems if stems.count(s) > 1})
-    if repeated:
-        raise EvaluationSetupError(f"evaluate.set={set_name}: runs repeated: {repeated}")
-    return jobs
