@@ -18,6 +18,10 @@ nn_learned_jacobian      nn          learned Jacobian (extra row)
 nn_autodiff_jacobian     nn          autodiff Jacobian (extra row)
 =======================  ==========  =================================
 
+The stages build these rows from the ``method`` config group (``conf/method/<name>.yaml``,
+see :mod:`rigmap.evaluation.method_config`); ``METHODS`` is the same table in code, for
+callers without a config (a test checks the two agree).
+
 ``run_method`` retargets every test clip, one clip per timed pass: the clock
 covers the whole method from the clip's poses to its controls — features,
 prediction, every rig evaluation refinement makes — after an untimed warm-up
@@ -386,25 +390,8 @@ def run_method(
         (Y_used, refined), timing = run_timed(
             partial(retarget, clip), np.arange(len(clip)), warmup_frames=warmup_frames, rig=counting
         )
-        X_pred = rig.evaluate(rig.expand_used(Y_used))  # scoring: not timed, not counted
-        truth = ground_truth_error(
-            Y_used,
-            clip.controls,
-            test_set.train_std,
-            test_set.control_kinds,
-            names=test_set.control_names,
-        )
-        clip_results.append(
-            ClipResult(
-                clip.name,
-                joint_error(X_pred, clip.positions).per_frame,
-                truth.per_frame,
-                total_time_s=timing.seconds,
-                rig_evaluations=timing.rig.poses,
-                rig_calls=timing.rig.calls,
-                frame_numbers=clip.frames,
-            )
-        )
+        result, truth = _score_clip(rig, clip, test_set, Y_used, timing)
+        clip_results.append(result)
         warmup[clip.name] = {"seconds": timing.warmup_seconds, "frames": timing.warmup_frames}
         if refined is not None:
             initial[clip.name] = float(refined.initial_joint_error.mean())
@@ -414,15 +401,59 @@ def run_method(
         table.insert(0, "clip", clip.name)
         curves.append(table)
         if progress:
-            summary = clip_results[-1].summary()
-            print(
-                f"  {test_set.rig} {method.name} {clip.name!r}: joint error "
-                f"{summary['joint_error']:.4g} {getattr(rig, 'length_unit', 'cm')}², "
-                f"ground truth {summary['ground_truth_error']:.4g}, "
-                f"{summary['total_time_s']:.3g} s ({summary['fps']:.4g} fps), "
-                f"{summary['rig_evaluations']} rig evaluations",
-                flush=True,
-            )
+            _print_clip(rig, test_set, method, result)
+    context = _method_context(method, kernel, refine, test_set, warmup, initial, iterations)
+    context.update(extra or {})
+    result = MethodResult(
+        test_set.rig,
+        method.name,
+        sampler,
+        clip_results,
+        length_unit=str(getattr(rig, "length_unit", "cm")),
+        warmup_frames=int(warmup_frames),
+        skipped_controls=truth.skipped,
+        extra=context,
+    )
+    controls = pd.concat(curves, ignore_index=True)
+    return MethodEvaluation(result, controls, initial)
+
+
+def _score_clip(rig, clip: TestClip, test_set: TestSet, Y_used: np.ndarray, timing):
+    """The clip's errors (rig evaluations that score are not timed, not counted)."""
+    X_pred = rig.evaluate(rig.expand_used(Y_used))
+    truth = ground_truth_error(
+        Y_used,
+        clip.controls,
+        test_set.train_std,
+        test_set.control_kinds,
+        names=test_set.control_names,
+    )
+    result = ClipResult(
+        clip.name,
+        joint_error(X_pred, clip.positions).per_frame,
+        truth.per_frame,
+        total_time_s=timing.seconds,
+        rig_evaluations=timing.rig.poses,
+        rig_calls=timing.rig.calls,
+        frame_numbers=clip.frames,
+    )
+    return result, truth
+
+
+def _print_clip(rig, test_set: TestSet, method: Method, result: ClipResult) -> None:
+    summary = result.summary()
+    print(
+        f"  {test_set.rig} {method.name} {result.clip!r}: joint error "
+        f"{summary['joint_error']:.4g} {getattr(rig, 'length_unit', 'cm')}², "
+        f"ground truth {summary['ground_truth_error']:.4g}, "
+        f"{summary['total_time_s']:.3g} s ({summary['fps']:.4g} fps), "
+        f"{summary['rig_evaluations']} rig evaluations",
+        flush=True,
+    )
+
+
+def _method_context(method, kernel, refine, test_set, warmup, initial, iterations) -> dict:
+    """What the metrics JSON's ``extra`` says about the method, its timing and refinement."""
     context: dict[str, Any] = {
         "guess": method.guess,
         "regressor": method.regressor,
@@ -445,19 +476,7 @@ def run_method(
             "average": sum(iterations[n] * frames[n] for n in iterations) / total,
             "clips": iterations,
         }
-    context.update(extra or {})
-    result = MethodResult(
-        test_set.rig,
-        method.name,
-        sampler,
-        clip_results,
-        length_unit=str(getattr(rig, "length_unit", "cm")),
-        warmup_frames=int(warmup_frames),
-        skipped_controls=truth.skipped,
-        extra=context,
-    )
-    controls = pd.concat(curves, ignore_index=True)
-    return MethodEvaluation(result, controls, initial)
+    return context
 
 
 class ScriptCountingRig(CountingRig):
