@@ -18,11 +18,16 @@ import pandas as pd
 import pytest
 import yaml
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 
-from rigmap.evaluation import evaluation_jobs
+from rigmap.evaluation import (
+    METHODS,
+    EvaluationSetupError,
+    RefineSettings,
+    method_catalog,
+)
 from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor
 from rigmap.regression.features import feature_names, inverse_features
-from rigmap.sampling import sampler_name
 from test_methods import build_rig_data, fit_tiny_models
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,7 +88,7 @@ def _head_commit() -> str:
 def _run_stage(overrides: list[str]) -> list[Path]:
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         cfg = compose(config_name="config", overrides=overrides)
-        return _stage().run(cfg, overrides=overrides)
+        return _stage().run(cfg)
 
 
 # --------------------------------------------------------------------------- files, no MLflow
@@ -137,39 +142,78 @@ def test_the_three_sets_write_their_metrics_files(face):
     assert per_frame["joint_error"].mean() == pytest.approx(gpr["average"]["joint_error"])
 
 
-def test_each_method_composes_its_own_config(face):
-    stage = _stage()
+def test_the_method_group_builds_every_method_of_table_1_once(face):
     overrides = _overrides(
-        face, "refine=computed_jacobian", "refine.damping=0.3", "refine.jacobian=autodiff",
-        "sampler=uniform", "kernel=gaussian", "budget.refine_iterations=4",
+        face, "method.gpr_computed_jacobian.refine.damping=0.3", "budget.refine_iterations=4",
     )  # fmt: skip
-    jobs = {
-        job.method.name: job
-        for job in evaluation_jobs(
-            "methods", "face", "metrics", nn_sampler="uniform", gpr_kernel="gaussian"
-        )
-    }
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        configs = {name: stage.method_config(job, overrides) for name, job in jobs.items()}
-    computed = configs["gpr_computed_jacobian"]
-    assert computed.regressor._target_.endswith("GaussianProcessRegressor")
-    assert sampler_name(computed.sampler) == "none" and computed.kernel._target_.endswith(
-        "GaussianKernel"
+        cfg = compose(config_name="config", overrides=overrides)
+    config = OmegaConf.to_container(cfg, resolve=True)
+    catalog = method_catalog(config["method"])
+    assert {name: m.method for name, m in catalog.items()} == METHODS  # the yamls are Table 1
+    assert sorted(p.stem for p in (ROOT / "conf" / "method").glob("*.yaml")) == sorted(METHODS)
+    computed = catalog["gpr_computed_jacobian"]
+    assert computed.refine == RefineSettings(damping=0.3, tolerance=1e-4, max_iterations=4)
+    assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
+    assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"
+    learned = catalog["nn_learned_jacobian"]
+    assert learned.method.refine == "learned_jacobian" and learned.refine.max_iterations == 4
+    assert catalog["gpr"].refine is None and catalog["script"].method.guess == "script"
+    node = config["method"]["gpr_computed_jacobian"]
+    negative = {**node, "refine": {**node["refine"], "damping": -1}}
+    expected = r"method\.gpr_computed_jacobian .*refine\.damping: expected a number >= 0"
+    with pytest.raises(EvaluationSetupError, match=expected):
+        method_catalog({"gpr_computed_jacobian": negative})
+
+
+def test_a_method_is_one_yaml(face, tmp_path):
+    """A toy method (its yaml in a copy of conf/) runs through the stage with no code change."""
+    import shutil
+
+    conf = tmp_path / "conf"
+    shutil.copytree(ROOT / "conf", conf)
+    (conf / "method" / "gpr_damped.yaml").write_text(
+        "defaults:\n  - /refine@refine: computed_jacobian\n  - _self_\n"
+        "_target_: rigmap.evaluation.configured_method\nguess: regressor\nregressor: gpr\n"
+        "refine:\n  damping: 0.5\n"
     )
-    assert computed.refine.name == "computed_jacobian"
-    assert computed.refine.jacobian == "finite_difference"  # the method decides, not the override
-    assert computed.refine.damping == 0.3 and computed.refine.max_iterations == 4
-    assert configs["nn_autodiff_jacobian"].refine.jacobian == "autodiff"
-    assert sampler_name(configs["nn_autodiff_jacobian"].sampler) == "uniform"
-    assert configs["nn"].regressor._target_.endswith("FeedForwardRegressor")
-    assert configs["gpr"].refine == {"name": "none"}  # refine.* overrides left out
-    learned = configs["nn_learned_jacobian"].refine
-    assert (
-        learned.name == "learned_jacobian" and learned.damping == 0.3 and "jacobian" not in learned
+    defaults = conf / "evaluate" / "default.yaml"
+    defaults.write_text(
+        defaults.read_text().replace(
+            "  - _self_", "  - /method@_global_.method.gpr_damped: gpr_damped\n  - _self_", 1
+        )
     )
-    assert (
-        sampler_name(configs["script"].sampler) == "none" and configs["script"].rig.name == "face"
-    )
+    overrides = _overrides(
+        face, "evaluate.log_to_mlflow=false", "evaluate.methods=[gpr,gpr_damped]",
+        f"paths.metrics={tmp_path / 'metrics'}",
+    )  # fmt: skip
+    with initialize_config_dir(config_dir=str(conf), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=overrides)
+        _stage().run(cfg)
+    folder = tmp_path / "metrics" / "face" / "methods"
+    plain = json.loads((folder / "gpr-none.json").read_text())
+    tight = json.loads((folder / "gpr_damped-none.json").read_text())
+    assert tight["method"] == "gpr_damped" and tight["extra"]["refine_settings"]["damping"] == 0.5
+    assert tight["extra"]["jacobian"] == "finite_difference"
+    assert tight["average"]["joint_error"] <= plain["average"]["joint_error"]
+    assert tight["average"]["rig_evaluations"] > 0 == plain["average"]["rig_evaluations"]
+
+
+def test_the_cli_runs_the_stage_in_process(face, tmp_path, capsys):
+    from rigmap import cli
+
+    out = tmp_path / "metrics"
+    overrides = [o for o in _overrides(face) if not o.startswith("paths.metrics")]
+    code = cli.main(
+        ["evaluate", *overrides, f"paths.metrics={out}", "evaluate.log_to_mlflow=false",
+         "evaluate.set=kernels", "evaluate.kernels=[gaussian]"]
+    )  # fmt: skip
+    assert code == 0
+    result = json.loads((out / "face" / "kernels" / "gpr-gaussian.json").read_text())
+    assert result["method"] == "gpr" and result["extra"]["kernel"] == "gaussian"
+    assert result["extra"]["experiment"] == "quick"  # the experiment group's choice, recorded
+    assert result["extra"]["budget"]["gpr_points"] == 250
+    assert "gpr-gaussian" in capsys.readouterr().out  # the summary table
 
 
 def test_missing_model_folders_are_named_before_any_work(face, tmp_path):
@@ -252,7 +296,9 @@ def test_runs_on_a_real_server_match_the_metrics_files(face, mlflow_server, tmp_
         assert {"config.yaml", "metrics.json", "per_frame.csv", "per_frame_error.png",
                 "predicted_controls.parquet"} <= artifacts  # fmt: skip
     assert children["nn_autodiff_jacobian"].data.tags["jacobian"] == "autodiff"
-    assert children["gpr"].data.params["regressor.n_points"] == "250"  # the composed config
+    assert children["gpr"].data.params["method.regressor"] == "gpr"  # the method's own config
+    assert children["gpr_learned_jacobian"].data.params["refine.name"] == "learned_jacobian"
+    assert children["gpr"].data.params["kernel.name"] == "multiquadric"
     curves = pd.read_parquet(
         client.download_artifacts(
             children["nn"].info.run_id, "predicted_controls.parquet", str(tmp_path)

@@ -35,6 +35,7 @@ from rigmap.regression import (
 )
 from rigmap.regression.features import inverse_features
 from rigmap.retarget.script import script_retarget
+from rigmap.store import ModelId
 
 FRAMES_PER_CLIP = 8
 REFINE = RefineSettings(damping=0.1, tolerance=0.0, max_iterations=2)  # no frame stops early
@@ -307,20 +308,20 @@ def test_evaluation_jobs_follow_the_contract_layout(tmp_path):
         "biped/methods/nn_learned_jacobian-pca_gaussian.json",
         "biped/methods/nn_autodiff_jacobian-pca_gaussian.json",
     ]
-    folders = {
-        j.method.name: (j.model_folder_name, j.learned_jacobian_folder_name) for j in methods
-    }
+    folders = {j.method.name: (j.model_id, j.jacobian_model_id) for j in methods}
     assert folders["script"] == (None, None)
-    assert folders["gpr_learned_jacobian"] == ("gpr-none-multiquadric", "gpr-none-multiquadric")
-    assert folders["nn_learned_jacobian"] == ("nn-pca_gaussian-none", "gpr-none-multiquadric")
-    assert folders["nn_autodiff_jacobian"] == ("nn-pca_gaussian-none", None)
+    gpr = ModelId("gpr", "none", "multiquadric")
+    assert folders["gpr_learned_jacobian"] == (gpr, gpr)
+    assert folders["nn_learned_jacobian"] == (ModelId("nn", "pca_gaussian"), gpr)
+    assert folders["nn_autodiff_jacobian"] == (ModelId("nn", "pca_gaussian", "none"), None)
+    assert str(folders["nn_learned_jacobian"][0]) == "nn-pca_gaussian-none"
     samplers = evaluation_jobs("samplers", "face", tmp_path, samplers=["none", "gmm"])
-    assert [(j.metrics_path.name, j.model_folder_name) for j in samplers] == [
+    assert [(j.metrics_path.name, str(j.model_id)) for j in samplers] == [
         ("nn-none.json", "nn-none-none"),
         ("nn-gmm.json", "nn-gmm-none"),
     ]
     kernels = evaluation_jobs("kernels", "face", tmp_path, kernels=["linear"])
-    assert [(j.metrics_path.name, j.model_folder_name) for j in kernels] == [
+    assert [(j.metrics_path.name, str(j.model_id)) for j in kernels] == [
         ("gpr-linear.json", "gpr-none-linear")
     ]
     with pytest.raises(EvaluationSetupError, match=r"expected one of \('methods', 'samplers'"):

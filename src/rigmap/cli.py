@@ -133,7 +133,8 @@ def _parser() -> argparse.ArgumentParser:
     evaluate = commands.add_parser(
         "evaluate",
         help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
-        description="Runs the evaluate stage (pipelines/evaluate.py) with Hydra overrides, e.g. "
+        description="Runs the evaluate stage (as pipelines/evaluate.py, in this process) with "
+        "Hydra overrides, e.g. "
         "rigmap evaluate rig=quadruped evaluate.set=methods, rigmap evaluate rig=biped "
         "evaluate.set=samplers, rigmap evaluate rig=face 'evaluate.methods=[gpr,nn]' "
         "evaluate.log_to_mlflow=false. Paths in the config (paths.data, paths.models, "
@@ -145,6 +146,12 @@ def _parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="Hydra overrides of conf/config.yaml (rig=, evaluate.set=, evaluate.methods=, "
         "sampler=, kernel=, experiment=, tracking.uri=, paths.*=)",
+    )
+    evaluate.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
     )
     evaluate.set_defaults(run=_evaluate)
 
@@ -211,8 +218,13 @@ def find_config_dir(explicit: Path | None = None) -> Path:
     )
 
 
-def compose_config(overrides: list[str], config_dir: Path | None = None):
-    """``conf/config.yaml`` with Hydra ``overrides``, as the pipeline apps would see it."""
+def compose_config(
+    overrides: list[str], config_dir: Path | None = None, *, with_hydra: bool = False
+):
+    """``conf/config.yaml`` with Hydra ``overrides``, as the pipeline apps would see it.
+
+    ``with_hydra`` keeps the ``hydra`` node (its ``runtime.choices`` name the groups chosen).
+    """
     from hydra import compose, initialize_config_dir
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
@@ -220,7 +232,9 @@ def compose_config(overrides: list[str], config_dir: Path | None = None):
     folder = find_config_dir(config_dir)
     try:
         with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
-            cfg = compose(config_name="config", overrides=list(overrides))
+            cfg = compose(
+                config_name="config", overrides=list(overrides), return_hydra_config=with_hydra
+            )
     except (HydraException, OmegaConfBaseException) as error:
         raise ValueError(
             f"config {folder}/config.yaml with overrides {overrides}: {error}"
@@ -237,15 +251,16 @@ def _fit(args) -> int:
 
 
 def _evaluate(args) -> int:
-    """The stage's own script in a child process: the same Hydra app DVC runs."""
-    import subprocess
+    """The evaluate stage in this process: the same library call as pipelines/evaluate.py."""
+    from omegaconf import OmegaConf
 
-    script = find_config_dir().parent / "pipelines" / "evaluate.py"
-    if not script.is_file():
-        raise FileNotFoundError(
-            f"{script}: the evaluate stage script is missing; run from rigmap's checkout"
-        )
-    return subprocess.run([sys.executable, str(script), *args.overrides], check=False).returncode
+    from rigmap.evaluation import evaluate_from_config
+
+    cfg = compose_config(args.overrides, args.config_dir, with_hydra=True)
+    experiment = cfg.hydra.runtime.choices.get("experiment")
+    stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
+    evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+    return 0
 
 
 def _export_blend(args) -> int:

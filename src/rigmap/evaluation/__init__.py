@@ -1,9 +1,23 @@
-"""Evaluation of inverse rig mappings (paper §6.1): errors, honest timing, and results."""
+"""Evaluation of inverse rig mappings (paper §6.1): errors, honest timing, methods and runs.
 
+- :mod:`~rigmap.evaluation.metrics`: joint and ground-truth errors, a method's result file;
+- :mod:`~rigmap.evaluation.timing`: the clock and the rig-evaluation counter;
+- :mod:`~rigmap.evaluation.methods`: the methods of Table 1, the test set, the runner;
+- :mod:`~rigmap.evaluation.method_config`: a method from its config group (conf/method);
+- :mod:`~rigmap.evaluation.jobs`: the runs of an evaluation set and their files;
+- :mod:`~rigmap.evaluation.fitted_models`: the model folders an evaluation reads;
+- :mod:`~rigmap.evaluation.evaluate`: the evaluate stage's work on plain objects;
+- :mod:`~rigmap.evaluation.mlflow_runs`: its parent and child MLflow runs;
+- :mod:`~rigmap.evaluation.from_config`: the same from a plain composed config (stage, CLI).
+"""
+
+from rigmap.evaluation.evaluate import EvaluationSettings, evaluate, evaluate_job
+from rigmap.evaluation.fitted_models import FittedModels
+from rigmap.evaluation.from_config import evaluate_from_config
+from rigmap.evaluation.jobs import EVALUATION_SETS, EvaluationJob, evaluation_jobs
+from rigmap.evaluation.method_config import ConfiguredMethod, configured_method, method_catalog
 from rigmap.evaluation.methods import (
-    EVALUATION_SETS,
     METHODS,
-    EvaluationJob,
     EvaluationSetupError,
     LearnedJacobianAtTargets,
     Method,
@@ -12,7 +26,6 @@ from rigmap.evaluation.methods import (
     ScriptCountingRig,
     TestClip,
     TestSet,
-    evaluation_jobs,
     get_method,
     run_method,
 )
@@ -33,9 +46,12 @@ __all__ = [
     "EVALUATION_SETS",
     "METHODS",
     "ClipResult",
+    "ConfiguredMethod",
     "CountingRig",
     "EvaluationJob",
+    "EvaluationSettings",
     "EvaluationSetupError",
+    "FittedModels",
     "FrameErrors",
     "GroundTruthError",
     "LearnedJacobianAtTargets",
@@ -50,11 +66,16 @@ __all__ = [
     "TestClip",
     "TestSet",
     "Timing",
+    "configured_method",
     "control_std",
+    "evaluate",
+    "evaluate_from_config",
+    "evaluate_job",
     "evaluation_jobs",
     "get_method",
     "ground_truth_error",
     "joint_error",
+    "method_catalog",
     "run_method",
     "run_timed",
     "write_per_frame_csv",

@@ -18,6 +18,10 @@ nn_learned_jacobian      nn          learned Jacobian (extra row)
 nn_autodiff_jacobian     nn          autodiff Jacobian (extra row)
 =======================  ==========  =================================
 
+The stages build these rows from the ``method`` config group (``conf/method/<name>.yaml``,
+see :mod:`rigmap.evaluation.method_config`); ``METHODS`` is the same table in code, for
+callers without a config (a test checks the two agree).
+
 ``run_method`` retargets every test clip, one clip per timed pass: the clock
 covers the whole method from the clip's poses to its controls — features,
 prediction, every rig evaluation refinement makes — after an untimed warm-up
@@ -47,6 +51,7 @@ from rigmap.evaluation.metrics import (
     joint_error,
 )
 from rigmap.evaluation.timing import CountingRig, run_timed
+from rigmap.store import Layout
 
 GUESSES = ("script", "regressor")
 REFINEMENTS = ("none", "computed_jacobian", "learned_jacobian")
@@ -267,30 +272,28 @@ class TestSet:
 
     @classmethod
     def load(
-        cls, rig: Any, data_folder: str | Path, *, clips: Sequence[str] | None = None
+        cls, rig: Any, data: Layout | str | Path, *, clips: Sequence[str] | None = None
     ) -> TestSet:
-        """Read ``<data_folder>/poses/test.parquet`` and ``corpus/{test,train}.parquet``.
+        """Read the rig's test poses and its test and training corpus.
 
-        ``data_folder`` is the rig's folder (``data/<rig>``); ``clips`` picks test
-        clips by name (default: all, in file order).
+        ``data`` is a :class:`rigmap.store.Layout` or the rig's data folder
+        (``data/<rig>``); ``clips`` picks test clips by name (default: all, in file order).
         """
         from rigmap.animation.corpus import Corpus
         from rigmap.animation.posing import PoseTable
 
-        folder = Path(data_folder)
+        layout = _layout_of(data, rig.name)
+        folder = layout.rig_data(rig.name)
         used = list(rig.used_controls)
-        poses = PoseTable.read(
-            folder / "poses" / "test.parquet", rig=rig.name, n_joints=rig.n_joints, split="test"
-        )
+        poses_file = layout.poses(rig.name, "test")
+        poses = PoseTable.read(poses_file, rig=rig.name, n_joints=rig.n_joints, split="test")
         if poses.joint_names != list(rig.joint_names):
-            raise EvaluationSetupError(
-                f"{folder / 'poses' / 'test.parquet'}: joint names differ from rig {rig.name!r}'s"
-            )
+            raise EvaluationSetupError(f"{poses_file}: joint names differ from rig {rig.name!r}'s")
         test = Corpus.read(
-            folder / "corpus" / "test.parquet", rig=rig.name, control_names=used, split="test"
+            layout.corpus(rig.name, "test"), rig=rig.name, control_names=used, split="test"
         )
         train = Corpus.read(
-            folder / "corpus" / "train.parquet", rig=rig.name, control_names=used, split="train"
+            layout.corpus(rig.name, "train"), rig=rig.name, control_names=used, split="train"
         )
         keys = ["clip", "frame"]
         pose_keys = poses.table[keys].reset_index(drop=True)
@@ -330,6 +333,18 @@ class TestSet:
         kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
         std = control_std(train.table[used].to_numpy(dtype=np.float64))
         return cls(rig.name, test_clips, used, kinds, std)
+
+
+def _layout_of(data: Layout | str | Path, rig: str) -> Layout:
+    """``data`` as a Layout; a folder must be the rig's own (``<data root>/<rig>``)."""
+    if isinstance(data, Layout):
+        return data
+    folder = Path(data)
+    if folder.name != rig:
+        raise EvaluationSetupError(
+            f"test data folder {folder}: expected the rig's data folder <data>/{rig}, or a Layout"
+        )
+    return Layout(data=folder.parent)
 
 
 # --------------------------------------------------------------------------- results
@@ -375,25 +390,8 @@ def run_method(
         (Y_used, refined), timing = run_timed(
             partial(retarget, clip), np.arange(len(clip)), warmup_frames=warmup_frames, rig=counting
         )
-        X_pred = rig.evaluate(rig.expand_used(Y_used))  # scoring: not timed, not counted
-        truth = ground_truth_error(
-            Y_used,
-            clip.controls,
-            test_set.train_std,
-            test_set.control_kinds,
-            names=test_set.control_names,
-        )
-        clip_results.append(
-            ClipResult(
-                clip.name,
-                joint_error(X_pred, clip.positions).per_frame,
-                truth.per_frame,
-                total_time_s=timing.seconds,
-                rig_evaluations=timing.rig.poses,
-                rig_calls=timing.rig.calls,
-                frame_numbers=clip.frames,
-            )
-        )
+        result, truth = _score_clip(rig, clip, test_set, Y_used, timing)
+        clip_results.append(result)
         warmup[clip.name] = {"seconds": timing.warmup_seconds, "frames": timing.warmup_frames}
         if refined is not None:
             initial[clip.name] = float(refined.initial_joint_error.mean())
@@ -403,15 +401,59 @@ def run_method(
         table.insert(0, "clip", clip.name)
         curves.append(table)
         if progress:
-            summary = clip_results[-1].summary()
-            print(
-                f"  {test_set.rig} {method.name} {clip.name!r}: joint error "
-                f"{summary['joint_error']:.4g} {getattr(rig, 'length_unit', 'cm')}², "
-                f"ground truth {summary['ground_truth_error']:.4g}, "
-                f"{summary['total_time_s']:.3g} s ({summary['fps']:.4g} fps), "
-                f"{summary['rig_evaluations']} rig evaluations",
-                flush=True,
-            )
+            _print_clip(rig, test_set, method, result)
+    context = _method_context(method, kernel, refine, test_set, warmup, initial, iterations)
+    context.update(extra or {})
+    result = MethodResult(
+        test_set.rig,
+        method.name,
+        sampler,
+        clip_results,
+        length_unit=str(getattr(rig, "length_unit", "cm")),
+        warmup_frames=int(warmup_frames),
+        skipped_controls=truth.skipped,
+        extra=context,
+    )
+    controls = pd.concat(curves, ignore_index=True)
+    return MethodEvaluation(result, controls, initial)
+
+
+def _score_clip(rig, clip: TestClip, test_set: TestSet, Y_used: np.ndarray, timing):
+    """The clip's errors (rig evaluations that score are not timed, not counted)."""
+    X_pred = rig.evaluate(rig.expand_used(Y_used))
+    truth = ground_truth_error(
+        Y_used,
+        clip.controls,
+        test_set.train_std,
+        test_set.control_kinds,
+        names=test_set.control_names,
+    )
+    result = ClipResult(
+        clip.name,
+        joint_error(X_pred, clip.positions).per_frame,
+        truth.per_frame,
+        total_time_s=timing.seconds,
+        rig_evaluations=timing.rig.poses,
+        rig_calls=timing.rig.calls,
+        frame_numbers=clip.frames,
+    )
+    return result, truth
+
+
+def _print_clip(rig, test_set: TestSet, method: Method, result: ClipResult) -> None:
+    summary = result.summary()
+    print(
+        f"  {test_set.rig} {method.name} {result.clip!r}: joint error "
+        f"{summary['joint_error']:.4g} {getattr(rig, 'length_unit', 'cm')}², "
+        f"ground truth {summary['ground_truth_error']:.4g}, "
+        f"{summary['total_time_s']:.3g} s ({summary['fps']:.4g} fps), "
+        f"{summary['rig_evaluations']} rig evaluations",
+        flush=True,
+    )
+
+
+def _method_context(method, kernel, refine, test_set, warmup, initial, iterations) -> dict:
+    """What the metrics JSON's ``extra`` says about the method, its timing and refinement."""
     context: dict[str, Any] = {
         "guess": method.guess,
         "regressor": method.regressor,
@@ -434,19 +476,7 @@ def run_method(
             "average": sum(iterations[n] * frames[n] for n in iterations) / total,
             "clips": iterations,
         }
-    context.update(extra or {})
-    result = MethodResult(
-        test_set.rig,
-        method.name,
-        sampler,
-        clip_results,
-        length_unit=str(getattr(rig, "length_unit", "cm")),
-        warmup_frames=int(warmup_frames),
-        skipped_controls=truth.skipped,
-        extra=context,
-    )
-    controls = pd.concat(curves, ignore_index=True)
-    return MethodEvaluation(result, controls, initial)
+    return context
 
 
 class ScriptCountingRig(CountingRig):
@@ -586,81 +616,3 @@ def _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine) ->
         raise EvaluationSetupError(
             f"method {method.name!r} needs autodiff, but rig {rig.name!r} is not differentiable"
         )
-
-
-# --------------------------------------------------------------------------- what a stage runs
-@dataclass(frozen=True)
-class EvaluationJob:
-    """One method run of an evaluate stage: which models it reads and where its metrics go."""
-
-    method: Method
-    sampler: str  # the sampler the regressor's training data came from ("none" for gpr/script)
-    kernel: str | None  # the GPR kernel (None for nn and script)
-    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV beside it)
-    jacobian_kernel: str | None = None  # kernel of the GPR folder holding the learned Jacobian
-
-    @property
-    def model_folder_name(self) -> str | None:
-        """``<regressor>-<sampler>-<kernel>`` (contract layout), or None for the script."""
-        if self.method.regressor is None:
-            return None
-        return f"{self.method.regressor}-{self.sampler}-{self.kernel or 'none'}"
-
-    @property
-    def learned_jacobian_folder_name(self) -> str | None:
-        """The GPR folder whose ``learned_jacobian/`` refinement reads, if it needs one."""
-        if self.method.refine != "learned_jacobian":
-            return None
-        return f"gpr-none-{self.jacobian_kernel}"
-
-
-EVALUATION_SETS = ("methods", "samplers", "kernels")
-
-
-def evaluation_jobs(
-    set_name: str,
-    rig: str,
-    metrics_folder: str | Path,
-    *,
-    methods: Sequence[str] = tuple(METHODS),
-    samplers: Sequence[str] = (),
-    kernels: Sequence[str] = (),
-    nn_sampler: str = "pca_gaussian",
-    gpr_kernel: str = "multiquadric",
-) -> list[EvaluationJob]:
-    """The runs of one evaluate stage.
-
-    - ``methods``: each method once; GPR methods read ``gpr-none-<gpr_kernel>``,
-      network methods ``nn-<nn_sampler>-none``, learned-Jacobian refinement the
-      ``learned_jacobian/`` of ``gpr-none-<gpr_kernel>``; files
-      ``methods/<method>-<sampler>.json``.
-    - ``samplers``: ``nn`` once per sampler; files ``samplers/nn-<sampler>.json``.
-    - ``kernels``: ``gpr`` once per kernel; files ``kernels/gpr-<kernel>.json``.
-    """
-    root = Path(metrics_folder) / rig / set_name
-    jobs = []
-    if set_name == "methods":
-        for name in methods:
-            method = get_method(name)
-            sampler = nn_sampler if method.regressor == "nn" else "none"
-            kernel = gpr_kernel if method.regressor == "gpr" else None
-            jacobian_kernel = gpr_kernel if method.refine == "learned_jacobian" else None
-            path = root / f"{name}-{sampler}.json"
-            jobs.append(EvaluationJob(method, sampler, kernel, path, jacobian_kernel))
-    elif set_name == "samplers":
-        for sampler in samplers:
-            jobs.append(EvaluationJob(METHODS["nn"], sampler, None, root / f"nn-{sampler}.json"))
-    elif set_name == "kernels":
-        for kernel in kernels:
-            jobs.append(EvaluationJob(METHODS["gpr"], "none", kernel, root / f"gpr-{kernel}.json"))
-    else:
-        raise EvaluationSetupError(
-            f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
-        )
-    if not jobs:
-        raise EvaluationSetupError(f"evaluate.set={set_name}: nothing to run (empty list)")
-    stems = [job.metrics_path.name for job in jobs]
-    repeated = sorted({s for s in stems if stems.count(s) > 1})
-    if repeated:
-        raise EvaluationSetupError(f"evaluate.set={set_name}: runs repeated: {repeated}")
-    return jobs

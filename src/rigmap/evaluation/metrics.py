@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +31,7 @@ from rigmap.error_measures import (  # noqa: F401  re-exported: evaluation code 
     joint_error,
 )
 from rigmap.error_measures import finite_array as _finite_array
+from rigmap.store import json_ready, write_text_atomic
 
 RESULT_FORMAT = "rigmap.method_result/1"
 
@@ -226,7 +225,7 @@ class MethodResult:
                 "names": list(self.skipped_controls),
                 "rule": "training std <= threshold: no scale to normalise by; left out",
             },
-            "extra": _json_ready(self.extra),
+            "extra": json_ready(self.extra, nonfinite_to_null=False),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -234,7 +233,7 @@ class MethodResult:
 
     def write_json(self, path: str | os.PathLike) -> Path:
         """Write the metrics JSON atomically."""
-        return write_text_atomically(path, self.to_json())
+        return write_text_atomic(path, self.to_json())
 
     def per_frame_table(self) -> pd.DataFrame:
         """One row per test frame: ``clip``, ``frame``, ``joint_error``, ``ground_truth_error``."""
@@ -252,33 +251,11 @@ class MethodResult:
 
 def write_per_frame_csv(result: MethodResult, path: str | os.PathLike) -> Path:
     """Write the per-frame errors as CSV (a DVC plot: x = frame, y = the errors), atomically."""
-    return write_text_atomically(path, result.per_frame_table().to_csv(index=False))
+    return write_text_atomic(path, result.per_frame_table().to_csv(index=False))
 
 
-def write_text_atomically(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` to a temp file beside ``path``, then rename it over ``path``."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return out
+#: the old name, still imported by rigmap.tracking.runs, rigmap.reports.index_page and
+#: rigmap.reports.table; new code calls rigmap.store.write_text_atomic
+write_text_atomically = write_text_atomic
 
 
-def _json_ready(value: Any) -> Any:
-    """Plain JSON types from numpy scalars/arrays and nested mappings."""
-    if isinstance(value, Mapping):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -39,16 +39,17 @@ def corpus_fps(rig_cfg: DictConfig) -> int:
 
 def sampler_from_config(sampler_cfg: DictConfig, rig) -> Any:
     """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
-    from rigmap.sampling import make_sampler
+    from rigmap.sampling import instantiate_sampler, sampler_name
 
     options = OmegaConf.to_container(sampler_cfg, resolve=True)
-    if options.get("name") == "uniform" and options.get("range") == "soft":
+    overrides = {}
+    if sampler_name(options) == "uniform" and options.get("range") == "soft":
         used = rig.controls.used_indices
         if options.get("lower") is None:
-            options["lower"] = rig.controls.lower[used]
+            overrides["lower"] = rig.controls.lower[used]
         if options.get("upper") is None:
-            options["upper"] = rig.controls.upper[used]
-    return make_sampler(**options)
+            overrides["upper"] = rig.controls.upper[used]
+    return instantiate_sampler(options, **overrides)
 
 
 def sampler_seed(seed: int, sampler_name: str) -> int:

@@ -1,0 +1,164 @@
+"""Score a rig's methods on its test clips and write their metrics (the evaluate stage's work).
+
+``evaluate`` takes plain objects — the rig, the methods by name (built from
+``conf/method``), a :class:`rigmap.store.Layout` and :class:`EvaluationSettings` —
+plans the set's jobs, checks every model folder exists, then runs each job and writes
+``metrics/<rig>/<set>/<stem>.json`` and the per-frame ``<stem>.csv`` beside it. With an
+:class:`~rigmap.evaluation.mlflow_runs.EvaluationLog` each job is also an MLflow child run.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from rigmap.evaluation.fitted_models import FittedModels
+from rigmap.evaluation.jobs import EVALUATION_SETS, EvaluationJob, evaluation_jobs
+from rigmap.evaluation.method_config import ConfiguredMethod
+from rigmap.evaluation.methods import EvaluationSetupError, MethodEvaluation, TestSet, run_method
+from rigmap.evaluation.metrics import write_per_frame_csv
+from rigmap.store import Layout
+
+
+@dataclass(frozen=True)
+class EvaluationSettings:
+    """What one evaluation runs and how (the ``evaluate`` config group, conf/evaluate/)."""
+
+    set: str = "methods"
+    methods: tuple[str, ...] = ()
+    samplers: tuple[str, ...] = ()
+    kernels: tuple[str, ...] = ()
+    clips: tuple[str, ...] | None = None  # test clips by name; None = all
+    frames_per_clip: int | None = None  # score only the first N frames of each clip
+    warmup_frames: int = 1  # untimed frames per clip before its timed pass
+    log_to_mlflow: bool = True
+    log_models: bool = True
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        if self.set not in EVALUATION_SETS:
+            raise EvaluationSetupError(
+                f"evaluate.set: expected one of {EVALUATION_SETS}, got {self.set!r}"
+            )
+        for name in ("methods", "samplers", "kernels", "clips"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, tuple(str(v) for v in value))
+
+    @classmethod
+    def from_mapping(cls, config: Mapping[str, Any]) -> EvaluationSettings:
+        """From the ``evaluate`` group as a plain mapping; unknown keys are an error."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(config) - known)
+        if unknown:
+            raise EvaluationSetupError(
+                f"evaluate config: unknown keys {unknown}; expected {sorted(known)}"
+            )
+        return cls(**dict(config))
+
+
+def evaluate(
+    rig: Any,
+    catalog: Mapping[str, ConfiguredMethod],
+    layout: Layout,
+    settings: EvaluationSettings,
+    *,
+    nn_sampler: str,
+    gpr_kernel: str,
+    record: Mapping[str, Any] | None = None,
+    log: Any = None,
+) -> list[Path]:
+    """Run the set ``settings.set`` names on ``rig``'s test clips; returns the files written.
+
+    ``nn_sampler`` and ``gpr_kernel`` pick the models of the ``methods`` set;
+    ``record`` is context written into every metrics JSON (experiment, budget);
+    ``log`` an ``EvaluationLog`` (MLflow) or None.
+    """
+    jobs = evaluation_jobs(
+        settings.set,
+        rig.name,
+        layout.metrics,
+        methods=settings.methods,
+        samplers=settings.samplers,
+        kernels=settings.kernels,
+        nn_sampler=nn_sampler,
+        gpr_kernel=gpr_kernel,
+        catalog={name: configured.method for name, configured in catalog.items()},
+    )
+    models = FittedModels(layout, rig)
+    models.check(jobs)  # every folder exists before minutes of work start
+    test_set = TestSet.load(rig, layout.rig_data(rig.name), clips=settings.clips)
+    test_set = test_set.first_frames(settings.frames_per_clip)
+    print(
+        f"evaluate {rig.name} ({settings.set}): {len(jobs)} runs on {len(test_set.clips)} test "
+        f"clips, {test_set.frames} frames; warm-up {settings.warmup_frames} frame(s) per clip "
+        "(untimed)",
+        flush=True,
+    )
+    written = []
+    for job in jobs:
+        configured = catalog[job.method.name]
+        evaluation = evaluate_job(job, configured, rig, test_set, models, settings, record)
+        written += write_metrics(job, evaluation)
+        if log is not None:
+            log.log_job(job, configured, evaluation, models, rig, test_set)
+    print_table(jobs, written)
+    return written
+
+
+def evaluate_job(
+    job: EvaluationJob,
+    configured: ConfiguredMethod,
+    rig: Any,
+    test_set: TestSet,
+    models: FittedModels,
+    settings: EvaluationSettings,
+    record: Mapping[str, Any] | None = None,
+) -> MethodEvaluation:
+    """One job: its models loaded (once per evaluation), the method run, timed and scored."""
+    method = job.method
+    print(f"{rig.name}: {method.name} (sampler {job.sampler}, kernel {job.kernel})", flush=True)
+    learned = models.learned_jacobian(job) if method.refine == "learned_jacobian" else None
+    return run_method(
+        rig,
+        method,
+        test_set,
+        regressor=models.regressor(job),
+        learned_jacobian=learned,
+        refine=configured.refine,
+        sampler=job.sampler,
+        kernel=job.kernel,
+        warmup_frames=int(settings.warmup_frames),
+        extra={
+            "model_folders": models.folders(job),
+            "frames_per_clip": settings.frames_per_clip,
+            **dict(record or {}),
+        },
+        progress=bool(settings.progress),
+    )
+
+
+def write_metrics(job: EvaluationJob, evaluation: MethodEvaluation) -> list[Path]:
+    """The metrics JSON and, beside it, the per-frame CSV (same stem)."""
+    json_path = evaluation.result.write_json(job.metrics_path)
+    csv_path = write_per_frame_csv(evaluation.result, job.metrics_path.with_suffix(".csv"))
+    return [json_path, csv_path]
+
+
+def print_table(jobs: Sequence[EvaluationJob], written: Sequence[Path]) -> None:
+    """The averages of every job, as the terminal summary of the run."""
+    print(
+        f"{'run':34s} {'joint err':>11s} {'ground truth':>12s} {'time s':>9s} {'fps':>9s} "
+        f"{'rig evals':>10s}"
+    )
+    for job in jobs:
+        average = json.loads(job.metrics_path.read_text())["average"]
+        print(
+            f"{job.metrics_path.stem:34s} {average['joint_error']:11.4g} "
+            f"{average['ground_truth_error']:12.4g} {average['total_time_s']:9.3g} "
+            f"{average['fps']:9.4g} {average['rig_evaluations']:10d}"
+        )
+    print(f"joint error in cm² (mean over frames and 3J coordinates); {len(written)} files written")

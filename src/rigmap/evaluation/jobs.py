@@ -1,0 +1,104 @@
+"""What one evaluate stage runs: a job per method run, its fitted models and its metrics file.
+
+The three evaluation sets of the paper: ``methods`` (Table 1 and its extra rows),
+``samplers`` (Table 2: the network once per sampler) and ``kernels`` (§7.1: the GPR
+once per kernel). A job names its models by :class:`rigmap.store.ModelId` and its
+metrics file by :class:`rigmap.store.Layout`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from rigmap.evaluation.methods import METHODS, EvaluationSetupError, Method
+from rigmap.store import Layout, ModelId
+
+EVALUATION_SETS = ("methods", "samplers", "kernels")
+
+
+@dataclass(frozen=True)
+class EvaluationJob:
+    """One method run of an evaluate stage: which models it reads and where its metrics go."""
+
+    method: Method
+    sampler: str  # the sampler the regressor's training data came from ("none" for gpr/script)
+    kernel: str | None  # the GPR kernel (None for nn and script)
+    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV beside it)
+    jacobian_kernel: str | None = None  # kernel of the GPR folder holding the learned Jacobian
+
+    @property
+    def model_id(self) -> ModelId | None:
+        """The fitted mapping the guess comes from, or None for the script."""
+        if self.method.regressor is None:
+            return None
+        return ModelId(self.method.regressor, self.sampler, self.kernel or "none")
+
+    @property
+    def jacobian_model_id(self) -> ModelId | None:
+        """The GPR whose ``learned_jacobian/`` refinement reads, if it needs one."""
+        if self.method.refine != "learned_jacobian":
+            return None
+        return ModelId("gpr", "none", self.jacobian_kernel)
+
+
+def evaluation_jobs(
+    set_name: str,
+    rig: str,
+    metrics_folder: str | Path,
+    *,
+    methods: Sequence[str] = tuple(METHODS),
+    samplers: Sequence[str] = (),
+    kernels: Sequence[str] = (),
+    nn_sampler: str = "pca_gaussian",
+    gpr_kernel: str = "multiquadric",
+    catalog: Mapping[str, Method] = METHODS,
+) -> list[EvaluationJob]:
+    """The runs of one evaluate stage; ``catalog`` holds the methods by name.
+
+    - ``methods``: each method once; GPR methods read ``gpr-none-<gpr_kernel>``,
+      network methods ``nn-<nn_sampler>-none``, learned-Jacobian refinement the
+      ``learned_jacobian/`` of ``gpr-none-<gpr_kernel>``; files
+      ``methods/<method>-<sampler>.json``.
+    - ``samplers``: ``nn`` once per sampler; files ``samplers/nn-<sampler>.json``.
+    - ``kernels``: ``gpr`` once per kernel; files ``kernels/gpr-<kernel>.json``.
+    """
+    if set_name not in EVALUATION_SETS:
+        raise EvaluationSetupError(
+            f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
+        )
+    root = Layout(metrics=Path(metrics_folder)).metrics_folder(rig, set_name)
+    jobs = []
+    if set_name == "methods":
+        for name in methods:
+            method = _method(catalog, name)
+            sampler = nn_sampler if method.regressor == "nn" else "none"
+            kernel = gpr_kernel if method.regressor == "gpr" else None
+            jacobian_kernel = gpr_kernel if method.refine == "learned_jacobian" else None
+            path = root / f"{name}-{sampler}.json"
+            jobs.append(EvaluationJob(method, sampler, kernel, path, jacobian_kernel))
+    elif set_name == "samplers":
+        network = _method(catalog, "nn")
+        for sampler in samplers:
+            jobs.append(EvaluationJob(network, sampler, None, root / f"nn-{sampler}.json"))
+    else:
+        gpr = _method(catalog, "gpr")
+        for kernel in kernels:
+            jobs.append(EvaluationJob(gpr, "none", kernel, root / f"gpr-{kernel}.json"))
+    if not jobs:
+        raise EvaluationSetupError(f"evaluate.set={set_name}: nothing to run (empty list)")
+    stems = [job.metrics_path.name for job in jobs]
+    repeated = sorted({s for s in stems if stems.count(s) > 1})
+    if repeated:
+        raise EvaluationSetupError(f"evaluate.set={set_name}: runs repeated: {repeated}")
+    return jobs
+
+
+def _method(catalog: Mapping[str, Method], name: str) -> Method:
+    try:
+        return catalog[name]
+    except KeyError:
+        raise EvaluationSetupError(
+            f"unknown method {name!r}; available methods: {', '.join(catalog)}"
+        ) from None

@@ -1,0 +1,76 @@
+"""A method built from its config group ``conf/method/<name>.yaml`` by ``hydra.utils.instantiate``.
+
+Each yaml names the method's initial guess (``script`` or ``regressor`` with the
+regressor's name) and pulls its refinement from ``conf/refine/*`` through its
+defaults list, so the damped-least-squares settings a method runs with are the ones
+its config shows (``method.<name>.refine.damping=0.3`` overrides one). The method's
+name is its key in the config (``method.<name>``), passed in as ``name``, so no yaml
+restates it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from rigmap.evaluation.methods import EvaluationSetupError, Method, RefineSettings
+
+
+@dataclass(frozen=True)
+class ConfiguredMethod:
+    """A Table 1 row with the refinement settings its config gives, and that config."""
+
+    method: Method
+    refine: RefineSettings | None  # None exactly when the method does not refine
+    config: dict[str, Any] = field(default_factory=dict, compare=False)  # plain, for the record
+
+    @property
+    def name(self) -> str:
+        return self.method.name
+
+
+def configured_method(
+    name: str,
+    guess: str,
+    regressor: str | None = None,
+    refine: Mapping[str, Any] | None = None,
+) -> ConfiguredMethod:
+    """The method ``name`` from its config node: guess, regressor, and its ``refine`` group.
+
+    ``refine`` is a composed ``conf/refine/*.yaml`` (``name`` none, computed_jacobian
+    with its ``jacobian``, or learned_jacobian, plus the solver settings).
+    """
+    refine = dict(refine or {"name": "none"})
+    kind = refine.get("name")
+    if kind is None:
+        raise EvaluationSetupError(
+            f"method {name!r}: its refine config has no name (expected one of conf/refine/*)"
+        )
+    jacobian = refine.get("jacobian") if kind == "computed_jacobian" else None
+    method = Method(str(name), str(guess), regressor, str(kind), jacobian)
+    settings = None if method.refine == "none" else RefineSettings.from_config(refine, method)
+    config = {"guess": guess, "regressor": regressor, "refine": refine}
+    return ConfiguredMethod(method, settings, config)
+
+
+def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, ConfiguredMethod]:
+    """Every method of the ``method`` config node, by name, built by ``hydra.utils.instantiate``."""
+    import hydra.utils
+    from hydra.errors import InstantiationException
+
+    catalog = {}
+    for name, node in configs.items():
+        try:
+            built = hydra.utils.instantiate(dict(node), name=str(name), _convert_="all")
+        except InstantiationException as error:  # Hydra wraps the reason: name it plainly
+            cause = error.__cause__ if error.__cause__ is not None else error
+            where = f"method.{name} (conf/method/{name}.yaml)"
+            raise EvaluationSetupError(f"{where}: {cause}") from None
+        if not isinstance(built, ConfiguredMethod):
+            raise EvaluationSetupError(
+                f"method.{name}: its _target_ built a {type(built).__name__}, expected a "
+                "ConfiguredMethod (rigmap.evaluation.configured_method)"
+            )
+        catalog[str(name)] = built
+    return catalog
