@@ -224,15 +224,38 @@ def _load_finished_chunk(chunk_file: Path, controls: np.ndarray, rig_id: str) ->
         return None  # unreadable: evaluate it again
 
 
+FINGERPRINT_PROBES = 8  # ours: enough random poses that a changed offset or mechanism shows
+FINGERPRINT_SEED = 20_170_001  # ours: a fixed seed, so every run probes the same controls
+FINGERPRINT_DECIMALS = 4  # ours: joint positions rounded to 1e-4 of the rig's unit (1 µm in cm)
+
+
 def _rig_fingerprint(rig) -> str:
-    """Identifies the rig's interface, so chunks posed by another rig are not reused."""
+    """Identifies the rig's interface *and behaviour*: chunks of another rig are not reused.
+
+    Names alone miss a changed rig (a moved joint offset, a new mechanism): the hash also
+    covers the joint positions of a fixed seeded probe set of control vectors (the
+    defaults, then points half-way from the defaults to uniform draws in the soft
+    ranges), rounded to ``FINGERPRINT_DECIMALS`` so last-bit noise does not count.
+    """
+    controls = rig.controls
+    lower, upper = np.asarray(controls.lower), np.asarray(controls.upper)
+    defaults = np.asarray(controls.defaults, dtype=np.float64)
+    draws = np.random.default_rng(FINGERPRINT_SEED).uniform(
+        size=(FINGERPRINT_PROBES - 1, defaults.size)
+    )
+    probe = np.vstack([defaults, defaults + 0.5 * (lower + draws * (upper - lower) - defaults)])
+    positions = np.asarray(rig.evaluate(probe), dtype=np.float64)
+    rounded = np.round(positions, FINGERPRINT_DECIMALS) + 0.0  # + 0.0: no negative zeros
     description = {
         "name": rig.name,
-        "controls": list(rig.controls.names),
-        "used": np.asarray(rig.controls.used_indices).tolist(),
+        "controls": list(controls.names),
+        "used": np.asarray(controls.used_indices).tolist(),
         "joints": list(rig.joint_names),
+        "probe_decimals": FINGERPRINT_DECIMALS,
     }
-    return hashlib.sha256(json.dumps(description).encode()).hexdigest()
+    digest = hashlib.sha256(json.dumps(description).encode())
+    digest.update(np.ascontiguousarray(rounded).tobytes())
+    return digest.hexdigest()
 
 
 def _check_sampler(sampler, rig, n_used: int) -> None:
