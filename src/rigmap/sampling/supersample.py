@@ -34,7 +34,12 @@ from tqdm.auto import tqdm
 from rigmap.errors import RigmapError
 from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError, check_count
 from rigmap.sampling.clamping import clamp_to_limits
-from rigmap.sampling.reproducible_npz import leftover_temporaries, save_npz_atomically
+from rigmap.sampling.reproducible_npz import (
+    NpzFileError,
+    leftover_temporaries,
+    read_npz,
+    save_npz_atomically,
+)
 
 DEFAULT_CHUNK_SIZE = 10_000
 FILE_FORMAT_VERSION = 1
@@ -179,9 +184,11 @@ def supersample(
 
 def load_samples(path: str | os.PathLike) -> dict:
     """A finished samples file as a dict of arrays, with ``meta`` parsed from JSON."""
-    with np.load(path, allow_pickle=False) as data:
-        arrays = {key: data[key] for key in data.files}
-    arrays["meta"] = json.loads(str(arrays["meta"]))
+    arrays = read_npz(path, ("controls", "positions", "meta"), what="samples file")
+    try:
+        arrays["meta"] = json.loads(str(arrays["meta"]))
+    except ValueError as error:
+        raise NpzFileError(f"samples file {path}: its meta is not JSON ({error})") from None
     return arrays
 
 
