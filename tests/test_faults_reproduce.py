@@ -271,3 +271,13 @@ def test_reproduce_preflight_lines_then_dvc(project, fake_dvc, tmp_path):
     text = log.read_text()
     assert "preflight output folders: ok" in text and "status" in _read(tmp_path / "ran.txt")
     assert b"samples: 999" in (project / "params.yaml").read_bytes()  # a real run keeps it
+
+
+def test_stages_run_with_pinned_cpu_code_paths(project, fake_dvc):
+    """Issue 20 (reproducible numbers): MKL and ATen take the same code path on every machine;
+    a value the user set wins."""
+    plan = plan_reproduce([], project=project, python=fake_dvc / "python", environ={"PATH": ""})
+    assert plan.env["MKL_CBWR"] == "AVX2" and plan.env["ATEN_CPU_CAPABILITY"] == "avx2"
+    mine = {"PATH": "", "MKL_CBWR": "COMPATIBLE"}
+    plan = plan_reproduce([], project=project, python=fake_dvc / "python", environ=mine)
+    assert plan.env["MKL_CBWR"] == "COMPATIBLE"
