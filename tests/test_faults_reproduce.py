@@ -112,14 +112,24 @@ def test_good_values_are_written(project):
     write_params(project, ["experiment=paper"])  # every value of the paper's experiment passes
 
 
-def test_the_cli_prints_the_bad_value_without_a_traceback(project):
+CLI_BAD_VALUES = {
+    "budget.samples=2.5": "budget.samples = 2.5: expected an integer",
+    "budget.samples=0": "budget.samples = 0: expected an integer >= 1",
+    "regressor.hidden=abc": "regressor.hidden = 'abc': expected an integer",
+    "rig.name='x; rm -rf ~'": "rig.name = 'x; rm -rf ~': contains ';', a shell metacharacter",
+    "experiment=papr": "unknown experiment 'papr'",
+}
+
+
+@pytest.mark.parametrize("override", list(CLI_BAD_VALUES))
+def test_the_cli_prints_the_bad_value_without_a_traceback(project, override):
     done = subprocess.run(
         [sys.executable, "-m", "rigmap.cli", "reproduce", "--params-only", "--project",
-         str(project), "budget.samples=2.5"],
+         str(project), override],
         capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONPATH": _path()},
     )  # fmt: skip
     assert done.returncode == 2, done.stderr
-    assert "budget.samples = 2.5: expected an integer" in done.stderr
+    assert CLI_BAD_VALUES[override] in done.stderr
     assert "Traceback" not in done.stderr
 
 
