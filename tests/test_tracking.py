@@ -42,6 +42,7 @@ from rigmap.tracking import (
     Tracker,
     TrackingKeyError,
     TrackingUnavailableError,
+    allow_mapping_class,
     flatten_config,
     joint_columns,
     log_inverse_mapping,
@@ -54,6 +55,7 @@ from rigmap.tracking import (
 from rigmap.tracking.store import local_artifact_root
 
 REPO = Path(__file__).resolve().parents[1]
+allow_mapping_class(LeastSquaresMapping)  # the pyfunc loader builds only allow-listed classes
 CLIPS = {"jump & play": (12, 21), "tai chi": (8, 22)}  # name: (frames, seed)
 
 
@@ -211,6 +213,10 @@ def test_parent_and_method_runs_on_a_real_server(mlflow_server, evaluation, tmp_
     X_test.iloc[:, ::-1].assign(extra=1.0).to_parquet(tmp_path / "joints.parquet")  # order-free
     script = (
         "import sys, mlflow, pandas as pd\n"
+        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+        "from least_squares_mapping import LeastSquaresMapping\n"
+        "from rigmap.tracking import allow_mapping_class\n"
+        "allow_mapping_class(LeastSquaresMapping)  # the loading process trusts the test's class\n"
         "mlflow.set_tracking_uri(sys.argv[1])\n"
         "model = mlflow.pyfunc.load_model(sys.argv[2])\n"
         "model.predict(pd.read_parquet(sys.argv[3])).to_parquet(sys.argv[4])\n"
@@ -342,6 +348,9 @@ class ForgetfulMapping(LeastSquaresMapping):
             return super().save(folder)
         finally:
             self.weights_[-1] = intercept
+
+
+allow_mapping_class(ForgetfulMapping)
 
 
 def test_mappings_that_cannot_be_logged_are_refused_before_mlflow(evaluation, tmp_path):

@@ -15,15 +15,15 @@ gives the same text DVC writes) and then runs ``dvc repro``.
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from rigmap.errors import RigmapError
+from rigmap.params_checks import param_problems
+from rigmap.store import write_text_atomic
 
 PARAMS_FILE = "params.yaml"
 CONFIG_NAME = "config"
@@ -113,6 +113,8 @@ def write_params(
 ) -> ParamsUpdate:
     """Compose ``<project>/params.yaml`` from ``<project>/conf`` and ``overrides``, atomically.
 
+    Every value is checked first (:mod:`rigmap.params_checks`: types, ranges, shell
+    safety); a bad one raises ``ParamsError`` naming the key, and nothing is written.
     The file is rewritten only when its text changes (so ``dvc repro`` sees no change
     when the experiment is the same). With ``defaults``, also report which values differ
     from the plain composition (no overrides).
@@ -122,15 +124,15 @@ def write_params(
     project = Path(project)
     config_dir = project / "conf"
     text = compose_params(config_dir, overrides)
+    params = yaml.safe_load(text)
+    flat, flat_plain = flatten(params), flatten(yaml.safe_load(compose_params(config_dir, ())))
+    check_params(flat, flat_plain, project / "dvc.yaml", overrides)
     path = project / PARAMS_FILE
     changed = not path.is_file() or path.read_text(encoding="utf-8") != text
     if changed:
-        _write_atomically(path, text)
-    params = yaml.safe_load(text)
+        write_text_atomic(path, text)
     differing: tuple[str, ...] = ()
     if defaults:
-        plain = yaml.safe_load(compose_params(config_dir, ()))
-        flat, flat_plain = flatten(params), flatten(plain)
         differing = tuple(
             key
             for key in sorted(set(flat) | set(flat_plain))
@@ -142,16 +144,21 @@ def write_params(
 _ABSENT = object()
 
 
-def _write_atomically(path: Path, text: str) -> None:
-    fd, temp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            handle.write(text)
-        os.chmod(temp, 0o644)
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+def check_params(
+    flat: Mapping[str, Any],
+    flat_plain: Mapping[str, Any],
+    dvc_yaml: Path,
+    overrides: Sequence[str] = (),
+) -> None:
+    """Refuse (``ParamsError``, one line per bad key) values that may not reach params.yaml."""
+    interpolated = interpolated_params(dvc_yaml) if dvc_yaml.is_file() else set()
+    problems = param_problems(flat, flat_plain, interpolated)
+    if problems:
+        given = f" (overrides {list(overrides)})" if overrides else ""
+        raise ParamsError(
+            f"params.yaml not written{given}: {len(problems)} bad value(s):\n  "
+            + "\n  ".join(problems)
+        )
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -9,7 +9,12 @@
    each stage starts (``n``: the stages DVC reports changed plus everything
    downstream of them — an upper bound, as DVC skips a stage whose inputs came out
    unchanged).
+   Before it, a preflight (:mod:`rigmap.preflight`) checks in seconds what the stages
+   will need: the Blender environment, the tracking server, writable output folders.
 3. At the end it prints where ``index.html`` is.
+
+Parameter values are checked before params.yaml is written (:mod:`rigmap.params_checks`),
+and a dry run killed by SIGTERM, SIGHUP or Ctrl-C still puts the old params.yaml back.
 """
 
 from __future__ import annotations
@@ -18,9 +23,12 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -32,6 +40,8 @@ from rigmap.pipeline_params import (
     reaching_stages,
     write_params,
 )
+from rigmap.preflight import check_pipeline_needs
+from rigmap.store import write_text_atomic
 
 # how DVC says a stage starts, or is restored from its run cache instead of running
 STAGE_STARTS = (
@@ -39,6 +49,14 @@ STAGE_STARTS = (
     (re.compile(r"Stage '([^']+)' is cached - skipping run"), " (cached: outputs restored)"),
 )
 PREFIX = "[rigmap reproduce]"
+
+#: Pin the CPU code paths of torch's MKL (BLAS) and ATen kernels. Without it each machine
+#: picks its widest (AVX-512 on one, AVX2 on another), and float32 network training rounds
+#: differently: measured here, another MKL path changed the quick network's predictions by
+#: 2.6e-6 after 8 epochs, which refinement and long clips grow into per-cent differences.
+#: AVX2 is what the AMD EPYC machines already run, bit for bit (measured: same weights,
+#: same time); a value already in the environment wins.
+CPU_CODE_PATHS = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2"}
 
 
 @dataclass(frozen=True)
@@ -89,6 +107,8 @@ def plan_reproduce(
     bin_dir = str(Path(python or sys.executable).parent)
     path = os.pathsep.join([bin_dir, *[p for p in environ.get("PATH", "").split(os.pathsep) if p]])
     environ["PATH"] = path
+    for name, value in CPU_CODE_PATHS.items():
+        environ.setdefault(name, value)
     dvc = shutil.which("dvc", path=path)
     if dvc is None and params_only:
         dvc = "dvc"
@@ -182,20 +202,52 @@ def _dvc_outputs(commands: list[list[str]], plan: ReproducePlan) -> list[str]:
     return outputs
 
 
+class Interrupted(SystemExit):
+    """SIGTERM or SIGHUP arrived; unwinds like Ctrl-C (so params.yaml is restored), exit 128+n."""
+
+
+@contextmanager
+def _signals_unwind() -> Iterator[None]:
+    """SIGTERM/SIGHUP raise ``Interrupted`` in the main thread, so ``finally`` blocks run."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def unwind(signum: int, frame: object) -> None:
+        raise Interrupted(128 + signum)
+
+    previous = {sig: signal.signal(sig, unwind) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def run_reproduce(plan: ReproducePlan, *, out: TextIO | None = None) -> int:
-    """Write params.yaml, run ``dvc repro`` streaming its output; DVC's exit code."""
+    """Write params.yaml, check what the run needs, run ``dvc repro`` streaming; DVC's exit code.
+
+    params.yaml is written atomically; a dry run (or a run stopped by the preflight, a
+    signal or Ctrl-C before ``dvc repro`` started) puts the previous file back.
+    """
     out = out or sys.stdout
     params_file = plan.project / "params.yaml"
-    before = params_file.read_text(encoding="utf-8") if params_file.is_file() else None
-    update = write_params(plan.project, plan.overrides)
-    try:
-        return _run(plan, update, out)
-    finally:
-        if plan.dry and update.changed:  # a dry run leaves the workspace as it was
-            if before is None:
-                params_file.unlink(missing_ok=True)
-            else:
-                params_file.write_text(before, encoding="utf-8")
+    with _signals_unwind():
+        before = params_file.read_text(encoding="utf-8") if params_file.is_file() else None
+        update = write_params(plan.project, plan.overrides)
+        keep = False
+        try:
+            if not plan.dry and not plan.params_only:
+                for line in check_pipeline_needs(plan.project, update.params, plan.env):
+                    print(f"{PREFIX} preflight {line}", file=out, flush=True)
+            keep = not plan.dry
+            return _run(plan, update, out)
+        finally:
+            if update.changed and not keep:  # the workspace is left as it was
+                if before is None:
+                    params_file.unlink(missing_ok=True)
+                else:
+                    write_text_atomic(params_file, before)
 
 
 def _run(plan: ReproducePlan, update, out: TextIO) -> int:
@@ -263,7 +315,7 @@ def _stream(plan: ReproducePlan, out: TextIO, total: int | None) -> int:
                             f"{PREFIX} stage {len(announced)}{of}: {match.group(1)}{remark}\n"
                         )
             out.flush()
-    except KeyboardInterrupt:
+    except BaseException:  # Ctrl-C, SIGTERM (Interrupted), a broken pipe: DVC stops too
         process.terminate()
         process.wait()
         raise

@@ -257,5 +257,3 @@ def write_per_frame_csv(result: MethodResult, path: str | os.PathLike) -> Path:
 #: the old name, still imported by rigmap.tracking.runs, rigmap.reports.index_page and
 #: rigmap.reports.table; new code calls rigmap.store.write_text_atomic
 write_text_atomically = write_text_atomic
-
-

@@ -1,4 +1,5 @@
-"""Writing ``.npz`` files that are byte-identical for identical arrays, atomically.
+"""Writing ``.npz`` files that are byte-identical for identical arrays, atomically; reading
+them back with an error that names the file.
 
 DVC and the resume check compare files by content, so the archive must not
 depend on when it was written: every member gets the same fixed zip timestamp
@@ -16,6 +17,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+
+from rigmap.errors import RigmapError
 
 ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)  # the earliest time a zip entry can hold
 
@@ -52,3 +55,34 @@ def leftover_temporaries(path: str | os.PathLike) -> list[Path]:
     """Temporary files a killed ``save_npz_atomically(path, …)`` may have left."""
     path = Path(path)
     return sorted(path.parent.glob(f".{path.name}.*.tmp"))
+
+
+class NpzFileError(RigmapError, ValueError):
+    """A ``.npz`` file that is missing, truncated, bit-flipped or lacks an array."""
+
+
+def read_npz(
+    path: str | os.PathLike, required: tuple[str, ...] = (), *, what: str = "npz file"
+) -> dict[str, np.ndarray]:
+    """Every array of ``path`` (no pickles), read whole so a corrupted member shows here.
+
+    zip's CRC-32 of each member is checked as it is read, so a flipped bit is found
+    as well as a truncation. A missing file, a damaged one, or one without the
+    ``required`` arrays raises ``NpzFileError`` naming the file and what to do.
+    """
+    path = Path(path)
+    redo = "delete it and re-run the stage that writes it (dvc repro)"
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {key: data[key] for key in data.files}
+    except FileNotFoundError:
+        raise NpzFileError(f"{what} {path}: no such file; {redo}") from None
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as error:
+        reason = f"{type(error).__name__}: {error}"
+        raise NpzFileError(
+            f"{what} {path} is damaged or not a .npz file ({reason}); {redo}"
+        ) from None
+    missing = [key for key in required if key not in arrays]
+    if missing:
+        raise NpzFileError(f"{what} {path}: lacks the arrays {missing}; {redo}")
+    return arrays

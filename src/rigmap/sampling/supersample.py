@@ -34,7 +34,12 @@ from tqdm.auto import tqdm
 from rigmap.errors import RigmapError
 from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError, check_count
 from rigmap.sampling.clamping import clamp_to_limits
-from rigmap.sampling.reproducible_npz import leftover_temporaries, save_npz_atomically
+from rigmap.sampling.reproducible_npz import (
+    NpzFileError,
+    leftover_temporaries,
+    read_npz,
+    save_npz_atomically,
+)
 from rigmap.store import json_ready
 
 DEFAULT_CHUNK_SIZE = 10_000
@@ -199,9 +204,11 @@ def _pose_in_chunks(
 
 def load_samples(path: str | os.PathLike) -> dict:
     """A finished samples file as a dict of arrays, with ``meta`` parsed from JSON."""
-    with np.load(path, allow_pickle=False) as data:
-        arrays = {key: data[key] for key in data.files}
-    arrays["meta"] = json.loads(str(arrays["meta"]))
+    arrays = read_npz(path, ("controls", "positions", "meta"), what="samples file")
+    try:
+        arrays["meta"] = json.loads(str(arrays["meta"]))
+    except ValueError as error:
+        raise NpzFileError(f"samples file {path}: its meta is not JSON ({error})") from None
     return arrays
 
 
@@ -244,15 +251,38 @@ def _load_finished_chunk(chunk_file: Path, controls: np.ndarray, rig_id: str) ->
         return None  # unreadable: evaluate it again
 
 
+FINGERPRINT_PROBES = 8  # ours: enough random poses that a changed offset or mechanism shows
+FINGERPRINT_SEED = 20_170_001  # ours: a fixed seed, so every run probes the same controls
+FINGERPRINT_DECIMALS = 4  # ours: joint positions rounded to 1e-4 of the rig's unit (1 µm in cm)
+
+
 def _rig_fingerprint(rig) -> str:
-    """Identifies the rig's interface, so chunks posed by another rig are not reused."""
+    """Identifies the rig's interface *and behaviour*: chunks of another rig are not reused.
+
+    Names alone miss a changed rig (a moved joint offset, a new mechanism): the hash also
+    covers the joint positions of a fixed seeded probe set of control vectors (the
+    defaults, then points half-way from the defaults to uniform draws in the soft
+    ranges), rounded to ``FINGERPRINT_DECIMALS`` so last-bit noise does not count.
+    """
+    controls = rig.controls
+    lower, upper = np.asarray(controls.lower), np.asarray(controls.upper)
+    defaults = np.asarray(controls.defaults, dtype=np.float64)
+    draws = np.random.default_rng(FINGERPRINT_SEED).uniform(
+        size=(FINGERPRINT_PROBES - 1, defaults.size)
+    )
+    probe = np.vstack([defaults, defaults + 0.5 * (lower + draws * (upper - lower) - defaults)])
+    positions = np.asarray(rig.evaluate(probe), dtype=np.float64)
+    rounded = np.round(positions, FINGERPRINT_DECIMALS) + 0.0  # + 0.0: no negative zeros
     description = {
         "name": rig.name,
-        "controls": list(rig.controls.names),
-        "used": np.asarray(rig.controls.used_indices).tolist(),
+        "controls": list(controls.names),
+        "used": np.asarray(controls.used_indices).tolist(),
         "joints": list(rig.joint_names),
+        "probe_decimals": FINGERPRINT_DECIMALS,
     }
-    return hashlib.sha256(json.dumps(description).encode()).hexdigest()
+    digest = hashlib.sha256(json.dumps(description).encode())
+    digest.update(np.ascontiguousarray(rounded).tobytes())
+    return digest.hexdigest()
 
 
 def _check_sampler(sampler, rig, n_used: int) -> None:

@@ -5,8 +5,10 @@ itself never imports it. The model's state comes from its artifacts (see
 ``rigmap.tracking.pyfunc_model``), not from a pickle.
 """
 
+from pathlib import Path
+
 from mlflow.models import set_model
 
 from rigmap.tracking.pyfunc_model import InverseMappingModel
 
-set_model(InverseMappingModel())
+set_model(InverseMappingModel(Path(__file__).resolve().parent))

@@ -2,10 +2,18 @@
 
 Any scikit-learn-style mapping works: ``predict(X (N, D)) -> (N, C)``,
 ``save(path)`` and a ``load(path)`` classmethod. The model is stored through
-its own ``save`` (no pickling of the object), and rebuilt at load time from an
-importable class path ``"package.module:Class"``, so ``mlflow.pyfunc.load_model``
-in a fresh process gives the same controls. The pyfunc wrapper itself is
-logged as *models from code* (``pyfunc_entry.py``), so nothing is cloudpickled.
+its own ``save`` (no pickling of the object), and rebuilt at load time by the
+class that ``interface.json`` names, so ``mlflow.pyfunc.load_model`` in a fresh
+process gives the same controls. The pyfunc wrapper itself is logged as
+*models from code* (``pyfunc_entry.py``), so nothing is cloudpickled.
+
+Models are data, not code: the name in ``interface.json`` is looked up in an
+allow-list of rigmap's own mapping classes (:func:`allowed_mapping_classes`),
+never imported, so a tampered model in a shared registry cannot make the loader
+run what it names. A process that trusts another class says so in its own code
+(:func:`allow_mapping_class`), not through the model file. Every payload path
+(the mapping folder, the interface file, any file inside the folder, through
+symlinks too) must stay inside the model's folder.
 
 Input: joint positions as a DataFrame with columns ``<joint>.x``, ``<joint>.y``,
 ``<joint>.z`` (any extra columns are ignored, order does not matter); output: a
@@ -14,7 +22,6 @@ DataFrame of controls named by the rig's control names.
 
 from __future__ import annotations
 
-import importlib
 import importlib.metadata
 import json
 import os
@@ -44,6 +51,78 @@ class MappingLoggingError(RigmapError, ValueError):
     """A mapping that cannot be logged as a pyfunc model (no save/load, not importable...)."""
 
 
+class UntrustedModelError(RigmapError, ValueError):
+    """A logged model that names a class outside the allow-list or a path outside its folder."""
+
+
+_EXTRA_MAPPING_CLASSES: dict[str, type] = {}
+
+
+def allowed_mapping_classes() -> dict[str, type]:
+    """Name -> class of every mapping the pyfunc loader will build: rigmap's own, plus extras.
+
+    Extras come only from :func:`allow_mapping_class` calls in the loading process.
+    """
+    from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor, LearnedJacobian
+    from rigmap.regression.mapping import InverseMapping, JacobianMapping
+
+    own = (InverseMapping, JacobianMapping, GaussianProcessRegressor, FeedForwardRegressor)
+    classes = {cls.__name__: cls for cls in (*own, LearnedJacobian)}
+    return {**classes, **_EXTRA_MAPPING_CLASSES}
+
+
+def allow_mapping_class(cls: type, name: str | None = None) -> str:
+    """Trust ``cls`` (e.g. a test's or a studio's own mapping) under ``name`` in this process."""
+    name = name or cls.__name__
+    known = allowed_mapping_classes().get(name)
+    if known is not None and known is not cls:
+        raise MappingLoggingError(f"mapping class name {name!r} is taken by {known!r}")
+    _EXTRA_MAPPING_CLASSES[name] = cls
+    return name
+
+
+def mapping_class_name(cls: type) -> str:
+    """The allow-list name of ``cls``: what ``interface.json`` stores."""
+    for name, allowed in allowed_mapping_classes().items():
+        if allowed is cls:
+            return name
+    raise MappingLoggingError(
+        f"mapping class {cls.__module__}.{cls.__qualname__} is not one of rigmap's mapping "
+        f"classes {sorted(allowed_mapping_classes())}; a loader builds only those (call "
+        "rigmap.tracking.allow_mapping_class(cls) in the logging and the loading process)"
+    )
+
+
+def trusted_mapping_class(name: Any, where: str) -> type:
+    """The allow-listed class called ``name``; a clear error naming ``where`` for anything else."""
+    classes = allowed_mapping_classes()
+    if not isinstance(name, str) or name not in classes:
+        raise UntrustedModelError(
+            f"{where}: mapping_class {name!r} is not one of rigmap's mapping classes "
+            f"{sorted(classes)}; the model is refused (a model file never chooses code to run)"
+        )
+    return classes[name]
+
+
+def inside_folder(path: str | os.PathLike, folder: str | os.PathLike, what: str) -> Path:
+    """``path`` resolved (symlinks followed); refused if it leaves ``folder``."""
+    resolved, root = Path(path).resolve(), Path(folder).resolve()
+    if not resolved.is_relative_to(root):
+        raise UntrustedModelError(
+            f"{what}: path {str(path)!r} leads to {resolved}, outside the model folder {root}; "
+            "the model is refused"
+        )
+    return resolved
+
+
+def _check_payload(folder: Path, root: Path) -> None:
+    """Every file under the mapping folder stays inside the model folder (no escaping links)."""
+    inside_folder(folder, root, "mapping artifact")
+    if folder.is_dir():
+        for item in folder.rglob("*"):
+            inside_folder(item, root, f"mapping artifact file {item.relative_to(folder)}")
+
+
 def joint_columns(joint_names: Sequence[str]) -> list[str]:
     """``["<joint>.x", "<joint>.y", "<joint>.z", ...]`` in joint order (the flattened ``x``)."""
     return [f"{joint}.{axis}" for joint in joint_names for axis in "xyz"]
@@ -63,21 +142,26 @@ def class_path(cls: type) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
-def import_class(path: str) -> type:
-    module_name, _, qualname = path.partition(":")
-    target: Any = importlib.import_module(module_name)
-    for part in qualname.split("."):
-        target = getattr(target, part)
-    return target
-
-
 class InverseMappingModel(PythonModel):
-    """Pyfunc wrapper: joint-position DataFrame in, control DataFrame out."""
+    """Pyfunc wrapper: joint-position DataFrame in, control DataFrame out.
+
+    ``model_root``: the logged model's folder (the entry file's folder); payload paths
+    must stay in it. Without it, the folder holding the ``artifacts`` folder is used.
+    """
+
+    def __init__(self, model_root: str | os.PathLike | None = None):
+        self._model_root = None if model_root is None else Path(model_root)
 
     def load_context(self, context: Any) -> None:
-        interface = json.loads(Path(context.artifacts[INTERFACE_ARTIFACT]).read_text("utf-8"))
-        mapping_class = import_class(interface["mapping_class"])
-        self._mapping = mapping_class.load(context.artifacts[MAPPING_ARTIFACT])
+        paths = {
+            key: Path(context.artifacts[key]) for key in (INTERFACE_ARTIFACT, MAPPING_ARTIFACT)
+        }
+        root = self._model_root or _model_root(paths[INTERFACE_ARTIFACT])
+        interface_file = inside_folder(paths[INTERFACE_ARTIFACT], root, "interface artifact")
+        _check_payload(paths[MAPPING_ARTIFACT], root)
+        interface = _read_interface(interface_file)
+        mapping_class = trusted_mapping_class(interface["mapping_class"], str(interface_file))
+        self._mapping = mapping_class.load(paths[MAPPING_ARTIFACT])
         self._inputs = list(interface["input_columns"])
         self._outputs = list(interface["output_columns"])
 
@@ -102,6 +186,32 @@ class InverseMappingModel(PythonModel):
                 f"expected {len(self._outputs)}"
             )
         return pd.DataFrame(Y, columns=self._outputs, index=model_input.index)
+
+
+def _model_root(artifact: Path) -> Path:
+    """The folder above ``artifacts/`` as MLflow lays a model out (unresolved, so ``..`` shows)."""
+    parts = artifact.parts
+    if "artifacts" in parts:
+        return Path(*parts[: parts.index("artifacts")])
+    return artifact.parent
+
+
+def _read_interface(path: Path) -> dict:
+    try:
+        interface = json.loads(path.read_text("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise UntrustedModelError(f"{path}: not a readable interface file ({error})") from None
+    missing = [
+        key
+        for key in ("format", "mapping_class", "input_columns", "output_columns")
+        if not isinstance(interface, dict) or key not in interface
+    ]
+    if missing or interface["format"] != INTERFACE_FORMAT:
+        raise UntrustedModelError(
+            f"{path}: expected a {INTERFACE_FORMAT} interface file; missing {missing} or "
+            f"format {interface.get('format') if isinstance(interface, dict) else None!r}"
+        )
+    return interface
 
 
 @dataclass(frozen=True)
@@ -167,7 +277,7 @@ def log_inverse_mapping(
             json.dumps(
                 {
                     "format": INTERFACE_FORMAT,
-                    "mapping_class": class_path(mapping_class),
+                    "mapping_class": mapping_class_name(mapping_class),
                     "rig": rig,
                     "regressor": regressor,
                     "input_columns": input_columns,
@@ -209,13 +319,8 @@ def _check_mapping(mapping: Any) -> type:
             f"{cls.__name__} cannot be logged as an inverse mapping: it lacks {missing}; "
             "expected predict(X), save(path) and a load(path) classmethod"
         )
-    path = class_path(cls)
-    try:
-        found = import_class(path)
-    except (ImportError, AttributeError) as error:
-        raise MappingLoggingError(f"mapping class {path} is not importable ({error})") from None
-    if found is not cls:
-        raise MappingLoggingError(f"importing {path} gives another class than the mapping's")
+    class_path(cls)  # a class another process can import at all
+    mapping_class_name(cls)  # and one a loader will build
     return cls
 
 

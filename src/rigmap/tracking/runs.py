@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import tempfile
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -153,14 +155,35 @@ class ParentRun:
     experiment_id: str
     children: list[str] = field(default_factory=list)
 
+    _previous_sigterm: Any = field(default=None, repr=False)
+
     def end(self, status: str = "FINISHED") -> None:
         self.tracker.client.set_terminated(self.run_id, status=status)
 
     def __enter__(self) -> ParentRun:
+        """While open, SIGTERM unwinds the stage (``RunKilled``) so the run ends KILLED."""
+        if threading.current_thread() is threading.main_thread():
+            self._previous_sigterm = signal.signal(signal.SIGTERM, _raise_run_killed)
         return self
 
     def __exit__(self, exc_type: object, *rest: object) -> None:
-        self.end("FAILED" if exc_type is not None else "FINISHED")
+        if self._previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, self._previous_sigterm)
+            self._previous_sigterm = None
+        if exc_type is None:
+            self.end("FINISHED")
+        elif isinstance(exc_type, type) and issubclass(exc_type, RunKilled | KeyboardInterrupt):
+            self.end("KILLED")
+        else:
+            self.end("FAILED")
+
+
+class RunKilled(SystemExit):
+    """SIGTERM arrived while a parent run was open; exits with 128 + the signal number."""
+
+
+def _raise_run_killed(signum: int, frame: object) -> None:
+    raise RunKilled(128 + signum)
 
 
 def start_parent_run(

@@ -14,6 +14,7 @@ timeout and fails at once with an error that names the URI.
 from __future__ import annotations
 
 import os
+import socket
 import time
 import urllib.error
 import urllib.request
@@ -27,6 +28,7 @@ TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 DEFAULT_STORE_FILE = "mlruns.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
 DEFAULT_PROBE_TIMEOUT_S = 3.0
+MAX_PROBE_TIMEOUT_S = 10.0  # ours: a check that waits longer than this is no early check
 
 #: bounds on MLflow's own HTTP retries once a server answered the probe (env wins if set)
 HTTP_RETRY_DEFAULTS = {
@@ -125,26 +127,41 @@ def check_reachable(uri: str, timeout_s: float = DEFAULT_PROBE_TIMEOUT_S) -> Non
 
 
 def _probe_server(uri: str, timeout_s: float) -> None:
+    """One ``GET /health`` bounded by ``timeout_s`` (at most ``MAX_PROBE_TIMEOUT_S``).
+
+    The error says which of the three ways it failed: nothing listening (closed
+    port), no answer in time (a hung server), or an error status (a failing server).
+    """
+    timeout_s = min(float(timeout_s), MAX_PROBE_TIMEOUT_S)
     health = uri.rstrip("/") + "/health"
     started = time.perf_counter()
     try:
         with urllib.request.urlopen(health, timeout=timeout_s) as response:
             status = response.status
+            response.read(64)
     except urllib.error.HTTPError as error:
-        status, reason = error.code, f"HTTP {error.code}"
+        status, reason = error.code, f"it answers HTTP {error.code}: the server is failing"
     except (urllib.error.URLError, OSError) as error:
-        status, reason = None, str(getattr(error, "reason", error))
+        status, reason = None, _connection_failure(getattr(error, "reason", error), timeout_s)
     else:
-        reason = f"HTTP {status}"
+        reason = f"it answers HTTP {status}, expected 200"
     if status == 200:
         return
     waited = time.perf_counter() - started
     raise TrackingUnavailableError(
-        f"MLflow tracking server {uri} is unreachable: GET {health} failed after {waited:.1f} s "
-        f"({reason}). Start it (e.g. `mlflow server --host 127.0.0.1 --port <port>`), or log "
-        f"to the local store instead: unset {TRACKING_URI_ENV} and leave tracking.uri null "
-        f"(default {default_tracking_uri()})."
+        f"MLflow tracking server {uri} is unusable: GET {health} failed after {waited:.1f} s "
+        f"(timeout {timeout_s:g} s; {reason}). Start it (e.g. `mlflow server --host 127.0.0.1 "
+        f"--port <port>`), or log to the local store instead: unset {TRACKING_URI_ENV} and "
+        f"leave tracking.uri null (default {default_tracking_uri()})."
     )
+
+
+def _connection_failure(reason: object, timeout_s: float) -> str:
+    if isinstance(reason, ConnectionRefusedError):
+        return "connection refused: nothing listens on that port"
+    if isinstance(reason, TimeoutError | socket.timeout) or "timed out" in str(reason):
+        return f"no answer within {timeout_s:g} s: the server accepts connections but hangs"
+    return str(reason)
 
 
 def _check_writable_folder(folder: Path, uri: str) -> None:

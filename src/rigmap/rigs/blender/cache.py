@@ -2,13 +2,17 @@
 
 Lives in ``$RIGMAP_CACHE/blender`` (default ``~/.cache/rigmap/blender``). Every
 file is written atomically, and a file lock stops two processes generating the
-same rig at once.
+same rig at once. A generated file's SHA-256 is recorded in its ``.json``
+sidecar; a cached file that is truncated, bit-flipped or has no record
+(:func:`cached_file_ok`) is removed and generated again instead of failing
+every load until someone deletes it by hand.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import os
 import tempfile
@@ -56,3 +60,26 @@ def read_json(path: Path):
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def cached_file_ok(path: Path) -> bool:
+    """``path`` exists and has the SHA-256 its sidecar ``.json`` recorded when it was made."""
+    path = Path(path)
+    info = read_json(path.with_suffix(".json"))
+    if not path.is_file() or not isinstance(info, dict) or "sha256" not in info:
+        return False
+    return file_sha256(path) == info["sha256"]
+
+
+def discard_cached(path: Path) -> None:
+    """Remove a cached file and its sidecar (a corrupted or unrecorded entry)."""
+    for stale in (Path(path), Path(path).with_suffix(".json")):
+        stale.unlink(missing_ok=True)

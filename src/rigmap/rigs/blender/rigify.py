@@ -13,7 +13,15 @@ import copy
 import time
 from pathlib import Path
 
-from rigmap.rigs.blender.cache import cache_dir, file_lock, read_json, write_json_atomic
+from rigmap.rigs.blender.cache import (
+    cache_dir,
+    cached_file_ok,
+    discard_cached,
+    file_lock,
+    file_sha256,
+    read_json,
+    write_json_atomic,
+)
 from rigmap.rigs.blender.environment import find_blender
 from rigmap.rigs.blender.rig import RIGIFY_HELPER_BONES, BlenderRig
 
@@ -174,11 +182,12 @@ def rigify_blend(metarig: str, *, blender: str | None = None, euler_order: str =
     command = find_blender(blender)
     stem = f"rigify_{metarig}-{command.cache_tag}-g{GENERATION_VERSION}-{euler_order}"
     path = cache_dir() / f"{stem}.blend"
-    if path.is_file():
+    if cached_file_ok(path):
         return path
     with file_lock(cache_dir() / f"{stem}.lock"):
-        if path.is_file():  # another process made it while we waited
+        if cached_file_ok(path):  # another process made it while we waited
             return path
+        discard_cached(path)  # truncated, bit-flipped or made before checksums: generate again
         start = time.perf_counter()
         with WorkerPool(
             lambda _slot: command.argv(), workers=1, log_dir=cache_dir() / "logs"
@@ -195,6 +204,7 @@ def rigify_blend(metarig: str, *, blender: str | None = None, euler_order: str =
             )
         info = {k: v for k, v in info.items() if k != "ok"}
         info["wall_seconds"] = time.perf_counter() - start
+        info["sha256"] = file_sha256(path)
         write_json_atomic(path.with_suffix(".json"), info)
     return path
 
