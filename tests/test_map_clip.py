@@ -67,3 +67,35 @@ def test_a_mapping_for_other_joints_is_refused(biped, trained):
         map_clip(biped, fewer, mapping, MapSettings(), control_std=std, hold_values=median)
     with pytest.raises(MapError, match="refine_iterations"):
         MapSettings(refine_iterations=1.5)
+
+
+def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
+    import json
+
+    import pandas as pd
+
+    from rigmap.animation.bvh import read_bvh
+    from rigmap.map.outputs import write_map_outputs
+
+    mapping, targets, std, median = trained
+    result = map_clip(biped, targets, mapping, MapSettings(refine_iterations=0, feet=("foot_l",
+                      "foot_r")), control_std=std, hold_values=median)  # fmt: skip
+    folder = write_map_outputs(tmp_path / "walk", result, biped)
+    controls = pd.read_parquet(folder / "controls.parquet")
+    assert list(controls.columns) == ["frame", *biped.control_names]
+    np.testing.assert_array_equal(controls[biped.control_names].to_numpy(), result.controls)
+    frames = pd.read_parquet(folder / "frames.parquet")
+    np.testing.assert_allclose(frames["joint_error_cm"], result.frame_error_cm)
+    summary = json.loads((folder / "summary.json").read_text())
+    rms = float(np.sqrt((result.frame_error_cm**2).mean()))
+    assert summary["joint_error_rms_cm"] == pytest.approx(rms)
+    assert summary["keys"] == result.keys.key_count
+    assert 170 < summary["rig_height_cm"] < 190
+    keys = json.loads((folder / "keys.json").read_text())["curves"]
+    assert sum(len(v) for v in keys.values()) == result.keys.key_count
+    motion = read_bvh(folder / "result.bvh")
+    pose = biped.pose(result.controls)
+    world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
+    order = [motion.joint_names.index(n) for n in biped.joint_names]
+    np.testing.assert_allclose(motion.global_positions()[:, order], world, atol=1e-5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk"]
