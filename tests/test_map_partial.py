@@ -142,3 +142,33 @@ def test_feet_only_input_checks_its_positions(biped):
     bad[1, 2, 0] = np.nan
     with pytest.raises(SubsetError, match="joint 'toe_l' is not finite at frame 1"):
         subset.pose_rows(bad)
+
+
+def test_posing_from_seven_effectors_reaches_them(biped, effector_mapping, tmp_path):
+    import json
+
+    from rigmap.map.clip import MapSettings
+    from rigmap.map.effectors import EffectorError, pose_from_effectors, read_effector_targets
+
+    Y_train, _, _ = random_poses(biped, 400, seed=0)
+    _, _, world = random_poses(biped, 2, seed=21)
+    joints = effector_mapping.subset.joints
+    targets = world[:, effector_mapping.subset.columns(biped)]
+    frames = [{j: targets[f, k].tolist() for k, j in enumerate(joints)} for f in range(2)]
+    (tmp_path / "drag.json").write_text(json.dumps({"rig": "biped", "frames": frames}))
+    read = read_effector_targets(tmp_path / "drag.json", joints)
+    np.testing.assert_array_equal(read, targets)
+    std, median = Y_train.std(axis=0), np.median(Y_train, axis=0)
+    guess = pose_from_effectors(biped, effector_mapping, read, MapSettings(refine_iterations=0),
+                                control_std=std, hold_values=median)  # fmt: skip
+    refined = pose_from_effectors(biped, effector_mapping, read, MapSettings(refine_iterations=3),
+                                  control_std=std, hold_values=median)  # fmt: skip
+    assert refined[0].shape == (2, biped.n_controls)
+    assert refined[1].max() < 1.0 and refined[1].mean() < 0.5 * guess[1].mean() + 1e-9
+    frames[1].pop("head")
+    (tmp_path / "gap.json").write_text(json.dumps({"rig": "biped", "frames": frames}))
+    with pytest.raises(EffectorError, match=r"gap\.json: frame 1: .* missing \['head'\]"):
+        read_effector_targets(tmp_path / "gap.json", joints)
+    (tmp_path / "bad.json").write_text('{"targets": {"pelvis": [0, 1]}}')
+    with pytest.raises(EffectorError, match=r"bad\.json"):
+        read_effector_targets(tmp_path / "bad.json", ("pelvis",))

@@ -109,18 +109,13 @@ def map_clip(
         )
     world = targets.positions[:, [targets.joint_names.index(j) for j in joints]]
     seconds: dict[str, float] = {}
-    started = time.perf_counter()
     contacts, skate_source = None, 0.0
     if settings.feet:
         contacts = detect_contacts(world, settings.feet, joints, targets.fps)
         skate_source = foot_skate(world, contacts, joints)
         if settings.pin_feet:
             world = pin_contacts(world, contacts, joints)
-    Y = mapping.predict(world)
-    held = held_controls(rig, settings.hold)
-    Y[:, held] = np.asarray(hold_values, dtype=np.float64)[held]
-    seconds["predict_s"] = time.perf_counter() - started
-    Y = _refine(rig, joints, Y, world, settings, control_std, held, seconds)
+    Y = solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds)
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
     started = time.perf_counter()
@@ -136,13 +131,20 @@ def map_clip(
                      float(largest_jumps(keys.values(), control_std).max()), seconds)  # fmt: skip
 
 
-def _refine(rig, joints, Y, world, settings, control_std, held, seconds) -> np.ndarray:
-    """Damped least squares on the mapped joints' world positions; held controls stay."""
+def solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds) -> np.ndarray:
+    """Used controls ``(N, U)`` for world targets ``(N, K, 3)`` of the mapping's joints:
+    the mapping's guess with held controls set, then damped least squares on the targets
+    (held controls stay). Adds ``predict_s``, ``refine_s`` (and evaluations) to ``seconds``."""
+    started = time.perf_counter()
+    Y = mapping.predict(world)
+    held = held_controls(rig, settings.hold)
+    Y[:, held] = np.asarray(hold_values, dtype=np.float64)[held]
+    seconds["predict_s"] = time.perf_counter() - started
     if settings.refine_iterations == 0:
         seconds["refine_s"] = 0.0
         return Y
     started = time.perf_counter()
-    view = WorldSubsetRig(rig, joints)
+    view = WorldSubsetRig(rig, mapping.subset.joints)
     scale = np.asarray(control_std, dtype=np.float64).copy()
     scale[held] = 0.0  # a control with scale 0 does not move
     result = damped_least_squares(
