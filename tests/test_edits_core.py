@@ -102,3 +102,30 @@ def test_fitted_gp_predicts_with_variance_that_grows_away_from_data():
     np.testing.assert_allclose(far.mean, np.tile(gp.y_mean_, (2, 1)), atol=0.05)
     with pytest.raises(GPInputError, match="row 1, column 0"):
         gp.predict(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+
+
+def test_source_features_ignore_where_the_clip_walks_and_turns():
+    from pathlib import Path
+
+    from rigmap.edits.features import acceleration_features, kinematic_features
+    from rigmap.map import tracks_from_bvh
+    from rigmap.regression.placement import turn_matrix
+
+    walk = Path(__file__).resolve().parents[1].parent / "shared/mocap/cmu_131_02_walk.bvh"
+    tracks = tracks_from_bvh(walk)
+    positions = tracks.positions[:300]
+    names = tracks.joint_names
+    root, left, right = names.index("Hips"), names.index("LeftHip"), names.index("RightHip")
+    moved = np.einsum("ab,njb->nja", turn_matrix(np.array(2.0)), positions) + np.array(
+        [40.0, 0, -7]
+    )
+    k1 = kinematic_features(positions, tracks.fps, root=root, left=left, right=right)
+    k2 = kinematic_features(moved, tracks.fps, root=root, left=left, right=right)
+    np.testing.assert_allclose(k1, k2, atol=1e-9)
+    assert k1.shape == (300, 9 * len(names))
+    a1 = acceleration_features(positions, tracks.fps, root=root)
+    a2 = acceleration_features(positions + np.array([5.0, 0, 3.0]), tracks.fps, root=root)
+    np.testing.assert_allclose(a1, a2, atol=1e-6)
+    # the walk swings its limbs: accelerations of the wrists are far from zero
+    wrist = names.index("LeftWrist")
+    assert np.abs(a1[:, 3 * wrist : 3 * wrist + 3]).max() > 10.0

@@ -8,5 +8,6 @@ source where the predictions are unsure, to edit minutes of other motion.
 - :mod:`rigmap.edits.gp`: the GP predictor (RBF + noise, three hyper-parameters shared
   by all outputs, marginal-likelihood fit, predictive variance);
 - :mod:`rigmap.edits.combine`: the combined solve of Eqs 7–12 as one banded SPD system;
-- :mod:`rigmap.edits.features`: source features (§4.5).
+- :mod:`rigmap.edits.features`: source features (§4.5): the skeleton around each frame in
+  its own heading frame, and smoothed root-relative accelerations.
 """
