@@ -38,3 +38,14 @@ def test_bad_positions_are_refused(biped, tmp_path):
     with pytest.raises(BVHExportError, match=r"expected \(F > 0, 73, 3\)"):
         write_joint_bvh(tmp_path / "x.bvh", biped.joint_names, biped.parents, bad[:, :5], rest, 30)
     assert not (tmp_path / "x.bvh").exists()
+
+
+def test_children_listed_before_their_parents_are_written_in_tree_order(tmp_path):
+    names = ["hips", "finger", "palm"]
+    parents = [-1, 2, 0]  # as Rigify lists a finger before its palm bone
+    rest = np.array([[0.0, 100, 0], [0.0, 120, 0], [0.0, 110, 0]])
+    positions = np.stack([rest, rest + np.array([[1.0, 0, 0], [3.0, 1, 0], [2.0, 0, 1]])])
+    motion = read_bvh(write_joint_bvh(tmp_path / "t.bvh", names, parents, positions, rest, 24.0))
+    assert motion.joint_names == ("hips", "palm", "finger")
+    order = [motion.joint_names.index(n) for n in names]
+    np.testing.assert_allclose(motion.global_positions()[:, order], positions, atol=1e-6)

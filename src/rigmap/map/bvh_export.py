@@ -40,10 +40,8 @@ def write_joint_bvh(
                              f"(F > 0, {n_joints}, 3)")  # fmt: skip
     if not np.isfinite(positions).all():
         raise BVHExportError(f"{path}: positions are not all finite")
-    if any(p >= j for j, p in enumerate(parents)) or parents.count(-1) != 1 or parents[0] != -1:
-        raise BVHExportError(
-            f"{path}: parents must list one root first and parents before children"
-        )
+    if parents.count(-1) != 1 or any(not -1 <= p < n_joints for p in parents):
+        raise BVHExportError(f"{path}: parents must name one root (-1) and valid joints")
     offsets = np.array(
         [rest[j] - rest[p] if p >= 0 else np.zeros(3) for j, p in enumerate(parents)]
     )
@@ -53,10 +51,13 @@ def write_joint_bvh(
     )
     channels = relative - offsets[None]
     children = {j: [c for c, p in enumerate(parents) if p == j] for j in range(n_joints)}
+    root = parents.index(-1)
+    order = _hierarchy_order(children, root)
+    if len(order) != n_joints:
+        raise BVHExportError(f"{path}: the parents do not form one tree from {joint_names[root]!r}")
     lines = ["HIERARCHY"]
-    _write_joint(lines, 0, joint_names, offsets, children, depth=0)
+    _write_joint(lines, root, joint_names, offsets, children, depth=0)
     lines += ["MOTION", f"Frames: {len(positions)}", f"Frame Time: {1.0 / fps:.10g}"]
-    order = _hierarchy_order(children)
     flat = channels[:, order].reshape(len(positions), -1)
     lines += [" ".join(f"{v:.6f}" for v in row) for row in flat]
     return write_text_atomic(path, "\n".join(lines) + "\n")
@@ -75,9 +76,9 @@ def _write_joint(lines, j, names, offsets, children, depth) -> None:
     lines.append(f"{pad}}}")
 
 
-def _hierarchy_order(children) -> list[int]:
-    """Joints in the order their channels appear: depth first, as written."""
-    order, stack = [], [0]
+def _hierarchy_order(children, root: int) -> list[int]:
+    """Joints in the order their channels appear: depth first from the root, as written."""
+    order, stack = [], [root]
     while stack:
         j = stack.pop()
         order.append(j)

@@ -198,7 +198,7 @@ class RetargetMap:
                 f"{self.source_file}: mapped rig joints {roots} have no mapped ancestor; exactly "
                 "one (the rig's root joint) may, so that every other joint hangs from it"
             )
-        return names, edges
+        return names, _topological(edges)
 
     def _check_source(self, tracks: JointTracks) -> tuple[str, ...]:
         missing = {r: s for r, s in self.joints.items() if s not in tracks.joint_names}
@@ -246,7 +246,7 @@ class RetargetMap:
         out = np.empty_like(source)
         root = next(k for k in range(len(names)) if all(c != k for _, c in edges))
         out[:, root] = source[:, root] * scale
-        for parent, child in edges:  # parents come first: the rig lists joints that way
+        for parent, child in edges:  # in topological order: a parent is placed before its child
             bone = source[:, child] - source[:, parent]
             if self.preserve_lengths:
                 length = np.linalg.norm(rest[child] - rest[parent])
@@ -257,6 +257,20 @@ class RetargetMap:
         if not np.isfinite(out).all():
             raise RetargetMapError(f"{where}: the retargeted positions are not finite")
         return out
+
+
+def _topological(edges: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Edges ordered so every parent is placed before its children (a rig may list a
+    child before its parent, as Rigify's fingers before their palm bones)."""
+    parent_of = {child: parent for parent, child in edges}
+
+    def depth(joint: int) -> int:
+        steps = 0
+        while joint in parent_of:
+            joint, steps = parent_of[joint], steps + 1
+        return steps
+
+    return sorted(edges, key=lambda edge: depth(edge[1]))
 
 
 def _align_ground(positions: np.ndarray, rest: np.ndarray, rig) -> np.ndarray:
