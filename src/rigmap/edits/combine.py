@@ -1,0 +1,169 @@
+"""The combined solve of §4.2–4.3 (Eqs 7–12): one banded SPD system per output.
+
+For one output channel over a clip of ``F`` frames, with source values ``j`` and source
+accelerations ``j̈ = L j`` (``L`` the second-difference operator, ``(F−2) × F``), the
+kinematic GP's means ``μk`` and variances ``σk²`` and the acceleration GP's ``μa``,
+``σa²``, the target ``Y`` minimises
+
+    w_lk Σ (Y − μk)²/σk² + w_rk Σ σk² (Y − j)² + w_la Σ (LY − μa)²/σa² + w_ra Σ σa² (LY − j̈)²
+
+— Eq. 12 with §4.3's choice ``Σ_rk⁻¹ = Σ_lk`` and ``Σ_ra⁻¹ = Σ_la``: where a prediction is
+unsure, its regulariser toward the source is strong, so an unsure frame falls back to
+the source. Setting the gradient to zero gives ``(D_k + Lᵀ D_a L) Y = b``, pentadiagonal
+(``L`` spans three frames), solved by :func:`scipy.linalg.solveh_banded`. The variances
+are shared by all outputs of a predictor, so one factorisation serves every output; a
+masked output (a joint the edit must not touch, §4.2's "restrict the edits to particular
+joints") is the limit of an infinitely strong regulariser: the source itself.
+
+Erratum: Eqs 11–12 say ``arg max`` of positive quadratic forms; the estimate is their
+``arg min`` (the maximum of the log-posterior they come from).
+
+The paper gives no values for the four weights (it tuned them by hand in "three
+iterations"); the defaults here, all 1, are ours.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solveh_banded
+
+from rigmap.errors import RigmapError
+
+
+class CombineError(RigmapError, ValueError):
+    """Predictions and source that do not line up; names the array and its shape."""
+
+
+@dataclass(frozen=True)
+class Weights:
+    """``w_lk, w_rk, w_la, w_ra`` of Eq. 12 (kinematic, its regulariser, acceleration, its
+    regulariser). Zero regulariser weights trust the GPs alone; zero GP weights copy the
+    source (the paper's remark after Eq. 12)."""
+
+    kinematic: float = 1.0
+    kinematic_regularizer: float = 1.0
+    acceleration: float = 1.0
+    acceleration_regularizer: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if not (np.isfinite(value) and value >= 0):
+                raise CombineError(f"weight {name} is {value}; weights must be finite and >= 0")
+
+
+def second_difference(n_frames: int) -> np.ndarray:
+    """Dense ``L`` (``(F−2) × F``): ``(LY)_i = Y_i − 2Y_{i+1} + Y_{i+2}`` (per frame²)."""
+    L = np.zeros((max(n_frames - 2, 0), n_frames))
+    for i in range(n_frames - 2):
+        L[i, i : i + 3] = (1.0, -2.0, 1.0)
+    return L
+
+
+def accelerations(values: np.ndarray) -> np.ndarray:
+    """``L`` applied along frames: ``(F, D)`` → ``(F−2, D)``."""
+    values = np.asarray(values, dtype=np.float64)
+    return values[:-2] - 2.0 * values[1:-1] + values[2:]
+
+
+def combine(
+    source: np.ndarray,
+    kinematic_mean: np.ndarray,
+    kinematic_variance: np.ndarray,
+    acceleration_mean: np.ndarray,
+    acceleration_variance: np.ndarray,
+    weights: Weights = Weights(),
+    *,
+    masked: np.ndarray | None = None,
+) -> np.ndarray:
+    """The target ``(F, D)`` of Eq. 12 for every output of a clip (see the module docstring).
+
+    ``source``, ``kinematic_mean``: ``(F, D)``; ``kinematic_variance``: ``(F,)``;
+    ``acceleration_mean``: ``(F−2, D)``; ``acceleration_variance``: ``(F−2,)``;
+    ``masked``: ``(D,)`` booleans, outputs kept at the source.
+    """
+    j, mk, vk, ma, va = _checked(source, kinematic_mean, kinematic_variance,
+                                 acceleration_mean, acceleration_variance)  # fmt: skip
+    n_frames, n_out = j.shape
+    w = weights
+    diagonal_k = w.kinematic / vk + w.kinematic_regularizer * vk
+    rhs = (w.kinematic / vk)[:, None] * mk + (w.kinematic_regularizer * vk)[:, None] * j
+    diagonal_a = w.acceleration / va + w.acceleration_regularizer * va
+    target_a = (w.acceleration / va)[:, None] * ma + (w.acceleration_regularizer * va)[:, None] * (
+        accelerations(j)
+    )
+    rhs = rhs + _apply_lt(target_a, n_frames)
+    bands = _upper_bands(diagonal_k, diagonal_a)
+    if bands[-1].min() <= 0:
+        raise CombineError("the combined system is singular: every weight on some frame is 0")
+    solution = solveh_banded(bands, rhs)
+    if masked is not None:
+        masked = np.asarray(masked, dtype=bool)
+        if masked.shape != (n_out,):
+            raise CombineError(f"masked has shape {masked.shape}, expected ({n_out},)")
+        solution[:, masked] = j[:, masked]
+    return solution
+
+
+def combine_dense(source, kinematic_mean, kinematic_variance, acceleration_mean,
+                  acceleration_variance, weights: Weights = Weights()) -> np.ndarray:  # fmt: skip
+    """The same solve with dense matrices: the reference the banded solve is tested against."""
+    j, mk, vk, ma, va = _checked(source, kinematic_mean, kinematic_variance,
+                                 acceleration_mean, acceleration_variance)  # fmt: skip
+    L = second_difference(len(j))
+    w = weights
+    Dk = np.diag(w.kinematic / vk + w.kinematic_regularizer * vk)
+    Da = np.diag(w.acceleration / va + w.acceleration_regularizer * va)
+    rhs = (w.kinematic / vk)[:, None] * mk + (w.kinematic_regularizer * vk)[:, None] * j
+    rhs += L.T @ ((w.acceleration / va)[:, None] * ma + (w.acceleration_regularizer * va)[:, None]
+                  * (L @ j))  # fmt: skip
+    return np.linalg.solve(Dk + L.T @ Da @ L, rhs)
+
+
+def _upper_bands(diagonal_k: np.ndarray, diagonal_a: np.ndarray) -> np.ndarray:
+    """``D_k + Lᵀ D_a L`` in LAPACK's upper banded storage (3 rows: +2, +1, main)."""
+    n = len(diagonal_k)
+    main = diagonal_k.copy()
+    first = np.zeros(n)
+    second = np.zeros(n)
+    taps = (1.0, -2.0, 1.0)
+    for i, d in enumerate(diagonal_a):  # row i of L touches frames i, i+1, i+2
+        for a in range(3):
+            main[i + a] += d * taps[a] ** 2
+            if a + 1 < 3:
+                first[i + a + 1] += d * taps[a] * taps[a + 1]
+        second[i + 2] += d * taps[0] * taps[2]
+    return np.vstack([second, first, main])
+
+
+def _apply_lt(values: np.ndarray, n_frames: int) -> np.ndarray:
+    """``Lᵀ`` applied to ``(F−2, D)`` values."""
+    out = np.zeros((n_frames, values.shape[1]))
+    out[:-2] += values
+    out[1:-1] -= 2.0 * values
+    out[2:] += values
+    return out
+
+
+def _checked(j, mk, vk, ma, va):
+    arrays = [np.asarray(a, dtype=np.float64) for a in (j, mk, vk, ma, va)]
+    j, mk, vk, ma, va = arrays
+    if j.ndim != 2 or len(j) < 3:
+        raise CombineError(f"source must be (F >= 3, D), got {j.shape}")
+    n, d = j.shape
+    expected = {
+        "kinematic_mean": (mk, (n, d)),
+        "kinematic_variance": (vk, (n,)),
+        "acceleration_mean": (ma, (n - 2, d)),
+        "acceleration_variance": (va, (n - 2,)),
+    }
+    for name, (array, shape) in expected.items():
+        if array.shape != shape:
+            raise CombineError(f"{name} has shape {array.shape}, expected {shape}")
+    for name, array in zip(("source", *expected), arrays, strict=True):
+        if not np.isfinite(array).all():
+            raise CombineError(f"{name} has non-finite values")
+    if vk.min() <= 0 or va.min() <= 0:
+        raise CombineError("variances must be > 0 (a GP's predictive variance includes noise)")
+    return j, mk, vk, ma, va

@@ -1,0 +1,145 @@
+"""The GP predictors of §4.1 and §7.1: one RBF + noise kernel shared by every output.
+
+"We use the same values of all three hyper-parameters for all of the target degrees of
+freedom" (§7.1): the kernel ``k(x, x') = σ_f² exp(-|x - x'|² / (2ℓ²)) + σ_n² δ`` is
+fitted once for all outputs by maximising the summed log marginal likelihood, from
+ℓ = σ_f = 1 and σ_n = 0.1 (the paper's initialisation: log-parameters 0 and
+log √0.01), with at most 100 optimiser iterations (the paper's GPML ``minimize``, a
+conjugate-gradient method; here scipy's L-BFGS-B on the log-parameters with the
+analytic gradient — the same objective, a quasi-Newton optimiser). Because the kernel
+is shared, the predictive variance is one number per frame, shared by the outputs.
+
+Written here rather than taken from scikit-learn (its ``GaussianProcessRegressor``
+fits per call with restarts and has no shared multi-output likelihood with our
+initialisation and iteration cap) or GPyTorch (batch-independent outputs would each get
+their own hyper-parameters). Inputs are standardised per column and outputs centred on
+their training mean: both choices are ours (the paper does not say).
+
+Erratum: the paper's Eqs 3–4 write the Gaussian as ``c exp((Y − μ)ᵀ Σ⁻¹ (Y − μ))``; the
+exponent needs a factor −½.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+from scipy.optimize import minimize
+
+from rigmap.errors import RigmapError
+
+MAX_ITERATIONS = 100  # §7.1
+INITIAL = {"length_scale": 1.0, "signal": 1.0, "noise": 0.1}  # §7.1
+_JITTER = 1e-10
+
+
+class GPInputError(RigmapError, ValueError):
+    """Training or test data a GP predictor cannot use; says which array and why."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predictive means ``(N, D)`` and the shared variance ``(N,)`` (output units²)."""
+
+    mean: np.ndarray
+    variance: np.ndarray
+
+
+class SharedGP:
+    """Exact GP regression with one RBF + noise kernel for all outputs.
+
+    ``fit(X (N, P), Y (N, D))`` maximises the marginal likelihood over
+    ``log ℓ, log σ_f, log σ_n``; ``predict(X)`` gives means and the shared variance
+    (noise included: the variance of a new observation).
+    """
+
+    def __init__(self, max_iterations: int = MAX_ITERATIONS, optimize: bool = True):
+        self.max_iterations = max_iterations
+        self.optimize = optimize
+
+    # --- fitting -----------------------------------------------------------------------
+    def fit(self, X, Y, *, initial: dict | None = None) -> SharedGP:
+        X, Y = _checked(X, "X"), _checked(Y, "Y")
+        if len(X) != len(Y) or len(X) < 2:
+            raise GPInputError(
+                f"expected X and Y with the same N >= 2 rows, got {X.shape}, {Y.shape}"
+            )
+        self.x_mean_ = X.mean(axis=0)
+        std = X.std(axis=0)
+        self.x_std_ = np.where(std > 0, std, 1.0)
+        self.y_mean_ = Y.mean(axis=0)
+        self.X_ = (X - self.x_mean_) / self.x_std_
+        self.Y_ = Y - self.y_mean_
+        start = {**INITIAL, **(initial or {})}
+        theta = np.log([start["length_scale"], start["signal"], start["noise"]])
+        self.iterations_ = 0
+        if self.optimize:
+            result = minimize(self._objective, theta, jac=True, method="L-BFGS-B",
+                              options={"maxiter": self.max_iterations})  # fmt: skip
+            theta, self.iterations_ = result.x, int(result.nit)
+        self.length_scale_, self.signal_, self.noise_ = (float(v) for v in np.exp(theta))
+        self.log_marginal_likelihood_ = -self._objective(theta)[0]
+        K = self._gram(theta)
+        self._factor = cho_factor(K, lower=True)
+        self._alpha = cho_solve(self._factor, self.Y_)
+        return self
+
+    def _gram(self, theta) -> np.ndarray:
+        length, signal, noise = np.exp(theta)
+        sq = _squared_distances(self.X_, self.X_)
+        K = signal**2 * np.exp(-0.5 * sq / length**2)
+        K[np.diag_indices_from(K)] += noise**2 + _JITTER
+        return K
+
+    def _objective(self, theta) -> tuple[float, np.ndarray]:
+        """Negative summed log marginal likelihood and its gradient in log-parameters."""
+        length, signal, noise = np.exp(theta)
+        n, d = self.Y_.shape
+        sq = _squared_distances(self.X_, self.X_)
+        rbf = signal**2 * np.exp(-0.5 * sq / length**2)
+        K = rbf.copy()
+        K[np.diag_indices_from(K)] += noise**2 + _JITTER
+        try:
+            factor = cho_factor(K, lower=True)
+        except np.linalg.LinAlgError:
+            return 1e300, np.zeros(3)
+        A = cho_solve(factor, self.Y_)  # K⁻¹ Y
+        log_det = 2.0 * np.log(np.diag(factor[0])).sum()
+        value = (
+            0.5 * float((self.Y_ * A).sum()) + 0.5 * d * log_det + 0.5 * n * d * np.log(2 * np.pi)
+        )
+        inner = A @ A.T - d * cho_solve(factor, np.eye(n))  # the gradient's (ααᵀ − D K⁻¹)
+        dK = (rbf * sq / length**2, 2.0 * rbf, 2.0 * noise**2 * np.eye(n))  # ∂K/∂log θ
+        gradient = np.array([-0.5 * float((inner * g).sum()) for g in dK])
+        return value, gradient
+
+    # --- predicting --------------------------------------------------------------------
+    def predict(self, X) -> Prediction:
+        if not hasattr(self, "_alpha"):
+            raise GPInputError("this SharedGP is not fitted yet: call fit(X, Y) first")
+        X = (_checked(X, "X") - self.x_mean_) / self.x_std_
+        if X.shape[1] != self.X_.shape[1]:
+            raise GPInputError(
+                f"X has {X.shape[1]} columns, the GP was fitted on {self.X_.shape[1]}"
+            )
+        k = self.signal_**2 * np.exp(-0.5 * _squared_distances(X, self.X_) / self.length_scale_**2)
+        mean = k @ self._alpha + self.y_mean_
+        v = cho_solve(self._factor, k.T)
+        variance = self.signal_**2 + self.noise_**2 - np.einsum("ij,ji->i", k, v)
+        return Prediction(mean, np.maximum(variance, self.noise_**2))
+
+
+def _squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    sq = (A**2).sum(axis=1)[:, None] + (B**2).sum(axis=1)[None, :] - 2.0 * A @ B.T
+    return np.maximum(sq, 0.0)
+
+
+def _checked(values, name: str) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim != 2:
+        raise GPInputError(f"{name} must be a 2-D array (rows, columns), got shape {values.shape}")
+    if not np.isfinite(values).all():
+        row, col = np.argwhere(~np.isfinite(values))[0]
+        raise GPInputError(f"{name} has a non-finite value at row {row}, column {col}")
+    return values

@@ -1,0 +1,21 @@
+"""Map motion from another source onto a rig (paper §6.3): mocap, joint tracks, effectors.
+
+- :mod:`rigmap.map.tracks`: named joint positions over time (:class:`JointTracks`), read
+  from BVH, parquet, npz or CSV, checked for gaps and bad values;
+- :mod:`rigmap.map.retarget_map`: skeleton correspondence as data (``conf/retarget/*.yaml``):
+  source joint names to rig joints, axes and handedness, scale from bone lengths, and the
+  rebuild of the rig's mapped joints along the source's bone directions.
+"""
+
+from rigmap.map.retarget_map import MappedTargets, RetargetMap, RetargetMapError
+from rigmap.map.tracks import JointTracks, TracksError, read_tracks, tracks_from_bvh
+
+__all__ = [
+    "JointTracks",
+    "MappedTargets",
+    "RetargetMap",
+    "RetargetMapError",
+    "TracksError",
+    "read_tracks",
+    "tracks_from_bvh",
+]

@@ -1,0 +1,156 @@
+"""Map one clip: targets → guess → refinement → editable curves → sparse keys (§6.3, Fig. 8).
+
+:func:`map_clip` takes a clip's targets (world positions of the rig joints a source
+drives, from :class:`rigmap.map.RetargetMap` or given as effectors) and a
+:class:`rigmap.map.partial.SubsetMapping` trained on those joints, and returns every
+control per frame plus what a user checks: per-frame joint error, foot skate, the
+largest frame-to-frame jump, and keys reduced within a tolerance in cm.
+
+What users of retargeting tools ask for, done here: keys on the animator's controls
+(used controls only; the rest stay at their defaults), no Euler flips (unwrapped),
+feet pinned while planted, IK/FK switches and follow spaces held at their corpus
+values (``hold`` globs: a switch flickering between IK and FK is not editable), and
+sparse keys. Refinement runs on the world positions of the mapped joints, so it also
+corrects where the character stands.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rigmap.errors import RigmapError
+from rigmap.map.contacts import Contacts, detect_contacts, foot_skate, pin_contacts
+from rigmap.map.curves import largest_jumps, smooth, unwrap_rotations
+from rigmap.map.key_reduction import ReducedKeys, reduce_within_joint_tolerance
+from rigmap.map.partial import SubsetMapping
+from rigmap.map.retarget_map import MappedTargets
+from rigmap.map.world_subset_rig import WorldSubsetRig
+from rigmap.refine import ComputedJacobian, damped_least_squares
+
+
+class MapError(RigmapError, ValueError):
+    """A clip that cannot be mapped with the given model or settings."""
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """How a clip is mapped; every default is ours (the paper gives none)."""
+
+    refine_iterations: int = 3
+    damping: float | str = "auto"
+    feet: tuple[str, ...] = ()
+    pin_feet: bool = True
+    smoothing_frames: float = 0.0
+    hold: tuple[str, ...] = ("*.ik_fk", "*.follow")
+    key_tolerance_cm: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.refine_iterations, int) and self.refine_iterations >= 0):
+            raise MapError(f"refine_iterations {self.refine_iterations!r} must be an integer >= 0")
+        if not self.key_tolerance_cm > 0:
+            raise MapError(f"key_tolerance_cm {self.key_tolerance_cm!r} must be > 0")
+
+
+@dataclass
+class MapResult:
+    """Everything :func:`map_clip` found for one clip (world cm, rig axes)."""
+
+    rig: str
+    source: str
+    fps: float
+    joint_names: tuple[str, ...]
+    controls: np.ndarray  # (F, C) every control, unused ones at their defaults
+    targets: np.ndarray  # (F, K, 3) after pinning
+    achieved: np.ndarray  # (F, K, 3) the rig's joints at the mapped controls
+    keys: ReducedKeys
+    contacts: Contacts | None
+    skate_source_cm: float
+    skate_result_cm: float
+    largest_jump_std: float
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def frame_error_cm(self) -> np.ndarray:
+        """Per frame, RMS distance over the mapped joints (cm)."""
+        return np.sqrt(((self.achieved - self.targets) ** 2).sum(axis=2).mean(axis=1))
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.controls)
+
+
+def held_controls(rig, patterns) -> list[int]:
+    """Positions among the used controls of those matching ``patterns`` (fnmatch globs)."""
+    names = rig.used_controls
+    return [k for k, n in enumerate(names) if any(fnmatch.fnmatch(n, p) for p in patterns)]
+
+
+def map_clip(
+    rig,
+    targets: MappedTargets,
+    mapping: SubsetMapping,
+    settings: MapSettings,
+    *,
+    control_std: np.ndarray,
+    hold_values: np.ndarray,
+) -> MapResult:
+    """Map ``targets`` onto ``rig``; ``control_std`` and ``hold_values`` are per used control
+    (training-corpus std, and the value a held control keeps, e.g. its corpus median)."""
+    joints = mapping.subset.joints
+    missing = [j for j in joints if j not in targets.joint_names]
+    if missing:
+        raise MapError(
+            f"{targets.source}: the mapping's joint subset {mapping.subset.name!r} needs joints "
+            f"{missing}, which the targets do not have (they drive {list(targets.joint_names)})"
+        )
+    world = targets.positions[:, [targets.joint_names.index(j) for j in joints]]
+    seconds: dict[str, float] = {}
+    contacts, skate_source = None, 0.0
+    if settings.feet:
+        contacts = detect_contacts(world, settings.feet, joints, targets.fps)
+        skate_source = foot_skate(world, contacts, joints)
+        if settings.pin_feet:
+            world = pin_contacts(world, contacts, joints)
+    Y = solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds)
+    kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
+    Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
+    started = time.perf_counter()
+    keys = reduce_within_joint_tolerance(rig, rig.expand_used(Y), control_std,
+                                         settings.key_tolerance_cm)  # fmt: skip
+    seconds["keys_s"] = time.perf_counter() - started
+    view = WorldSubsetRig(rig, joints)
+    controls = rig.expand_used(keys.values())
+    achieved = np.asarray(view.evaluate(controls), dtype=np.float64)
+    skate_result = foot_skate(achieved, contacts, joints) if contacts is not None else 0.0
+    return MapResult(rig.name, targets.source, targets.fps, tuple(joints), controls, world,
+                     achieved, keys, contacts, skate_source, skate_result,
+                     float(largest_jumps(keys.values(), control_std).max()), seconds)  # fmt: skip
+
+
+def solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds) -> np.ndarray:
+    """Used controls ``(N, U)`` for world targets ``(N, K, 3)`` of the mapping's joints:
+    the mapping's guess with held controls set, then damped least squares on the targets
+    (held controls stay). Adds ``predict_s``, ``refine_s`` (and evaluations) to ``seconds``."""
+    started = time.perf_counter()
+    Y = mapping.predict(world)
+    held = held_controls(rig, settings.hold)
+    Y[:, held] = np.asarray(hold_values, dtype=np.float64)[held]
+    seconds["predict_s"] = time.perf_counter() - started
+    if settings.refine_iterations == 0:
+        seconds["refine_s"] = 0.0
+        return Y
+    started = time.perf_counter()
+    view = WorldSubsetRig(rig, mapping.subset.joints)
+    scale = np.asarray(control_std, dtype=np.float64).copy()
+    scale[held] = 0.0  # a control with scale 0 does not move
+    result = damped_least_squares(
+        view, Y, world, ComputedJacobian(view), damping=settings.damping,
+        max_iterations=settings.refine_iterations, control_scale=scale, keep_in_range=True,
+    )  # fmt: skip
+    seconds["refine_s"] = time.perf_counter() - started
+    seconds["refine_rig_evaluations"] = float(result.rig_evaluations)
+    return result.Y_used

@@ -1,0 +1,176 @@
+"""Joint tracks: the positions of named joints over time, whatever tool made them.
+
+A mapping's input is joint positions (§3.2), so every source — a BVH file, another
+tool's export, a few effector targets — becomes one :class:`JointTracks`: ``(F, J, 3)``
+positions of ``J`` named joints over ``F`` frames at ``fps``, in a stated length unit.
+Axes stay the source's own here; :class:`rigmap.map.RetargetMap` converts them.
+
+Files (one clip each):
+- ``.bvh``: forward kinematics of the file's channels; end sites become ``<parent>_end``;
+- ``.parquet`` / ``.csv``: a ``frame`` column and ``<joint>.x``, ``<joint>.y``, ``<joint>.z``
+  per joint (the column layout of rigmap's poses files);
+- ``.npz``: ``positions`` ``(F, J, 3)`` and ``joint_names``; optional ``fps``.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rigmap.animation.bvh import read_bvh
+from rigmap.errors import RigmapError
+
+AXES = ("x", "y", "z")
+LENGTH_UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54}
+SOURCE_UNIT = "source"  # a file's own unit (CMU BVH): scaled from bone lengths
+
+
+class TracksError(RigmapError, ValueError):
+    """Joint tracks that cannot be used; the message names the file and what is wrong."""
+
+
+@dataclass(frozen=True)
+class JointTracks:
+    """``positions[f, j]`` is joint ``joint_names[j]`` at frame ``f`` (``unit``, source axes)."""
+
+    joint_names: tuple[str, ...]
+    positions: np.ndarray
+    fps: float
+    unit: str
+    source: str = "<tracks>"
+
+    def __post_init__(self) -> None:
+        positions = np.asarray(self.positions, dtype=np.float64)
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        where = self.source
+        if positions.ndim != 3 or positions.shape[2] != 3:
+            raise TracksError(
+                f"{where}: positions have shape {positions.shape}, expected (F, J, 3)"
+            )
+        if positions.shape[0] == 0:
+            raise TracksError(f"{where}: the clip is empty (0 frames)")
+        if positions.shape[1] != len(self.joint_names):
+            raise TracksError(
+                f"{where}: {positions.shape[1]} joints of positions for "
+                f"{len(self.joint_names)} joint names"
+            )
+        duplicates = sorted({n for n in self.joint_names if self.joint_names.count(n) > 1})
+        if duplicates:
+            raise TracksError(f"{where}: joint names repeat: {duplicates}")
+        bad = ~np.isfinite(positions)
+        if bad.any():
+            frame, joint, axis = np.argwhere(bad)[0]
+            raise TracksError(
+                f"{where}: joint {self.joint_names[joint]!r} {AXES[axis]} is "
+                f"{positions[frame, joint, axis]} at frame {frame} ({int(bad.any(axis=2).sum())} "
+                "bad joint positions in all); positions must be finite numbers"
+            )
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise TracksError(f"{where}: fps is {self.fps}, expected a positive number")
+        if self.unit not in LENGTH_UNITS_CM and self.unit != SOURCE_UNIT:
+            raise TracksError(
+                f"{where}: unknown length unit {self.unit!r}; expected one of "
+                f"{', '.join([*LENGTH_UNITS_CM, SOURCE_UNIT])}"
+            )
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+    def index(self, name: str) -> int:
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise TracksError(f"{self.source}: no joint named {name!r}") from None
+
+    def subset(self, names: list[str] | tuple[str, ...]) -> JointTracks:
+        """The tracks of ``names`` only, in that order."""
+        columns = [self.index(n) for n in names]
+        return JointTracks(
+            tuple(names), self.positions[:, columns], self.fps, self.unit, self.source
+        )
+
+
+def tracks_from_bvh(path: str | os.PathLike) -> JointTracks:
+    """World positions of every joint and end site of a BVH file (its own unit and axes)."""
+    motion = read_bvh(path)
+    if motion.n_frames == 0:
+        raise TracksError(f"{path}: the BVH file has no frames")
+    names = (*motion.joint_names, *motion.end_site_names)
+    return JointTracks(names, motion.global_positions(end_sites=True), motion.fps, SOURCE_UNIT,
+                       str(path))  # fmt: skip
+
+
+def read_tracks(path: str | os.PathLike, *, unit: str, fps: float | None = None) -> JointTracks:
+    """Joint tracks from a ``.bvh``, ``.parquet``, ``.csv`` or ``.npz`` file.
+
+    ``unit`` is the file's length unit (``cm``, ``m``, ``mm``, ``in`` or ``source``); a BVH
+    is always ``source``. ``fps`` is required unless the file carries it (BVH, npz).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"joint tracks file {path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        return tracks_from_bvh(path)
+    if suffix == ".npz":
+        return _read_npz(path, unit, fps)
+    if suffix in (".parquet", ".csv"):
+        try:
+            table = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+        except Exception as error:  # pyarrow and pandas raise many kinds
+            raise TracksError(f"{path}: not a readable {suffix[1:]} table ({error})") from None
+        return _from_table(table, unit, _need_fps(fps, path), str(path))
+    raise TracksError(f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, "
+                      ".csv or .npz")  # fmt: skip
+
+
+def _need_fps(fps: float | None, path: Path) -> float:
+    if fps is None:
+        raise TracksError(f"{path}: the file does not say its frame rate; pass fps")
+    return float(fps)
+
+
+def _read_npz(path: Path, unit: str, fps: float | None) -> JointTracks:
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except (zipfile.BadZipFile, OSError, ValueError) as error:
+        raise TracksError(f"{path}: not a readable npz archive ({error})") from None
+    missing = [k for k in ("positions", "joint_names") if k not in arrays]
+    if missing:
+        raise TracksError(f"{path}: npz lacks {missing}; it holds {sorted(arrays)}")
+    rate = float(arrays["fps"]) if "fps" in arrays else _need_fps(fps, path)
+    names = tuple(str(n) for n in arrays["joint_names"])
+    return JointTracks(names, arrays["positions"], rate, unit, str(path))
+
+
+def _from_table(table: pd.DataFrame, unit: str, fps: float, source: str) -> JointTracks:
+    """``<joint>.x/.y/.z`` columns in their order of appearance; each joint needs all three."""
+    joints: dict[str, set[str]] = {}
+    for column in table.columns:
+        joint, dot, axis = str(column).rpartition(".")
+        if dot and axis in AXES:
+            joints.setdefault(joint, set()).add(axis)
+    if not joints:
+        raise TracksError(f"{source}: no '<joint>.x/.y/.z' columns among {list(table.columns)[:8]}")
+    incomplete = {j: sorted(set(AXES) - axes) for j, axes in joints.items() if axes != set(AXES)}
+    if incomplete:
+        raise TracksError(f"{source}: joints missing coordinate columns: {incomplete}")
+    if "frame" in table.columns:
+        frames = table["frame"].to_numpy()
+        if len(frames) > 1 and not (np.diff(frames) == 1).all():
+            raise TracksError(f"{source}: the frame column is not consecutive frame numbers")
+    names = tuple(joints)
+    columns = [f"{j}.{a}" for j in names for a in AXES]
+    try:
+        values = table[columns].to_numpy(dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise TracksError(f"{source}: joint columns are not all numbers ({error})") from None
+    return JointTracks(names, values.reshape(len(table), len(names), 3), fps, unit, source)

@@ -1,0 +1,101 @@
+"""map_clip on a real CMU walk onto the biped, with a mapping trained on the biped's corpus."""
+
+from __future__ import annotations
+
+import dataclasses
+import fnmatch
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rigmap.animation.library import build_corpus
+from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map.clip import MapError, MapSettings, map_clip
+from rigmap.map.partial import JointSubset, SubsetMapping
+from rigmap.regression import GaussianProcessRegressor
+from rigmap.regression.features import inverse_features
+from rigmap.regression.kernels import MultiquadricKernel
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT.parent / "shared" / "mocap" / "cmu_131_02_walk.bvh"
+
+
+@pytest.fixture(scope="module")
+def trained(biped):
+    """The biped's train corpus and a GPR on the joints the CMU map drives."""
+    Y = build_corpus(biped, "train", seed=0).values()
+    pose = biped.pose(biped.expand_used(Y))
+    X = inverse_features(pose.positions, pose.cog, pose.cog_rotation, n_joints=biped.n_joints,
+                         where="biped corpus")  # fmt: skip
+    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    subset = JointSubset("cmu", "biped", tuple(retarget.joints), "pelvis", "thigh_l", "thigh_r")
+    regressor = GaussianProcessRegressor(MultiquadricKernel(), n_points=150, n_length_scales=5,
+                                         cv_splits=2, progress=False)  # fmt: skip
+    mapping = SubsetMapping.fit(biped, subset, X, Y, regressor)
+    targets = retarget.apply(biped, tracks_from_bvh(WALK))
+    short = dataclasses.replace(targets, positions=targets.positions[240:264:2], fps=60.0)
+    return mapping, short, Y.std(axis=0), np.median(Y, axis=0)
+
+
+def test_refinement_brings_the_rig_onto_the_mocap(biped, trained):
+    mapping, targets, std, median = trained
+    settings = MapSettings(refine_iterations=0, feet=("foot_l", "foot_r"), key_tolerance_cm=1.0)
+    guess = map_clip(biped, targets, mapping, settings, control_std=std, hold_values=median)
+    refined = map_clip(biped, targets, mapping, dataclasses.replace(settings, refine_iterations=2),
+                       control_std=std, hold_values=median)  # fmt: skip
+    assert guess.controls.shape == (12, biped.n_controls)
+    assert refined.frame_error_cm.mean() < 0.5 * guess.frame_error_cm.mean()
+    assert refined.seconds["refine_rig_evaluations"] > 0
+    for result in (guess, refined):
+        unused = np.setdiff1d(np.arange(biped.n_controls), biped.controls.used_indices)
+        defaults = np.broadcast_to(biped.controls.defaults[unused], (12, len(unused)))
+        np.testing.assert_array_equal(result.controls[:, unused], defaults)
+        for k, name in enumerate(biped.used_controls):
+            if any(fnmatch.fnmatch(name, p) for p in settings.hold):
+                column = biped.controls.used_indices[k]
+                np.testing.assert_allclose(result.controls[:, column], median[k], atol=1e-12)
+        assert result.keys.max_joint_error_cm <= 1.0
+        assert result.keys.key_count <= 12 * len(biped.used_controls)
+
+
+def test_a_mapping_for_other_joints_is_refused(biped, trained):
+    mapping, targets, std, median = trained
+    fewer = dataclasses.replace(targets, joint_names=targets.joint_names[:-1],
+                                positions=targets.positions[:, :-1])  # fmt: skip
+    with pytest.raises(MapError, match=r"needs joints \['toe_r'\]"):
+        map_clip(biped, fewer, mapping, MapSettings(), control_std=std, hold_values=median)
+    with pytest.raises(MapError, match="refine_iterations"):
+        MapSettings(refine_iterations=1.5)
+
+
+def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
+    import json
+
+    import pandas as pd
+
+    from rigmap.animation.bvh import read_bvh
+    from rigmap.map.outputs import write_map_outputs
+
+    mapping, targets, std, median = trained
+    result = map_clip(biped, targets, mapping, MapSettings(refine_iterations=0, feet=("foot_l",
+                      "foot_r")), control_std=std, hold_values=median)  # fmt: skip
+    folder = write_map_outputs(tmp_path / "walk", result, biped)
+    controls = pd.read_parquet(folder / "controls.parquet")
+    assert list(controls.columns) == ["frame", *biped.control_names]
+    np.testing.assert_array_equal(controls[biped.control_names].to_numpy(), result.controls)
+    frames = pd.read_parquet(folder / "frames.parquet")
+    np.testing.assert_allclose(frames["joint_error_cm"], result.frame_error_cm)
+    summary = json.loads((folder / "summary.json").read_text())
+    rms = float(np.sqrt((result.frame_error_cm**2).mean()))
+    assert summary["joint_error_rms_cm"] == pytest.approx(rms)
+    assert summary["keys"] == result.keys.key_count
+    assert 170 < summary["rig_height_cm"] < 190
+    keys = json.loads((folder / "keys.json").read_text())["curves"]
+    assert sum(len(v) for v in keys.values()) == result.keys.key_count
+    motion = read_bvh(folder / "result.bvh")
+    pose = biped.pose(result.controls)
+    world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
+    order = [motion.joint_names.index(n) for n in biped.joint_names]
+    np.testing.assert_allclose(motion.global_positions()[:, order], world, atol=1e-5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk"]
