@@ -19,12 +19,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from animate import rig_from_config
 from rigmap.animation.corpus import Corpus
+from rigmap.rigs.manifest import manifest
 from rigmap.sampling import available
 from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
 
-# The view each rig's poses read best in; other rigs are drawn from the side.
-# A face's expressions show from the front. Override with figures.view=...
-VIEWS = {"face": "front"}
+# The view each rig's poses read best in is its manifest's ``view`` (the face's
+# expressions show from the front, the others from the side). Override with figures.view=...
 
 
 def run(cfg: DictConfig) -> SampleFigure:
@@ -57,7 +57,7 @@ def run(cfg: DictConfig) -> SampleFigure:
         rig,
         rows,
         Path(cfg.paths.reports) / "figures" / f"samples_{rig.name}.png",
-        view=OmegaConf.select(cfg, "figures.view", default=VIEWS.get(rig.name, "side")),
+        view=OmegaConf.select(cfg, "figures.view", default=manifest(rig.name).view),
     )
     print(f"{rig.name}: {len(figure.rows)} rows ({figure.view} view) -> {figure.path}")
     return figure
