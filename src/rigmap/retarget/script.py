@@ -25,7 +25,7 @@ import numpy as np
 
 from rigmap.errors import RigmapError
 from rigmap.retarget.scene import ScriptScene
-from rigmap.rigs.base import Pose, RigInputError, check_positions
+from rigmap.rigs.base import Pose, RigInputError, check_placement, check_positions
 from rigmap.rigs.manifest import all_manifests
 
 Script = Callable[[ScriptScene, np.ndarray, np.ndarray], None]
@@ -105,19 +105,8 @@ def _has_constraint_retarget(rig) -> bool:
 
 
 def _check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
-    if cog is None or cog_rotation is None:
-        raise RigInputError(
-            f"{where}: needs the COG placement: cog (N, 3) and cog_rotation (N, 3, 3)"
-        )
-    cog = np.asarray(cog, dtype=np.float64)
-    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
-    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
-        raise RigInputError(
-            f"{where}: expected cog ({n}, 3) and cog_rotation ({n}, 3, 3) for {n} frames, "
-            f"got {cog.shape} and {cog_rotation.shape}"
-        )
-    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
-        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    """The COG placement, its rotations proper rotation matrices (the script reads frames)."""
+    cog, cog_rotation = check_placement(cog, cog_rotation, n, where)
     drift = np.abs(np.swapaxes(cog_rotation, -1, -2) @ cog_rotation - np.eye(3)).max(axis=(1, 2))
     bad = np.flatnonzero((drift > _ROTATION_TOLERANCE) | (np.linalg.det(cog_rotation) <= 0))
     if bad.size:

@@ -51,6 +51,29 @@ class RigManifest:
         return None if self.script is None else resolve(self.script)
 
 
+def character(
+    name: str,
+    label: str,
+    *,
+    script: bool = False,
+    view: str = "side",
+    report_order: int | None = None,
+) -> RigManifest:
+    """The manifest of a character rigmap builds in-process, whose parts follow one scheme:
+    factory ``rigmap.rigs.characters.<name>:build_<name>``, motion library
+    ``rigmap.animation.library.<name>`` and, with ``script``, the script baseline
+    ``rigmap.retarget.<name>_script:retarget_<name>``."""
+    return RigManifest(
+        name=name,
+        factory=f"rigmap.rigs.characters.{name}:build_{name}",
+        label=label,
+        library=f"rigmap.animation.library.{name}",
+        script=f"rigmap.retarget.{name}_script:retarget_{name}" if script else None,
+        view=view,
+        report_order=report_order,
+    )
+
+
 _REGISTERED: dict[str, RigManifest] = {}
 
 

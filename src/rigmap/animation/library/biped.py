@@ -24,11 +24,10 @@ import math
 import numpy as np
 
 from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
-SIDES = {"l": 1.0, "r": -1.0}
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
-MIRRORED_CHANNELS = ("tx", "ry", "rz")
 ARM_JOINTS = ("upper_arm", "forearm", "hand")
 LEG_JOINTS = ("thigh", "shin", "foot", "ball")
 
@@ -62,47 +61,10 @@ HAND_SHAPES = {
 }
 
 
-class Human:
+class Human(BodyKeys):
     """Semantic keying on top of a :class:`ClipBuilder`: feet, arms, hands, spine, head."""
 
-    def __init__(self, b: ClipBuilder):
-        self.b = b
-
-    def _mirrored(self, name: str, side: str, channels: dict, frame, interpolation="bezier"):
-        sign = SIDES[side]
-        for channel, value in channels.items():
-            if value is None:
-                continue
-            if channel in MIRRORED_CHANNELS:
-                value = sign * value
-            self.b.key(f"{name}.{channel}", frame, value, interpolation)
-
     # --- body ------------------------------------------------------------------------
-    def cog(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"cog.{c}": v for c, v in channels.items()}, interpolation)
-
-    def root(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"root.{c}": v for c, v in channels.items()}, interpolation)
-
-    def spine(
-        self,
-        frame: float,
-        hips=(0.0, 0.0, 0.0),
-        chest=(0.0, 0.0, 0.0),
-        chest_t=(0.0, 0.0, 0.0),
-        mid=(0.0, 0.0, 0.0),
-    ) -> None:
-        values = {}
-        for prefix, triple, channels in (
-            ("hips", hips, ("rx", "ry", "rz")),
-            ("chest", chest, ("rx", "ry", "rz")),
-            ("chest", chest_t, ("tx", "ty", "tz")),
-            ("spine_mid", mid, ("tx", "ty", "tz")),
-        ):
-            for channel, value in zip(channels, triple, strict=True):
-                values[f"{prefix}.{channel}"] = value
-        self.b.pose(frame, values)
-
     def head(self, frame: float, rx=0.0, ry=0.0, rz=0.0, jaw=None, follow=None, eyes=None) -> None:
         """Head turn spread over neck and head (totals, radians); ``eyes`` = aim offset (cm)."""
         for k, weight in enumerate((0.3, 0.25)):
@@ -129,9 +91,7 @@ class Human:
         self._mirrored(f"leg_{side}_ik", side, channels, frame, interpolation)
 
     def plant(self, side: str, start: float, end: float, tx: float, ty: float, tz: float) -> None:
-        sign = SIDES[side]
-        for channel, value in (("tx", sign * tx), ("ty", ty), ("tz", tz)):
-            self.b.hold(f"leg_{side}_ik.{channel}", start, end, value)
+        self._hold(f"leg_{side}_ik", side, start, end, tx, ty, tz)
 
     def leg(self, frame: float, side: str, **attributes) -> None:
         """``roll``, ``bank``, ``heel_twist``, ``toe_twist``, ``toe_tap``, ``ik_fk``."""
@@ -144,20 +104,14 @@ class Human:
         self._mirrored(f"leg_{side}_pole", side, channels, frame)
 
     def fk_leg(self, frame: float, side: str, angles, looseness: float = 0.03) -> None:
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(LEG_JOINTS, angles, strict=True)):
-            if k:
-                ry, rz = self.b.vary(ry, looseness), self.b.vary(rz, looseness)
-            self._mirrored(f"{joint}_{side}_fk", side, {"rx": rx, "ry": ry, "rz": rz}, frame)
+        self._fk_joints(frame, LEG_JOINTS, side, angles, looseness)
 
     # --- arms and hands -------------------------------------------------------------------
     def arm(
         self, frame: float, side: str, angles, clavicle=(0.0, 0.0), looseness: float = 0.03
     ) -> None:
         """FK arm: (rx, ry, rz) for upper arm, forearm, hand; clavicle (ry, rz)."""
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(ARM_JOINTS, angles, strict=True)):
-            if k:
-                rx, rz = self.b.vary(rx, looseness), self.b.vary(rz, looseness)
-            self._mirrored(f"{joint}_{side}_fk", side, {"rx": rx, "ry": ry, "rz": rz}, frame)
+        self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
     def hand_ik(self, frame: float, side: str, **channels) -> None:
@@ -216,7 +170,7 @@ class Human:
         """Secondary controls per shot (poles, eye line, toes), seeded; animated ones kept."""
         b = self.b
         animated = set(b.controls)
-        layer = ClipBuilder(b.name, b.rng, variation=b.variation)
+        layer = self._polish_layer()
         person = Human(layer)
         for frame in frames:
             for side in SIDES:
@@ -235,10 +189,7 @@ class Human:
                     "eye_aim.tz": b.vary(0.0, 10.0),
                 },
             )
-        for control in layer.controls:
-            if control not in animated:
-                for frame in frames:
-                    b.key(control, frame, layer.value_at(control, frame))
+        self._keep_unanimated(layer, animated, frames)
 
 
 # --- training clips ----------------------------------------------------------------------------

@@ -263,13 +263,14 @@ def _speech(
     b: ClipBuilder,
     text: str,
     *,
-    start: float,
-    rate: float,
     energy: float,
+    start: float = 0.0,
+    rate: float = 3.0,
     mood: str | None = None,
     mood_amount: float = 0.0,
 ) -> float:
-    """Key a viseme per letter group of ``text`` every ``rate`` frames; returns the end frame.
+    """Key a viseme per letter group of ``text`` every ``rate`` frames from ``start``; returns
+    the end frame.
 
     Letters map to visemes; a space is a short rest. Brows lift on stressed syllables
     and the eyes blink now and then, as people do while talking.
@@ -333,31 +334,15 @@ def _speech(
 
 
 def speech_greeting(b: ClipBuilder) -> None:
-    _speech(
-        b,
-        "hello there how are you today",
-        start=0.0,
-        rate=3.0,
-        energy=0.9,
-        mood="smile",
-        mood_amount=0.4,
-    )
+    _speech(b, "hello there how are you today", energy=0.9, mood="smile", mood_amount=0.4)
 
 
 def speech_counting(b: ClipBuilder) -> None:
-    _speech(b, "one two three four five six seven", start=0.0, rate=3.0, energy=0.8)
+    _speech(b, "one two three four five six seven", energy=0.8)
 
 
 def speech_complaint(b: ClipBuilder) -> None:
-    _speech(
-        b,
-        "i told you not to move my things",
-        start=0.0,
-        rate=3.0,
-        energy=1.0,
-        mood="anger",
-        mood_amount=0.5,
-    )
+    _speech(b, "i told you not to move my things", energy=1.0, mood="anger", mood_amount=0.5)
 
 
 def blinks_and_glances(b: ClipBuilder) -> None:

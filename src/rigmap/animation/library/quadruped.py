@@ -21,9 +21,9 @@ import math
 import numpy as np
 
 from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
-SIDES = {"l": 1.0, "r": -1.0}
 FRONT = ("front_leg_l", "front_leg_r")
 HIND = ("hind_leg_l", "hind_leg_r")
 LEGS = FRONT + HIND
@@ -33,7 +33,6 @@ FK_JOINTS = {
 }
 TAIL = 12
 NECK = 3
-MIRRORED_CHANNELS = ("tx", "ry", "rz")
 # rest positions (cm) of what the turning helper rotates about
 COG_REST_Z = -3.0
 PAW_REST_XZ = {"front_leg": (8.0, 20.0), "hind_leg": (8.0, -31.0)}
@@ -52,25 +51,13 @@ def _end(leg: str) -> str:
     return "front" if leg.startswith("front") else "hind"
 
 
-class Dog:
+class Dog(BodyKeys):
     """Semantic keying on top of a :class:`ClipBuilder`: paws, legs, spine, head, tail."""
-
-    def __init__(self, b: ClipBuilder):
-        self.b = b
 
     # --- raw -------------------------------------------------------------------
     def key(self, frame: float, interpolation: str = "bezier", **values: float) -> None:
         """Key controls given as ``control__channel=value`` (``cog__ty=-3``)."""
         self.b.pose(frame, {k.replace("__", "."): v for k, v in values.items()}, interpolation)
-
-    def _mirrored(self, name: str, side: str, channels: dict, frame, interpolation) -> None:
-        sign = SIDES[side]
-        for channel, value in channels.items():
-            if value is None:
-                continue
-            if channel in MIRRORED_CHANNELS:
-                value = sign * value
-            self.b.key(f"{name}.{channel}", frame, value, interpolation)
 
     # --- legs --------------------------------------------------------------------
     def paw(self, frame: float, leg: str, interpolation: str = "bezier", **channels) -> None:
@@ -79,9 +66,7 @@ class Dog:
 
     def plant(self, leg: str, start: float, end: float, tx: float, ty: float, tz: float) -> None:
         """The IK paw stays put from ``start`` to ``end`` (in root space)."""
-        sign = SIDES[_side(leg)]
-        for channel, value in (("tx", sign * tx), ("ty", ty), ("tz", tz)):
-            self.b.hold(f"{leg}_ik.{channel}", start, end, value)
+        self._hold(f"{leg}_ik", _side(leg), start, end, tx, ty, tz)
 
     def leg(self, frame: float, leg: str, interpolation: str = "bezier", **attributes) -> None:
         """Leg attributes: ``roll``, ``bank``, ``toe_tap``, ``ik_fk``, ``hock`` (hind only)."""
@@ -102,11 +87,7 @@ class Dog:
         Below the top joint each twist and side bend gets a seeded wobble of up to
         ``looseness`` radians: hand-set FK poses are never exactly planar.
         """
-        joints = FK_JOINTS[_end(leg)]
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(joints, angles, strict=True)):
-            if k:
-                ry, rz = self.b.vary(ry, looseness), self.b.vary(rz, looseness)
-            self.fk(frame, joint, _side(leg), rx=rx, ry=ry, rz=rz)
+        self._fk_joints(frame, FK_JOINTS[_end(leg)], _side(leg), angles, looseness)
 
     def toes(self, frame: float, leg: str, curl: float, spread: float, each=None) -> None:
         side = _side(leg)
@@ -176,31 +157,6 @@ class Dog:
         self.b.key("tail.wave_amplitude", frame, amplitude)
         self.b.key("tail.wave_phase", frame, phase, interpolation)
 
-    def spine(
-        self,
-        frame: float,
-        hips=(0.0, 0.0, 0.0),
-        chest=(0.0, 0.0, 0.0),
-        chest_t=(0.0, 0.0, 0.0),
-        mid=(0.0, 0.0, 0.0),
-    ) -> None:
-        values = {}
-        for prefix, triple, channels in (
-            ("hips", hips, ("rx", "ry", "rz")),
-            ("chest", chest, ("rx", "ry", "rz")),
-            ("chest", chest_t, ("tx", "ty", "tz")),
-            ("spine_mid", mid, ("tx", "ty", "tz")),
-        ):
-            for channel, value in zip(channels, triple, strict=True):
-                values[f"{prefix}.{channel}"] = value
-        self.b.pose(frame, values)
-
-    def cog(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"cog.{c}": v for c, v in channels.items()}, interpolation)
-
-    def root(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"root.{c}": v for c, v in channels.items()}, interpolation)
-
     # --- the polish pass ------------------------------------------------------------------
     def carriage(self, frames, alert: float = 0.0) -> None:
         """Secondary controls an animator sets per shot: ears, toes, poles, eye line.
@@ -211,7 +167,7 @@ class Dog:
         """
         b = self.b
         animated = set(b.controls)
-        polish = ClipBuilder(b.name, b.rng, variation=b.variation)
+        polish = self._polish_layer()
         dog = Dog(polish)
         for frame in frames:
             for side in SIDES:
@@ -233,10 +189,7 @@ class Dog:
                 )
                 dog.pole(frame, leg, tx=b.vary(1.5, 2.0), ty=b.vary(0.0, 2.0), tz=b.vary(0.0, 3.0))
             dog.eyes(frame, b.vary(0.0, 15.0), b.vary(-5.0, 8.0), b.vary(0.0, 10.0))
-        for control in polish.controls:
-            if control not in animated:
-                for frame in frames:
-                    b.key(control, frame, polish.value_at(control, frame))
+        self._keep_unanimated(polish, animated, frames)
 
 
 # --- gaits ----------------------------------------------------------------------------------

@@ -1,12 +1,5 @@
 """The built-in human (paper Table 3's biped)."""
 
-from rigmap.rigs.manifest import RigManifest
+from rigmap.rigs.manifest import character
 
-MANIFEST = RigManifest(
-    name="biped",
-    factory="rigmap.rigs.characters.biped:build_biped",
-    label="Biped",
-    library="rigmap.animation.library.biped",
-    script="rigmap.retarget.biped_script:retarget_biped",
-    report_order=1,
-)
+MANIFEST = character("biped", "Biped", script=True, report_order=1)

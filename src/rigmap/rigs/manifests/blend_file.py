@@ -2,9 +2,4 @@
 
 from rigmap.rigs.manifest import RigManifest
 
-MANIFEST = RigManifest(
-    name="blend_file",
-    factory="rigmap.rigs.blender.rigify:build_blend_file",
-    label="Blender file",
-    extra=True,
-)
+MANIFEST = RigManifest("blend_file", "rigmap.rigs.blender.rigify:build_blend_file", "Blender file")

@@ -1,12 +1,5 @@
 """The built-in face (paper Table 3's face): a mesh rig, its expressions read from the front."""
 
-from rigmap.rigs.manifest import RigManifest
+from rigmap.rigs.manifest import character
 
-MANIFEST = RigManifest(
-    name="face",
-    factory="rigmap.rigs.characters.face:build_face",
-    label="Face",
-    library="rigmap.animation.library.face",
-    view="front",
-    report_order=2,
-)
+MANIFEST = character("face", "Face", view="front", report_order=2)

@@ -1,12 +1,5 @@
 """The built-in dog (paper Table 3's quadruped)."""
 
-from rigmap.rigs.manifest import RigManifest
+from rigmap.rigs.manifest import character
 
-MANIFEST = RigManifest(
-    name="quadruped",
-    factory="rigmap.rigs.characters.quadruped:build_quadruped",
-    label="Quadruped",
-    library="rigmap.animation.library.quadruped",
-    script="rigmap.retarget.quadruped_script:retarget_quadruped",
-    report_order=0,
-)
+MANIFEST = character("quadruped", "Quadruped", script=True, report_order=0)

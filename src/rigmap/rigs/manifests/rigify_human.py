@@ -3,8 +3,5 @@
 from rigmap.rigs.manifest import RigManifest
 
 MANIFEST = RigManifest(
-    name="rigify_human",
-    factory="rigmap.rigs.blender.rigify:build_rigify_human",
-    label="Rigify Human (Blender)",
-    extra=True,
+    "rigify_human", "rigmap.rigs.blender.rigify:build_rigify_human", "Rigify Human (Blender)"
 )

@@ -2,11 +2,9 @@
 
 from rigmap.rigs.manifest import RigManifest
 
+FACTORY = "rigmap.rigs.blender.rigify:build_rigify_wolf"
+LIBRARY = "rigmap.animation.library.wolf"
+
 MANIFEST = RigManifest(
-    name="rigify_wolf",
-    factory="rigmap.rigs.blender.rigify:build_rigify_wolf",
-    label="Rigify Wolf (Blender)",
-    library="rigmap.animation.library.wolf",
-    report_order=4,
-    extra=True,
+    "rigify_wolf", FACTORY, "Rigify Wolf (Blender)", LIBRARY, report_order=4, extra=True
 )

@@ -1,11 +1,5 @@
 """The built-in squirrel (paper Table 3's squirrel): a mesh rig with a body and a face."""
 
-from rigmap.rigs.manifest import RigManifest
+from rigmap.rigs.manifest import character
 
-MANIFEST = RigManifest(
-    name="squirrel",
-    factory="rigmap.rigs.characters.squirrel:build_squirrel",
-    label="Squirrel",
-    library="rigmap.animation.library.squirrel",
-    report_order=3,
-)
+MANIFEST = character("squirrel", "Squirrel", report_order=3)
