@@ -66,6 +66,34 @@ class MotionLibrary:
         raise KeyError(f"rig {self.rig!r} has no clip named {clip_name!r}; clips: {names}")
 
 
+class Clips:
+    """A library's clip functions, declared where they are defined, in that order.
+
+    ``@clips.train("Walk", "two strides …")`` above a clip function adds it to the
+    training motions (``@clips.test`` to the held-out ones); ``clips.library(rig)``
+    is the rig's :class:`MotionLibrary`. The order of definition is the corpus order.
+    """
+
+    def __init__(self) -> None:
+        self._motions: dict[str, list[Motion]] = {split: [] for split in SPLITS}
+
+    def train(self, name: str, description: str) -> Callable:
+        return self._declare("train", name, description)
+
+    def test(self, name: str, description: str) -> Callable:
+        return self._declare("test", name, description)
+
+    def _declare(self, split: str, name: str, description: str) -> Callable:
+        def declare(keyframe: Callable[[ClipBuilder], None]) -> Callable[[ClipBuilder], None]:
+            self._motions[split].append(Motion(name, keyframe, description))
+            return keyframe
+
+        return declare
+
+    def library(self, rig: str) -> MotionLibrary:
+        return MotionLibrary(rig, *(tuple(self._motions[split]) for split in SPLITS))
+
+
 def libraries() -> list[str]:
     """Rig names whose manifest names a motion library."""
     return sorted(name for name, m in all_manifests().items() if m.library is not None)
@@ -165,6 +193,7 @@ def _check_split(split: str) -> None:
 __all__ = [
     "SPLITS",
     "ClipBuilder",
+    "Clips",
     "Motion",
     "MotionLibrary",
     "Variation",

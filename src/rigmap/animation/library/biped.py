@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
 from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
@@ -192,7 +192,14 @@ class Human(BodyKeys):
         self._keep_unanimated(layer, animated, frames)
 
 
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
+
+
 # --- training clips ----------------------------------------------------------------------------
+
+
+@clips.train("Idle", "breathing, weight shifts, a glance, a foot readjusts")
 def idle(b: ClipBuilder) -> None:
     """Standing: breathing, weight shifts from foot to foot, a glance, fidgeting fingers."""
     h = Human(b)
@@ -248,6 +255,7 @@ def idle(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Walk", "three cycles of a casual walk, root travelling")
 def walk(b: ClipBuilder) -> None:
     """Three cycles of a casual walk; the root travels, planted feet slide back with it.
 
@@ -330,6 +338,7 @@ def walk(b: ClipBuilder) -> None:
         h.head(t, rx=0.05, ry=b.vary(0.0, 0.1))
 
 
+@clips.train("Reach", "steps in and reaches a shelf (FK to IK on a matched pose)")
 def reach(b: ClipBuilder) -> None:
     """Reach for a box on a shelf: one arm rises in FK, switches to IK on a matched pose,
     grabs; the other arm joins the same way and both hands bring it in, then back to FK."""
@@ -403,6 +412,7 @@ def reach(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Crouch", "squats low with arms forward, stands")
 def crouch(b: ClipBuilder) -> None:
     """Squat down low, balance with the arms forward, look at the floor, stand up."""
     h = Human(b)
@@ -461,6 +471,7 @@ def crouch(b: ClipBuilder) -> None:
     h.polish([0.0, 30.0, end])
 
 
+@clips.train("Wave", "raises a hand and waves")
 def wave(b: ClipBuilder) -> None:
     """Raise a hand and wave hello (forearm swinging, fingers spread), then lower it."""
     h = Human(b)
@@ -516,6 +527,7 @@ def _turned_foot(side: str, angle: float) -> tuple[float, float]:
     return SIDES[side] * (nx - x), nz - z
 
 
+@clips.train("Turn", "turns on the spot about 90 degrees in three steps")
 def turn(b: ClipBuilder) -> None:
     """Turn on the spot by about 90 degrees in three steps, head and chest leading."""
     h = Human(b)
@@ -581,6 +593,7 @@ def turn(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Pick Up", "bends down and lifts an object to the chest")
 def pick_up(b: ClipBuilder) -> None:
     """Bend down, pick an object off the floor with both hands, lift it to the chest."""
     h = Human(b)
@@ -631,6 +644,7 @@ def pick_up(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Kick", "kicks a ball with one leg in FK, then the other")
 def kick(b: ClipBuilder) -> None:
     """Kick a ball with one leg (switched to FK), recover, then a smaller kick with the other."""
     h = Human(b)
@@ -697,6 +711,7 @@ def kick(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Look Around", "looks around the room, head following the world")
 def look_around(b: ClipBuilder) -> None:
     """Look around a room: head, eyes and chest turn, the head follows the world for a beat."""
     h = Human(b)
@@ -741,6 +756,7 @@ def look_around(b: ClipBuilder) -> None:
     h.polish([0.0, 40.0, end])
 
 
+@clips.train("Point & Shrug", "points far off, then shrugs palms up")
 def point_and_shrug(b: ClipBuilder) -> None:
     """Point at something far off, look, then shrug with both palms up."""
     h = Human(b)
@@ -814,6 +830,7 @@ def point_and_shrug(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Side Step", "two steps to one side and back")
 def side_step(b: ClipBuilder) -> None:
     """Two steps to one side and back, like making room in a queue."""
     h = Human(b)
@@ -886,6 +903,7 @@ def side_step(b: ClipBuilder) -> None:
 
 
 # --- test clips ------------------------------------------------------------------------------
+@clips.test("Range of Motion", "arms, torso and legs to their extremes")
 def range_of_motion(b: ClipBuilder) -> None:
     """A rig test: arms overhead and behind, torso bends and twists, legs kick high (FK)."""
     h = Human(b)
@@ -933,6 +951,7 @@ def range_of_motion(b: ClipBuilder) -> None:
     h.stand(90.0)
 
 
+@clips.test("Swing Dance", "rock steps, kicks and spins, fast")
 def swing_dance(b: ClipBuilder) -> None:
     """Lindy-style footwork: rock steps, triple steps, kicks and two fast spins."""
     h = Human(b)
@@ -987,6 +1006,7 @@ def swing_dance(b: ClipBuilder) -> None:
         )
 
 
+@clips.test("Tai Chi", "slow deep stance, arm circles, crane stand")
 def tai_chi(b: ClipBuilder) -> None:
     """Slow form: sink into a horse stance, wide arm circles, weight shifts, a crane stand."""
     h = Human(b)
@@ -1044,24 +1064,4 @@ def tai_chi(b: ClipBuilder) -> None:
     h.stand(110.0, arms=True, hands=None)
 
 
-LIBRARY = MotionLibrary(
-    rig="biped",
-    train=(
-        Motion("Idle", idle, "breathing, weight shifts, a glance, a foot readjusts"),
-        Motion("Walk", walk, "three cycles of a casual walk, root travelling"),
-        Motion("Reach", reach, "steps in and reaches a shelf (FK to IK on a matched pose)"),
-        Motion("Crouch", crouch, "squats low with arms forward, stands"),
-        Motion("Wave", wave, "raises a hand and waves"),
-        Motion("Turn", turn, "turns on the spot about 90 degrees in three steps"),
-        Motion("Pick Up", pick_up, "bends down and lifts an object to the chest"),
-        Motion("Kick", kick, "kicks a ball with one leg in FK, then the other"),
-        Motion("Look Around", look_around, "looks around the room, head following the world"),
-        Motion("Point & Shrug", point_and_shrug, "points far off, then shrugs palms up"),
-        Motion("Side Step", side_step, "two steps to one side and back"),
-    ),
-    test=(
-        Motion("Range of Motion", range_of_motion, "arms, torso and legs to their extremes"),
-        Motion("Swing Dance", swing_dance, "rock steps, kicks and spins, fast"),
-        Motion("Tai Chi", tai_chi, "slow deep stance, arm circles, crane stand"),
-    ),
-)
+LIBRARY = clips.library("biped")

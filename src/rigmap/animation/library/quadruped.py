@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
 from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
@@ -192,6 +192,10 @@ class Dog(BodyKeys):
         self._keep_unanimated(polish, animated, frames)
 
 
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
+
+
 # --- gaits ----------------------------------------------------------------------------------
 def _stepping(
     dog: Dog, leg: str, plants, swings, *, height: float, flex: float, peel: float
@@ -247,6 +251,7 @@ def _gait_plants(lifts, swing: float, period: float, position, first: float, las
     return plants, swings
 
 
+@clips.train("Walk", "two strides of a lateral-sequence walk, starting and stopping")
 def walk(b: ClipBuilder) -> None:
     """Stand, walk two strides forward with a lateral-sequence gait, stop and settle.
 
@@ -324,6 +329,7 @@ def walk(b: ClipBuilder) -> None:
     dog.carriage([0.0, t0 + period, end])
 
 
+@clips.train("Trot", "four trot cycles along a gentle curve, root travelling")
 def trot(b: ClipBuilder) -> None:
     """Four cycles of a trot along a gentle curve; the root travels.
 
@@ -425,69 +431,6 @@ def trot(b: ClipBuilder) -> None:
     dog.eyes(end, tx=30.0 * turn_, ty=-10.0)
 
 
-def _turn_paw(leg: str, angle: float, cog_z: float) -> tuple[float, float]:
-    """Left-side (tx, tz) of a paw that keeps its place under a body yawed by ``angle``."""
-    x, z = PAW_REST_XZ[leg[: leg.rindex("_")]]
-    sign = SIDES[_side(leg)]
-    x *= sign
-    rel_z = z - COG_REST_Z
-    nx = x * math.cos(angle) + rel_z * math.sin(angle)
-    nz = -x * math.sin(angle) + rel_z * math.cos(angle) + COG_REST_Z + cog_z
-    return sign * (nx - x), nz - z
-
-
-def turn(b: ClipBuilder) -> None:
-    """Turn on the spot by 45-60 degrees in two rounds of steps, head leading."""
-    dog = Dog(b)
-    direction = b.sign()
-    total = direction * b.vary(0.95, 0.1)
-    order = ["front_leg_r", "front_leg_l", "hind_leg_r", "hind_leg_l"]
-    if direction < 0:
-        order = [_other_side(leg) for leg in order]
-    # heading of the body at each round
-    t_steps = {leg: [8.0 + 4.0 * i, 32.0 + 4.0 * i] for i, leg in enumerate(order)}
-    end = 62.0
-    dog.cog(0.0, ry=0.0, ty=0.0)
-    dog.cog(6.0, ry=0.0, ty=-1.5, rz=-0.04 * direction)
-    dog.cog(20.0, ry=0.5 * total, ty=-2.5, rz=-0.06 * direction)
-    dog.cog(32.0, ry=0.6 * total, ty=-1.5, rz=-0.03 * direction)
-    dog.cog(46.0, ry=total, ty=-2.0, rz=-0.05 * direction)
-    dog.cog(end, ry=total, ty=0.0, rz=0.0)
-    headings = [0.0, 0.55 * total, total]
-    for leg in LEGS:
-        plants, swings = [], []
-        start = 0.0
-        place = _turn_paw(leg, 0.0, 0.0)
-        for i, lift in enumerate(t_steps[leg]):
-            land = lift + 6.0
-            plants.append((start, lift, place))
-            swings.append((lift, land, lift + 2.0))
-            start, place = land, _turn_paw(leg, headings[i + 1], 0.0)
-        plants.append((start, end, place))
-        _stepping(dog, leg, plants, swings, height=b.vary(5.0, 1.0), flex=0.6, peel=0.3)
-        for (_, s_end, _), angle in zip(plants, headings, strict=True):
-            dog.paw(s_end, leg, ry=angle)
-            dog.leg(s_end, leg, bank=-0.08 * direction)
-    for t, share in ((0.0, 0.0), (6.0, 0.5), (20.0, 1.0), (32.0, 0.6), (46.0, 1.0), (end, 0.0)):
-        dog.neck(t, ry=direction * 0.5 * share, rx=0.05)
-        dog.head(t, ry=direction * 0.35 * share, rz=-0.1 * direction * share)
-        dog.eyes(t, tx=direction * 45.0 * share)
-        dog.spine(
-            t,
-            hips=(0.0, -0.2 * direction * share, 0.0),
-            chest=(0.0, 0.25 * direction * share, 0.04 * share),
-        )
-        dog.tail(
-            t,
-            curl=0.3,
-            side_curl=-0.8 * direction * share,
-            lift=0.1,
-            sway=0.2,
-            phase=share * math.pi,
-        )
-    dog.carriage([0.0, 32.0, end], alert=0.5)
-
-
 # --- sitting, lying ---------------------------------------------------------------------------
 SIT = {"cog": dict(ty=-27.0, tz=-14.0, rx=-0.9), "hock": -1.08, "front_tz": -9.0}
 
@@ -511,6 +454,7 @@ def _sitting_tail(dog: Dog, frame: float, amount: float, side_curl: float = 0.0)
     )
 
 
+@clips.train("Sit Down & Stand Up", "sits, tilts its head, stands")
 def sit_down_stand_up(b: ClipBuilder) -> None:
     """Sit down, look about while sitting, stand back up."""
     dog = Dog(b)
@@ -560,6 +504,7 @@ def sit_down_stand_up(b: ClipBuilder) -> None:
     dog.carriage([0.0, sit_at, end], alert=0.3)
 
 
+@clips.train("Lie Down", "sits and lies down, front legs in FK, rolls on a hip")
 def lie_down(b: ClipBuilder) -> None:
     """Sit, then slide the front paws out and lie down (front legs in FK) and settle.
 
@@ -653,6 +598,7 @@ def lie_down(b: ClipBuilder) -> None:
 
 
 # --- head and tail ---------------------------------------------------------------------------
+@clips.train("Look Around", "looks left, right and up; a paw lifts")
 def look_around(b: ClipBuilder) -> None:
     """Standing, look left, right, up at something; ears swivel, one paw lifts (pointer)."""
     dog = Dog(b)
@@ -701,6 +647,7 @@ def look_around(b: ClipBuilder) -> None:
     dog.carriage([0.0, 84.0])
 
 
+@clips.train("Tail Wag", "a happy wag with hip wiggle and panting")
 def tail_wag(b: ClipBuilder) -> None:
     """A happy wag: the tail's wave runs (phase keyed as a sawtooth), hips wiggle, panting."""
     dog = Dog(b)
@@ -734,62 +681,6 @@ def tail_wag(b: ClipBuilder) -> None:
     dog.carriage([0.0, end])
 
 
-def sniff(b: ClipBuilder) -> None:
-    """Nose to the ground, following a scent a step forward, quick sniffs, head up."""
-    dog = Dog(b)
-    side = b.sign()
-    dog.cog(0.0, ty=0.0, rx=0.0, tz=0.0)
-    dog.cog(12.0, ty=-5.0, rx=0.2, tz=-2.0)
-    dog.cog(36.0, ty=-6.0, rx=0.22, tz=6.0, tx=2.0 * side)
-    dog.cog(60.0, ty=-6.0, rx=0.2, tz=8.0, tx=0.0)
-    dog.cog(78.0, ty=-1.0, rx=0.0, tz=8.0, tx=0.0)
-    for t, (down, sweep) in {
-        0.0: (0.0, 0.0),
-        12.0: (1.0, 0.0),
-        24.0: (1.0, side),
-        36.0: (1.1, 0.3 * side),
-        48.0: (1.0, -0.6 * side),
-        60.0: (0.9, 0.0),
-        78.0: (0.0, 0.0),
-    }.items():
-        dog.neck(t, rx=0.8 * down, ry=0.35 * sweep)
-        dog.spine(
-            t,
-            chest=(0.35 * down, 0.1 * sweep, 0.0),
-            hips=(-0.1 * down, 0.0, 0.0),
-            chest_t=(0.0, -3.0 * down, 2.0 * down),
-        )
-        dog.head(t, rx=0.45 * down, ry=0.25 * sweep, follow=1.0 - 0.4 * down)
-        dog.eyes(t, ty=-50.0 * down, tx=20.0 * sweep)
-        for s in SIDES:
-            dog.ears(t, s, curl=0.3 * down, rx=0.6 * down, rz=0.2)
-    # sniffs: quick small nose pumps
-    for t in (16.0, 18.0, 20.0, 40.0, 42.0, 44.0):
-        dog.key(t, jaw_ctrl__rx=0.02 if t % 4 else 0.06)
-    dog.key(0.0, jaw_ctrl__rx=0.0)
-    dog.key(78.0, jaw_ctrl__rx=0.0)
-    for t in (0.0, 30.0, 60.0, 78.0):
-        dog.tail(t, curl=0.2, lift=-0.1, sway=0.4, lag=0.5, phase=t / 10.0)
-    # front paws follow the nose a step
-    for i, leg in enumerate(FRONT if side > 0 else FRONT[::-1]):
-        lift = 28.0 + 6.0 * i
-        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (b.vary(1.0, 1.0), 10.0))]
-        _stepping(
-            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=5.0, flex=0.6, peel=0.35
-        )
-    for i, leg in enumerate(HIND):
-        lift = 46.0 + 6.0 * i
-        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (0.0, 8.0))]
-        _stepping(
-            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=4.0, flex=0.4, peel=0.3
-        )
-    for leg in FRONT:
-        dog.leg(20.0, leg, toe_tap=0.0)
-        dog.leg(24.0, leg, toe_tap=b.vary(0.3, 0.1))
-        dog.leg(28.0, leg, toe_tap=0.0)
-    dog.carriage([0.0, 78.0])
-
-
 # --- legs off the ground ------------------------------------------------------------------------
 # FK poses of a sitting hind leg (left-side convention, (rx, ry, rz) per joint, top down):
 # matched to where the IK leg sits, and reaching up behind the ear (upper and lower end
@@ -801,6 +692,7 @@ HIND_SCRATCH_FK = (
 )
 
 
+@clips.train("Scratch", "sits and scratches behind the ear with a hind leg in FK")
 def scratch(b: ClipBuilder) -> None:
     """Sit and scratch behind one ear with a hind leg switched to FK, then the other."""
     dog = Dog(b)
@@ -862,6 +754,64 @@ def scratch(b: ClipBuilder) -> None:
     dog.carriage([0.0, end])
 
 
+@clips.train("Sniff", "nose to the ground following a scent")
+def sniff(b: ClipBuilder) -> None:
+    """Nose to the ground, following a scent a step forward, quick sniffs, head up."""
+    dog = Dog(b)
+    side = b.sign()
+    dog.cog(0.0, ty=0.0, rx=0.0, tz=0.0)
+    dog.cog(12.0, ty=-5.0, rx=0.2, tz=-2.0)
+    dog.cog(36.0, ty=-6.0, rx=0.22, tz=6.0, tx=2.0 * side)
+    dog.cog(60.0, ty=-6.0, rx=0.2, tz=8.0, tx=0.0)
+    dog.cog(78.0, ty=-1.0, rx=0.0, tz=8.0, tx=0.0)
+    for t, (down, sweep) in {
+        0.0: (0.0, 0.0),
+        12.0: (1.0, 0.0),
+        24.0: (1.0, side),
+        36.0: (1.1, 0.3 * side),
+        48.0: (1.0, -0.6 * side),
+        60.0: (0.9, 0.0),
+        78.0: (0.0, 0.0),
+    }.items():
+        dog.neck(t, rx=0.8 * down, ry=0.35 * sweep)
+        dog.spine(
+            t,
+            chest=(0.35 * down, 0.1 * sweep, 0.0),
+            hips=(-0.1 * down, 0.0, 0.0),
+            chest_t=(0.0, -3.0 * down, 2.0 * down),
+        )
+        dog.head(t, rx=0.45 * down, ry=0.25 * sweep, follow=1.0 - 0.4 * down)
+        dog.eyes(t, ty=-50.0 * down, tx=20.0 * sweep)
+        for s in SIDES:
+            dog.ears(t, s, curl=0.3 * down, rx=0.6 * down, rz=0.2)
+    # sniffs: quick small nose pumps
+    for t in (16.0, 18.0, 20.0, 40.0, 42.0, 44.0):
+        dog.key(t, jaw_ctrl__rx=0.02 if t % 4 else 0.06)
+    dog.key(0.0, jaw_ctrl__rx=0.0)
+    dog.key(78.0, jaw_ctrl__rx=0.0)
+    for t in (0.0, 30.0, 60.0, 78.0):
+        dog.tail(t, curl=0.2, lift=-0.1, sway=0.4, lag=0.5, phase=t / 10.0)
+    # front paws follow the nose a step
+    for i, leg in enumerate(FRONT if side > 0 else FRONT[::-1]):
+        lift = 28.0 + 6.0 * i
+        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (b.vary(1.0, 1.0), 10.0))]
+        _stepping(
+            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=5.0, flex=0.6, peel=0.35
+        )
+    for i, leg in enumerate(HIND):
+        lift = 46.0 + 6.0 * i
+        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (0.0, 8.0))]
+        _stepping(
+            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=4.0, flex=0.4, peel=0.3
+        )
+    for leg in FRONT:
+        dog.leg(20.0, leg, toe_tap=0.0)
+        dog.leg(24.0, leg, toe_tap=b.vary(0.3, 0.1))
+        dog.leg(28.0, leg, toe_tap=0.0)
+    dog.carriage([0.0, 78.0])
+
+
+@clips.train("Shake Paw", "sitting, gives one paw then the other (FK)")
 def shake_paw(b: ClipBuilder) -> None:
     """Sitting, give the right paw (FK), shake it, then the left one."""
     dog = Dog(b)
@@ -923,6 +873,7 @@ def shake_paw(b: ClipBuilder) -> None:
     dog.carriage([0.0, 48.0, end], alert=0.6)
 
 
+@clips.train("Play Bow", "two play bows, rump high, tail wagging")
 def play_bow(b: ClipBuilder) -> None:
     """Drop the chest into a play bow twice, rump high, tail wagging, then stand."""
     dog = Dog(b)
@@ -970,7 +921,72 @@ def play_bow(b: ClipBuilder) -> None:
     dog.carriage([0.0, 34.0, end], alert=0.8)
 
 
+def _turn_paw(leg: str, angle: float, cog_z: float) -> tuple[float, float]:
+    """Left-side (tx, tz) of a paw that keeps its place under a body yawed by ``angle``."""
+    x, z = PAW_REST_XZ[leg[: leg.rindex("_")]]
+    sign = SIDES[_side(leg)]
+    x *= sign
+    rel_z = z - COG_REST_Z
+    nx = x * math.cos(angle) + rel_z * math.sin(angle)
+    nz = -x * math.sin(angle) + rel_z * math.cos(angle) + COG_REST_Z + cog_z
+    return sign * (nx - x), nz - z
+
+
+@clips.train("Turn", "turns on the spot in two rounds of steps")
+def turn(b: ClipBuilder) -> None:
+    """Turn on the spot by 45-60 degrees in two rounds of steps, head leading."""
+    dog = Dog(b)
+    direction = b.sign()
+    total = direction * b.vary(0.95, 0.1)
+    order = ["front_leg_r", "front_leg_l", "hind_leg_r", "hind_leg_l"]
+    if direction < 0:
+        order = [_other_side(leg) for leg in order]
+    # heading of the body at each round
+    t_steps = {leg: [8.0 + 4.0 * i, 32.0 + 4.0 * i] for i, leg in enumerate(order)}
+    end = 62.0
+    dog.cog(0.0, ry=0.0, ty=0.0)
+    dog.cog(6.0, ry=0.0, ty=-1.5, rz=-0.04 * direction)
+    dog.cog(20.0, ry=0.5 * total, ty=-2.5, rz=-0.06 * direction)
+    dog.cog(32.0, ry=0.6 * total, ty=-1.5, rz=-0.03 * direction)
+    dog.cog(46.0, ry=total, ty=-2.0, rz=-0.05 * direction)
+    dog.cog(end, ry=total, ty=0.0, rz=0.0)
+    headings = [0.0, 0.55 * total, total]
+    for leg in LEGS:
+        plants, swings = [], []
+        start = 0.0
+        place = _turn_paw(leg, 0.0, 0.0)
+        for i, lift in enumerate(t_steps[leg]):
+            land = lift + 6.0
+            plants.append((start, lift, place))
+            swings.append((lift, land, lift + 2.0))
+            start, place = land, _turn_paw(leg, headings[i + 1], 0.0)
+        plants.append((start, end, place))
+        _stepping(dog, leg, plants, swings, height=b.vary(5.0, 1.0), flex=0.6, peel=0.3)
+        for (_, s_end, _), angle in zip(plants, headings, strict=True):
+            dog.paw(s_end, leg, ry=angle)
+            dog.leg(s_end, leg, bank=-0.08 * direction)
+    for t, share in ((0.0, 0.0), (6.0, 0.5), (20.0, 1.0), (32.0, 0.6), (46.0, 1.0), (end, 0.0)):
+        dog.neck(t, ry=direction * 0.5 * share, rx=0.05)
+        dog.head(t, ry=direction * 0.35 * share, rz=-0.1 * direction * share)
+        dog.eyes(t, tx=direction * 45.0 * share)
+        dog.spine(
+            t,
+            hips=(0.0, -0.2 * direction * share, 0.0),
+            chest=(0.0, 0.25 * direction * share, 0.04 * share),
+        )
+        dog.tail(
+            t,
+            curl=0.3,
+            side_curl=-0.8 * direction * share,
+            lift=0.1,
+            sway=0.2,
+            phase=share * math.pi,
+        )
+    dog.carriage([0.0, 32.0, end], alert=0.5)
+
+
 # --- held-out test clips: large, fast, extreme --------------------------------------------------
+@clips.test("Jumping & Playing", "leaps, spins and pounces")
 def jumping_and_playing(b: ClipBuilder) -> None:
     """Crouch, leap forward, land, spin to chase the tail, pounce (fast and big)."""
     dog = Dog(b)
@@ -1037,6 +1053,7 @@ def jumping_and_playing(b: ClipBuilder) -> None:
     dog.eyes(76.0, ty=-40.0)
 
 
+@clips.test("Turning & Galloping", "gallops with sharp turns")
 def turning_and_galloping(b: ClipBuilder) -> None:
     """Rotary gallop with two sharp turns: long strides, suspension, banking into the turns."""
     dog = Dog(b)
@@ -1102,6 +1119,7 @@ def turning_and_galloping(b: ClipBuilder) -> None:
     dog.eyes(end, ty=-20.0)
 
 
+@clips.test("Begging Excitedly", "sits up begging, paws paddling")
 def begging_excitedly(b: ClipBuilder) -> None:
     """Sit up on the haunches, front paws paddling in FK, bouncing, tail going wild."""
     dog = Dog(b)
@@ -1157,24 +1175,4 @@ def begging_excitedly(b: ClipBuilder) -> None:
     dog.eyes(end, ty=40.0)
 
 
-LIBRARY = MotionLibrary(
-    rig="quadruped",
-    train=(
-        Motion("Walk", walk, "two strides of a lateral-sequence walk, starting and stopping"),
-        Motion("Trot", trot, "four trot cycles along a gentle curve, root travelling"),
-        Motion("Sit Down & Stand Up", sit_down_stand_up, "sits, tilts its head, stands"),
-        Motion("Lie Down", lie_down, "sits and lies down, front legs in FK, rolls on a hip"),
-        Motion("Look Around", look_around, "looks left, right and up; a paw lifts"),
-        Motion("Tail Wag", tail_wag, "a happy wag with hip wiggle and panting"),
-        Motion("Scratch", scratch, "sits and scratches behind the ear with a hind leg in FK"),
-        Motion("Sniff", sniff, "nose to the ground following a scent"),
-        Motion("Shake Paw", shake_paw, "sitting, gives one paw then the other (FK)"),
-        Motion("Play Bow", play_bow, "two play bows, rump high, tail wagging"),
-        Motion("Turn", turn, "turns on the spot in two rounds of steps"),
-    ),
-    test=(
-        Motion("Jumping & Playing", jumping_and_playing, "leaps, spins and pounces"),
-        Motion("Turning & Galloping", turning_and_galloping, "gallops with sharp turns"),
-        Motion("Begging Excitedly", begging_excitedly, "sits up begging, paws paddling"),
-    ),
-)
+LIBRARY = clips.library("quadruped")

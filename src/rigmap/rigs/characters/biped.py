@@ -14,7 +14,7 @@ import numpy as np
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.engine.torch_rig import TorchRig
 from rigmap.rigs.features.chain_attributes import chain_attributes
-from rigmap.rigs.features.fk_chain import fk_chain
+from rigmap.rigs.features.fk_chain import fk_chain, fk_joint
 from rigmap.rigs.features.head import HeadSpec, head
 from rigmap.rigs.features.limb import FootSpec, LimbUsage, limb
 from rigmap.rigs.features.sides import SIDES, mirror
@@ -55,16 +55,14 @@ def build_biped():
 
 
 def _arm(b: RigBuilder, side: str, sign: float) -> None:
-    group = f"arm_{side}"
-    fk_chain(
+    fk_joint(
         b,
-        [f"clavicle_{side}"],
+        f"clavicle_{side}",
         parent="spine_chest",
-        positions=[mirror((2, 145, 2), sign)],
-        group=group,
+        position=mirror((2, 145, 2), sign),
+        group=f"arm_{side}",
         used="ry rz",
         rotate_range=0.6,
-        control_suffix="_ctrl",
     )
     rest = {
         f"upper_arm_{side}": mirror((17, 146, -1), sign),

@@ -14,7 +14,7 @@ import numpy as np
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.engine.torch_rig import TorchRig
 from rigmap.rigs.features.chain_attributes import chain_attributes
-from rigmap.rigs.features.fk_chain import fk_chain
+from rigmap.rigs.features.fk_chain import fk_chain, fk_joint
 from rigmap.rigs.features.head import HeadSpec, head
 from rigmap.rigs.features.limb import FootSpec, LimbUsage, limb
 from rigmap.rigs.features.sides import SIDES, mirror
@@ -89,16 +89,14 @@ def _ear(b: RigBuilder, side: str, sign: float) -> None:
 
 
 def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
-    group = f"front_leg_{side}"
-    fk_chain(
+    fk_joint(
         b,
-        [f"scapula_{side}"],
+        f"scapula_{side}",
         parent="spine_chest",
-        positions=[mirror((6, 66, 20), sign)],
-        group=group,
+        position=mirror((6, 66, 20), sign),
+        group=f"front_leg_{side}",
         used="rx ry rz",
         rotate_range=0.5,
-        control_suffix="_ctrl",
     )
     rest = {
         f"upper_arm_{side}": mirror((8, 52, 24), sign),

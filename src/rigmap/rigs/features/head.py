@@ -23,7 +23,7 @@ import numpy as np
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.features.aim import aim_joint
 from rigmap.rigs.features.fixed_joint import fixed_joint
-from rigmap.rigs.features.fk_chain import fk_chain
+from rigmap.rigs.features.fk_chain import fk_chain, fk_joint
 from rigmap.rigs.features.sides import SIDES, mirror
 from rigmap.rigs.features.space_blend import space_blend_control
 
@@ -82,16 +82,8 @@ def head(
     )
     b.joint("head", neck[-1])
     fixed_joint(b, "head_end", parent="head", position=spec.head_end)
-    fk_chain(
-        b,
-        ["jaw"],
-        parent="head",
-        positions=[spec.jaw],
-        group=GROUP,
-        used="rx",
-        rotate_range={"rx": (-0.1, spec.jaw_open), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
-        control_suffix="_ctrl",
-    )
+    opens = {"rx": (-0.1, spec.jaw_open), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)}
+    fk_joint(b, "jaw", parent="head", position=spec.jaw, group=GROUP, used="rx", rotate_range=opens)
     fixed_joint(b, "jaw_end", parent="jaw", position=spec.jaw_end)
     b.transform_control(
         "eye_aim",

@@ -36,26 +36,23 @@ class TorsoSpec:
 def torso(b: RigBuilder, spec: TorsoSpec) -> None:
     """Add root, COG, hips, chest, spine mid and the spine joints (the first has no parent)."""
     b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
-    for name, parent, offset, used, ranges in (
-        ("cog", "root", spec.cog, "tx ty tz rx ry rz", {"translate_range": 60.0}),
-        ("hips", "cog", spec.hips, "rx ry rz", {"rotate_range": 0.8}),
-        ("chest", "cog", spec.chest, "tx ty tz rx ry rz", {"rotate_range": 1.0}),
-    ):
-        b.transform_control(name, parent=parent, offset=offset, group=GROUP, used=used, **ranges)
-    spine_mid = b.transform_control(
-        "spine_mid",
-        parent="cog",
-        offset=spec.spine_mid,
-        group=GROUP,
-        used="tx ty tz",
-        translate_range=15.0,
-    )
+    controls = {
+        name: b.transform_control(
+            name, parent=parent, offset=offset, group=GROUP, used=used, **ranges
+        )
+        for name, parent, offset, used, ranges in (
+            ("cog", "root", spec.cog, "tx ty tz rx ry rz", {"translate_range": 60.0}),
+            ("hips", "cog", spec.hips, "rx ry rz", {"rotate_range": 0.8}),
+            ("chest", "cog", spec.chest, "tx ty tz rx ry rz", {"rotate_range": 1.0}),
+            ("spine_mid", "cog", spec.spine_mid, "tx ty tz", {"translate_range": 15.0}),
+        )
+    }
     spline_spine(
         b,
         list(spec.spine),
         hips="hips",
         chest="chest",
-        mid=spine_mid,
+        mid=controls["spine_mid"],
         parent_joint=None,
         group=GROUP,
     )
