@@ -169,10 +169,8 @@ class Human(BodyKeys):
     def polish(self, frames) -> None:
         """Secondary controls per shot (poles, eye line, toes), seeded; animated ones kept."""
         b = self.b
-        animated = set(b.controls)
-        layer = self._polish_layer()
-        person = Human(layer)
-        for frame in frames:
+
+        def key_frame(person: Human, frame: float) -> None:
             for side in SIDES:
                 person.knee(
                     frame, side, tx=b.vary(2.0, 3.0), ty=b.vary(0.0, 3.0), tz=b.vary(0.0, 4.0)
@@ -181,7 +179,7 @@ class Human(BodyKeys):
                     frame, side, tx=b.vary(0.0, 3.0), ty=b.vary(0.0, 3.0), tz=b.vary(-2.0, 4.0)
                 )
                 person.leg(frame, side, toe_tap=b.vary(0.0, 0.05), bank=b.vary(0.0, 0.04))
-            layer.pose(
+            person.b.pose(
                 frame,
                 {
                     "eye_aim.tx": b.vary(0.0, 12.0),
@@ -189,7 +187,8 @@ class Human(BodyKeys):
                     "eye_aim.tz": b.vary(0.0, 10.0),
                 },
             )
-        self._keep_unanimated(layer, animated, frames)
+
+        self._polish(frames, key_frame)
 
 
 # this library's clip functions, in corpus order (see rigmap.animation.library.Clips)

@@ -12,6 +12,8 @@ only the controls the motion did not animate. :class:`~.quadruped.Dog` and
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 SIDES = {"l": 1.0, "r": -1.0}
@@ -78,13 +80,15 @@ class BodyKeys:
         self.b.pose(frame, values)
 
     # --- the polish pass ------------------------------------------------------------------
-    def _polish_layer(self) -> ClipBuilder:
-        """A scratch builder drawing from the clip's own generator, for secondary keys."""
-        return ClipBuilder(self.b.name, self.b.rng, variation=self.b.variation)
-
-    def _keep_unanimated(self, layer: ClipBuilder, animated: set[str], frames) -> None:
-        """Copy the layer's keys on ``frames`` for the controls the motion left alone."""
-        for control in layer.controls:
+    def _polish(self, frames, key_frame: Callable[[BodyKeys, float], None]) -> None:
+        """Key secondary controls with ``key_frame(layer, frame)`` on a layer drawing from the
+        clip's own generator, then keep them on ``frames`` for the controls the motion left
+        alone (so a polish pass never overrides what the motion animates)."""
+        animated = set(self.b.controls)
+        layer = type(self)(ClipBuilder(self.b.name, self.b.rng, variation=self.b.variation))
+        for frame in frames:
+            key_frame(layer, frame)
+        for control in layer.b.controls:
             if control not in animated:
                 for frame in frames:
-                    self.b.key(control, frame, layer.value_at(control, frame))
+                    self.b.key(control, frame, layer.b.value_at(control, frame))

@@ -166,10 +166,8 @@ class Dog(BodyKeys):
         animates are left alone, so call this last.
         """
         b = self.b
-        animated = set(b.controls)
-        polish = self._polish_layer()
-        dog = Dog(polish)
-        for frame in frames:
+
+        def key_frame(dog: Dog, frame: float) -> None:
             for side in SIDES:
                 dog.ears(
                     frame,
@@ -189,7 +187,8 @@ class Dog(BodyKeys):
                 )
                 dog.pole(frame, leg, tx=b.vary(1.5, 2.0), ty=b.vary(0.0, 2.0), tz=b.vary(0.0, 3.0))
             dog.eyes(frame, b.vary(0.0, 15.0), b.vary(-5.0, 8.0), b.vary(0.0, 10.0))
-        self._keep_unanimated(polish, animated, frames)
+
+        self._polish(frames, key_frame)
 
 
 # this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
