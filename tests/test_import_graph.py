@@ -136,7 +136,15 @@ def one_cycle(graph: dict[str, set[str]], part: list[str]) -> list[str]:
     raise AssertionError(f"{part} is not a cycle")
 
 
-def test_the_graph_reader_sees_lazy_relative_and_reexported_imports():
+def test_the_graph_reader_sees_lazy_relative_and_reexported_imports(tmp_path):
+    module = tmp_path / "a.py"
+    module.write_text(
+        "from . import b\nfrom .. import top\n\n\ndef lazy():\n    from .c import name\n"
+        "    import pkg.d.inner\n"
+    )
+    known = {"pkg": None, "pkg.sub": None, "pkg.sub.a": None, "pkg.sub.b": None}
+    known |= {"pkg.sub.c": None, "pkg.d": None}
+    assert _imports("pkg.sub.a", module, known) == {"pkg.sub.b", "pkg", "pkg.sub.c", "pkg.d"}
     graph = import_graph()
     assert "rigmap.rigs.registry" in graph["rigmap.rigs"]  # a package __init__ re-export
     assert "rigmap.rigs.base" in graph["rigmap.rigs.registry"]
