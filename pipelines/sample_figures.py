@@ -16,14 +16,14 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus_files import read_corpus_split
+from rigmap.rigs.manifest import manifest
 from rigmap.sampling import available
 from rigmap.stage import run_stage
 from rigmap.stage.inputs import layout_of, rig_from_config
 from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
 
-# The view each rig's poses read best in; other rigs are drawn from the side.
-# A face's expressions show from the front. Override with figures.view=...
-VIEWS = {"face": "front"}
+# The view each rig's poses read best in is its manifest's ``view`` (the face's
+# expressions show from the front, the others from the side). Override with figures.view=...
 
 
 def run(cfg: DictConfig) -> SampleFigure:
@@ -51,7 +51,7 @@ def run(cfg: DictConfig) -> SampleFigure:
         rig,
         rows,
         layout.figures() / f"samples_{rig.name}.png",
-        view=OmegaConf.select(cfg, "figures.view", default=VIEWS.get(rig.name, "side")),
+        view=OmegaConf.select(cfg, "figures.view", default=manifest(rig.name).view),
     )
     print(f"{rig.name}: {len(figure.rows)} rows ({figure.view} view) -> {figure.path}")
     return figure

@@ -190,3 +190,32 @@ def test_ik_fk_blend_switches_between_the_two_chains(biped):
     np.testing.assert_allclose(
         half["hand_l"][0], 0.5 * (joints_fk["hand_l"][0] + joints_ik["hand_l"][0]), atol=1e-9
     )
+
+
+def test_torso_and_head_units_build_a_rig_on_their_own():
+    from rigmap.rigs.engine.torch_rig import TorchRig
+    from rigmap.rigs.features.head import HeadSpec, head
+    from rigmap.rigs.features.torso import TorsoSpec, torso
+
+    b = RigBuilder("bust")
+    torso(b, TorsoSpec(cog=(0, 100, 0), hips=(0, 0, 0), chest=(0, 40, 0), spine_mid=(0, 20, 0),
+                       spine=("pelvis", "spine_1", "spine_chest")))  # fmt: skip
+    ears = []
+    spec = HeadSpec(neck=((0, 148, 0), (0, 155, 1)), head=(0, 162, 2), head_end=(0, 180, 2),
+                    jaw=(0, 163, 5), jaw_end=(0, 156, 11), jaw_open=0.5, eye_aim=(0, 168, 70),
+                    eye=(3.0, 168, 8), pupil=1.0)  # fmt: skip
+    head(b, spec, parent="spine_chest", per_side=lambda side, sign: ears.append((side, sign)))
+    rig = TorchRig(b)
+    assert ears == [("l", 1.0), ("r", -1.0)]  # one call after each eye
+    assert rig.joint_names[-4:] == ["eye_l", "eye_end_l", "eye_r", "eye_end_r"]
+    assert rig.controls["jaw_ctrl.rx"].upper == 0.5
+    assert {"root.tx", "cog.ty", "chest.rz", "spine_mid.tz", "neck_2_fk.rx", "head.follow"} <= set(
+        rig.used_controls
+    )
+    # the rest pose puts the joints where the specs say; the eyes look along +Z at rest
+    world = dict(zip(rig.joint_names, rig.rest_positions, strict=True))
+    np.testing.assert_allclose(world["head"], [0, 162, 2])
+    np.testing.assert_allclose(world["eye_end_r"] - world["eye_r"], [0, 0, 1.0], atol=1e-12)
+    joints, _ = _world(rig, {"eye_aim.tx": 60.0})  # look 60 cm to the character's left
+    gaze = joints["eye_end_l"][0] - joints["eye_l"][0]
+    assert gaze[0] > 0.5 and abs(np.linalg.norm(gaze) - 1.0) < 1e-9

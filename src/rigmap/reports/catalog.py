@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rigmap.rigs.manifest import all_manifests, reported
+
 
 @dataclass(frozen=True)
 class Row:
@@ -51,14 +53,15 @@ KERNELS: tuple[Row, ...] = (
     Row("polynomial", "Polynomial"),
 )
 
-#: the built-in characters, in the order of the paper's Table 3, then the Blender rigs
-RIGS: tuple[Row, ...] = (
-    Row("quadruped", "Quadruped"),
-    Row("biped", "Biped"),
-    Row("face", "Face"),
-    Row("squirrel", "Squirrel"),
-    Row("rigify_wolf", "Rigify Wolf (Blender)", extra=True),
-)
+
+def rig_rows() -> tuple[Row, ...]:
+    """The reported rigs from their manifests, in the order of the paper's Table 3, then the
+    Blender rigs (a rig registered later joins them)."""
+    return tuple(Row(m.name, m.label, extra=m.extra) for m in reported())
+
+
+#: the built-in characters as they stood when this module was imported (see ``rig_rows``)
+RIGS: tuple[Row, ...] = rig_rows()
 
 
 def find_row(rows: tuple[Row, ...], key: str, what: str) -> Row:
@@ -70,8 +73,6 @@ def find_row(rows: tuple[Row, ...], key: str, what: str) -> Row:
 
 
 def rig_label(name: str) -> str:
-    """``quadruped`` -> ``Quadruped``; rigs outside the catalogue keep their own name."""
-    for row in RIGS:
-        if row.key == name:
-            return row.label
-    return name
+    """``quadruped`` -> ``Quadruped`` (the manifest's label); unknown rigs keep their own name."""
+    known = all_manifests().get(name)
+    return name if known is None else known.label

@@ -2,17 +2,19 @@
 
 from rigmap.retarget.euler import euler_to_matrix, matrix_to_euler
 from rigmap.retarget.script import (
-    SCRIPTS,
     NoRetargetScriptError,
     ScriptResult,
+    script_for,
     script_retarget,
+    scripted_rigs,
 )
 
 __all__ = [
-    "SCRIPTS",
     "NoRetargetScriptError",
     "ScriptResult",
     "euler_to_matrix",
     "matrix_to_euler",
+    "script_for",
     "script_retarget",
+    "scripted_rigs",
 ]

@@ -48,6 +48,16 @@ class LimbLayout:
     toe: str | None = None
     carried: tuple[str, ...] = ()
 
+    @classmethod
+    def sided(cls, side: str, fk_parent: str, carried=(), **names: str) -> LimbLayout:
+        """The layout of one side: ``_<side>`` appended to the limb's and every joint's name
+        (``fk_parent`` and ``carried`` are taken as given)."""
+        return cls(
+            fk_parent=fk_parent,
+            carried=tuple(carried),
+            **{key: f"{value}_{side}" for key, value in names.items()},
+        )
+
     @property
     def fk_joints(self) -> list[str]:
         joints = [self.upper, self.mid, self.hock, self.end, self.ball]

@@ -5,8 +5,8 @@ world placement, runs the script for the rig, and returns the used controls plus
 the rig evaluations the script spent. This is the one place that picks the
 script:
 
-- built-in articulated rigs have a hand-written script here (``SCRIPTS``) that
-  reads back parents' world transforms;
+- built-in articulated rigs have a hand-written script (named by the rig's
+  manifest, :mod:`rigmap.rigs.manifest`) that reads back parents' world transforms;
 - Blender rigs with a ``retarget`` mapping run the constraint-based retarget
   (``rig.constraint_retarget``, :mod:`rigmap.rigs.blender.retarget`): Blender
   solves the constraints once per frame, one rig evaluation each;
@@ -24,14 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigmap.errors import RigmapError
-from rigmap.retarget.biped_script import retarget_biped
-from rigmap.retarget.quadruped_script import retarget_quadruped
 from rigmap.retarget.scene import ScriptScene
-from rigmap.rigs.base import Pose, RigInputError, check_positions
+from rigmap.rigs.base import Pose, RigInputError, check_placement, check_positions
+from rigmap.rigs.manifest import all_manifests
 
 Script = Callable[[ScriptScene, np.ndarray, np.ndarray], None]
 
-SCRIPTS: dict[str, Script] = {"quadruped": retarget_quadruped, "biped": retarget_biped}
 # frames per batch: bounds the memory of the rig's read-backs (every named transform)
 DEFAULT_CHUNK = 2048
 # how far a COG rotation may be from orthonormal before it is refused
@@ -57,11 +55,11 @@ def script_retarget(rig, positions, cog=None, cog_rotation=None, *, chunk: int =
     placement; a :class:`~rigmap.rigs.base.Pose` may be passed as ``positions``
     instead of all three. Returns a :class:`ScriptResult`.
     """
-    script = SCRIPTS.get(rig.name)
+    script = script_for(rig.name)
     if script is None and not _has_constraint_retarget(rig):
         raise NoRetargetScriptError(
             f"no retarget script for rig {rig.name!r}; scripts exist for "
-            f"{', '.join(sorted(SCRIPTS))} and for Blender rigs with a 'retarget' mapping "
+            f"{', '.join(scripted_rigs())} and for Blender rigs with a 'retarget' mapping "
             "in their config (constraint-based, rigmap.rigs.blender.retarget)"
         )
     if isinstance(positions, Pose):
@@ -88,6 +86,17 @@ def script_retarget(rig, positions, cog=None, cog_rotation=None, *, chunk: int =
     return ScriptResult(Y_used, evaluations)
 
 
+def scripted_rigs() -> list[str]:
+    """Rigs whose manifest names a hand-written retarget script."""
+    return sorted(name for name, m in all_manifests().items() if m.script is not None)
+
+
+def script_for(rig_name: str) -> Script | None:
+    """The hand-written script a rig's manifest names, or ``None``."""
+    known = all_manifests().get(rig_name)
+    return None if known is None else known.script_function()
+
+
 def _has_constraint_retarget(rig) -> bool:
     """A Blender rig that knows which controls follow which joints (its ``retarget`` list)."""
     return callable(getattr(rig, "constraint_retarget", None)) and bool(
@@ -96,19 +105,8 @@ def _has_constraint_retarget(rig) -> bool:
 
 
 def _check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
-    if cog is None or cog_rotation is None:
-        raise RigInputError(
-            f"{where}: needs the COG placement: cog (N, 3) and cog_rotation (N, 3, 3)"
-        )
-    cog = np.asarray(cog, dtype=np.float64)
-    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
-    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
-        raise RigInputError(
-            f"{where}: expected cog ({n}, 3) and cog_rotation ({n}, 3, 3) for {n} frames, "
-            f"got {cog.shape} and {cog_rotation.shape}"
-        )
-    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
-        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    """The COG placement, its rotations proper rotation matrices (the script reads frames)."""
+    cog, cog_rotation = check_placement(cog, cog_rotation, n, where)
     drift = np.abs(np.swapaxes(cog_rotation, -1, -2) @ cog_rotation - np.eye(3)).max(axis=(1, 2))
     bad = np.flatnonzero((drift > _ROTATION_TOLERANCE) | (np.linalg.det(cog_rotation) <= 0))
     if bad.size:

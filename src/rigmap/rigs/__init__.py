@@ -7,6 +7,7 @@ from rigmap.rigs.base import (
     Rig,
     RigInputError,
     UnknownRigError,
+    check_placement,
     check_positions,
 )
 from rigmap.rigs.registry import available, load, register
@@ -19,6 +20,7 @@ __all__ = [
     "RigInputError",
     "UnknownRigError",
     "available",
+    "check_placement",
     "check_positions",
     "load",
     "register",

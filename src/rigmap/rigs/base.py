@@ -292,6 +292,25 @@ def check_positions(positions, n_joints: int, where: str) -> np.ndarray:
     return X
 
 
+def check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Validate the COG's world placement for ``n`` frames: ``cog`` ``(n, 3)`` (cm) and
+    ``cog_rotation`` ``(n, 3, 3)``, both finite; return them as float64 arrays."""
+    if cog is None or cog_rotation is None:
+        raise RigInputError(
+            f"{where}: needs the COG placement: cog (N, 3) and cog_rotation (N, 3, 3)"
+        )
+    cog = np.asarray(cog, dtype=np.float64)
+    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
+    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
+        raise RigInputError(
+            f"{where}: expected cog ({n}, 3) and cog_rotation ({n}, 3, 3) for {n} frames, "
+            f"got {cog.shape} and {cog_rotation.shape}"
+        )
+    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
+        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    return cog, cog_rotation
+
+
 def _is_torch(x) -> bool:
     return type(x).__module__.startswith("torch")
 

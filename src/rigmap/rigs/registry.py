@@ -1,39 +1,48 @@
 """Which rigs exist and how to build them, by name.
 
-Backends register a factory under a name; ``load`` builds the rig from a name
-or a config mapping (``{"name": ..., **options}``, e.g. a Hydra ``rig`` group).
-Factories are imported lazily so listing rigs never starts Blender.
+Each rig's :class:`~rigmap.rigs.manifest.RigManifest` names its factory; ``load``
+builds the rig from a name or a config mapping (``{"name": ..., **options}``, e.g.
+a Hydra ``rig`` group). Factories are imported lazily so listing rigs never starts
+Blender.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from functools import cache
 
 from rigmap.rigs.base import Rig, UnknownRigError
-
-# name -> "module:callable"; the callable takes keyword options and returns a Rig.
-_FACTORIES: dict[str, str] = {
-    "quadruped": "rigmap.rigs.characters.quadruped:build_quadruped",
-    "biped": "rigmap.rigs.characters.biped:build_biped",
-    "face": "rigmap.rigs.characters.face:build_face",
-    "squirrel": "rigmap.rigs.characters.squirrel:build_squirrel",
-    "rigify_human": "rigmap.rigs.blender.rigify:build_rigify_human",
-    "rigify_wolf": "rigmap.rigs.blender.rigify:build_rigify_wolf",
-    "blend_file": "rigmap.rigs.blender.rigify:build_blend_file",
-}
+from rigmap.rigs.manifest import (
+    RigManifest,
+    all_manifests,
+    manifest,
+    register_manifest,
+    resolve,
+)
 
 
-def register(name: str, factory: str | Callable[..., Rig]) -> None:
-    """Make ``load(name)`` build a rig with ``factory`` ("module:callable" or a callable)."""
-    _FACTORIES[name] = factory  # type: ignore[assignment]
-    _cached_builtin.cache_clear()
+def register(name: str | RigManifest, factory: str | Callable[..., Rig] | None = None) -> None:
+    """Make ``load(name)`` build a rig with ``factory`` ("module:callable" or a callable).
+
+    A :class:`~rigmap.rigs.manifest.RigManifest` may be passed instead, telling every
+    consumer about the rig at once; a bare factory keeps the rest of a known rig's manifest.
+    """
+    if isinstance(name, RigManifest):
+        register_manifest(name)
+        return
+    if factory is None:
+        raise TypeError(f"register({name!r}) needs a factory or a RigManifest")
+    known = all_manifests().get(name)
+    if known is None:
+        register_manifest(RigManifest(name=name, factory=factory, label=name))
+    else:
+        register_manifest(replace(known, factory=factory))
 
 
 def available() -> list[str]:
     """Names ``load`` accepts."""
-    return sorted(_FACTORIES)
+    return sorted(all_manifests())
 
 
 def load(name_or_config: str | Mapping | Rig, **overrides) -> Rig:
@@ -48,24 +57,16 @@ def load(name_or_config: str | Mapping | Rig, **overrides) -> Rig:
             raise UnknownRigError(f"rig config has no 'name' field: keys {sorted(options)}")
         name = options.pop("name")
     options.update(overrides)
-    if name not in _FACTORIES:
-        raise UnknownRigError(f"unknown rig {name!r}; available rigs: {', '.join(available())}")
+    known = manifest(name)  # unknown names fail here, before building
     if not options:
-        return _cached_builtin(name)
-    return _resolve(name)(**_plain(options))
+        return _cached_builtin(known.factory)
+    return known.build_factory()(**_plain(options))
 
 
 @cache
-def _cached_builtin(name: str) -> Rig:
-    return _resolve(name)()
-
-
-def _resolve(name: str) -> Callable[..., Rig]:
-    factory = _FACTORIES[name]
-    if callable(factory):
-        return factory
-    module, _, attr = factory.partition(":")
-    return getattr(importlib.import_module(module), attr)
+def _cached_builtin(factory: str | Callable[..., Rig]) -> Rig:
+    """One rig per factory (a re-registered name builds afresh)."""
+    return resolve(factory)()
 
 
 def _plain(options: Mapping) -> dict:

@@ -61,16 +61,7 @@ def render_mesh_views(
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    if getattr(rig, "faces", None) is None or not hasattr(rig, "mesh"):
-        raise ValueError(f"rig {rig.name!r} has no mesh (faces is None); draw it as a skeleton")
-    Y = np.atleast_2d(np.asarray(controls, dtype=np.float64))
-    if Y.ndim != 2 or Y.shape[1] != rig.n_controls:
-        raise ValueError(
-            f"render_mesh_views: rig {rig.name!r} expects controls of shape "
-            f"({rig.n_controls},) or (P, {rig.n_controls}), got {np.shape(controls)}"
-        )
-    if pose_labels is not None and len(pose_labels) != len(Y):
-        raise ValueError(f"{len(pose_labels)} pose labels for {len(Y)} poses")
+    Y = _check_mesh_controls(rig, controls, pose_labels)
     vertices = np.asarray(rig.mesh(Y))
     faces = np.asarray(rig.faces)
     colors = getattr(rig, "face_colors", None)
@@ -127,6 +118,21 @@ def render_mesh_views(
         return save_figure(fig, out_path, dpi=110, format="png")
     finally:
         plt.close(fig)
+
+
+def _check_mesh_controls(rig, controls, pose_labels) -> np.ndarray:
+    """``(P, C)`` control vectors of a mesh rig, one label per pose if labels are given."""
+    if getattr(rig, "faces", None) is None or not hasattr(rig, "mesh"):
+        raise ValueError(f"rig {rig.name!r} has no mesh (faces is None); draw it as a skeleton")
+    Y = np.atleast_2d(np.asarray(controls, dtype=np.float64))
+    if Y.ndim != 2 or Y.shape[1] != rig.n_controls:
+        raise ValueError(
+            f"render_mesh_views: rig {rig.name!r} expects controls of shape "
+            f"({rig.n_controls},) or (P, {rig.n_controls}), got {np.shape(controls)}"
+        )
+    if pose_labels is not None and len(pose_labels) != len(Y):
+        raise ValueError(f"{len(pose_labels)} pose labels for {len(Y)} poses")
+    return Y
 
 
 def rasterise(vertices, faces, colors, view: View, center, cm_per_pixel: float, pixels: int):

@@ -1,8 +1,9 @@
 """The animator's motion library: per-rig keyframed clips, split into train and test (§6.1).
 
-Each built-in rig has a module here that keys its *used* controls the way an
-animator would (key poses, plants, overlap), with seeded variation of timing and
-values; Rigify's wolf (a Blender rig) gets the dog's motions re-keyed onto its own
+Each built-in rig has a module here (named by its manifest,
+:mod:`rigmap.rigs.manifest`) that keys its *used* controls the way an animator
+would (key poses, plants, overlap), with seeded variation of timing and values;
+Rigify's wolf (a Blender rig) gets the dog's motions re-keyed onto its own
 controls (:mod:`.wolf`). Training clips are everyday motions; test clips are held out
 and chosen to be large, fast or extreme, as in the paper's Table 1.
 
@@ -29,17 +30,9 @@ from rigmap.animation.library.clip_builder import (
     ClipBuilder,
     Variation,
 )
+from rigmap.rigs.manifest import all_manifests
 
 SPLITS: tuple[str, str] = ("train", "test")
-
-# rig name -> module holding its LIBRARY
-_LIBRARY_MODULES: dict[str, str] = {
-    "quadruped": "rigmap.animation.library.quadruped",
-    "biped": "rigmap.animation.library.biped",
-    "face": "rigmap.animation.library.face",
-    "squirrel": "rigmap.animation.library.squirrel",
-    "rigify_wolf": "rigmap.animation.library.wolf",
-}
 
 
 @dataclass(frozen=True)
@@ -73,16 +66,45 @@ class MotionLibrary:
         raise KeyError(f"rig {self.rig!r} has no clip named {clip_name!r}; clips: {names}")
 
 
+class Clips:
+    """A library's clip functions, declared where they are defined, in that order.
+
+    ``@clips.train("Walk", "two strides …")`` above a clip function adds it to the
+    training motions (``@clips.test`` to the held-out ones); ``clips.library(rig)``
+    is the rig's :class:`MotionLibrary`. The order of definition is the corpus order.
+    """
+
+    def __init__(self) -> None:
+        self._motions: dict[str, list[Motion]] = {split: [] for split in SPLITS}
+
+    def train(self, name: str, description: str) -> Callable:
+        return self._declare("train", name, description)
+
+    def test(self, name: str, description: str) -> Callable:
+        return self._declare("test", name, description)
+
+    def _declare(self, split: str, name: str, description: str) -> Callable:
+        def declare(keyframe: Callable[[ClipBuilder], None]) -> Callable[[ClipBuilder], None]:
+            self._motions[split].append(Motion(name, keyframe, description))
+            return keyframe
+
+        return declare
+
+    def library(self, rig: str) -> MotionLibrary:
+        return MotionLibrary(rig, *(tuple(self._motions[split]) for split in SPLITS))
+
+
 def libraries() -> list[str]:
-    """Rig names that have a motion library."""
-    return sorted(_LIBRARY_MODULES)
+    """Rig names whose manifest names a motion library."""
+    return sorted(name for name, m in all_manifests().items() if m.library is not None)
 
 
 def motion_library(rig_name: str) -> MotionLibrary:
-    """The motion library of a built-in rig."""
-    if rig_name not in _LIBRARY_MODULES:
+    """The motion library a rig's manifest names (the ``LIBRARY`` of that module)."""
+    known = all_manifests().get(rig_name)
+    if known is None or known.library is None:
         raise KeyError(f"no motion library for rig {rig_name!r}; libraries exist for {libraries()}")
-    return importlib.import_module(_LIBRARY_MODULES[rig_name]).LIBRARY
+    return importlib.import_module(known.library).LIBRARY
 
 
 def clip_rng(seed: int, rig_name: str, clip_name: str) -> np.random.Generator:
@@ -171,6 +193,7 @@ def _check_split(split: str) -> None:
 __all__ = [
     "SPLITS",
     "ClipBuilder",
+    "Clips",
     "Motion",
     "MotionLibrary",
     "Variation",

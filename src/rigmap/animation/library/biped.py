@@ -23,12 +23,11 @@ import math
 
 import numpy as np
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
+from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
-SIDES = {"l": 1.0, "r": -1.0}
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
-MIRRORED_CHANNELS = ("tx", "ry", "rz")
 ARM_JOINTS = ("upper_arm", "forearm", "hand")
 LEG_JOINTS = ("thigh", "shin", "foot", "ball")
 
@@ -62,47 +61,10 @@ HAND_SHAPES = {
 }
 
 
-class Human:
+class Human(BodyKeys):
     """Semantic keying on top of a :class:`ClipBuilder`: feet, arms, hands, spine, head."""
 
-    def __init__(self, b: ClipBuilder):
-        self.b = b
-
-    def _mirrored(self, name: str, side: str, channels: dict, frame, interpolation="bezier"):
-        sign = SIDES[side]
-        for channel, value in channels.items():
-            if value is None:
-                continue
-            if channel in MIRRORED_CHANNELS:
-                value = sign * value
-            self.b.key(f"{name}.{channel}", frame, value, interpolation)
-
     # --- body ------------------------------------------------------------------------
-    def cog(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"cog.{c}": v for c, v in channels.items()}, interpolation)
-
-    def root(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"root.{c}": v for c, v in channels.items()}, interpolation)
-
-    def spine(
-        self,
-        frame: float,
-        hips=(0.0, 0.0, 0.0),
-        chest=(0.0, 0.0, 0.0),
-        chest_t=(0.0, 0.0, 0.0),
-        mid=(0.0, 0.0, 0.0),
-    ) -> None:
-        values = {}
-        for prefix, triple, channels in (
-            ("hips", hips, ("rx", "ry", "rz")),
-            ("chest", chest, ("rx", "ry", "rz")),
-            ("chest", chest_t, ("tx", "ty", "tz")),
-            ("spine_mid", mid, ("tx", "ty", "tz")),
-        ):
-            for channel, value in zip(channels, triple, strict=True):
-                values[f"{prefix}.{channel}"] = value
-        self.b.pose(frame, values)
-
     def head(self, frame: float, rx=0.0, ry=0.0, rz=0.0, jaw=None, follow=None, eyes=None) -> None:
         """Head turn spread over neck and head (totals, radians); ``eyes`` = aim offset (cm)."""
         for k, weight in enumerate((0.3, 0.25)):
@@ -129,9 +91,7 @@ class Human:
         self._mirrored(f"leg_{side}_ik", side, channels, frame, interpolation)
 
     def plant(self, side: str, start: float, end: float, tx: float, ty: float, tz: float) -> None:
-        sign = SIDES[side]
-        for channel, value in (("tx", sign * tx), ("ty", ty), ("tz", tz)):
-            self.b.hold(f"leg_{side}_ik.{channel}", start, end, value)
+        self._hold(f"leg_{side}_ik", side, start, end, tx, ty, tz)
 
     def leg(self, frame: float, side: str, **attributes) -> None:
         """``roll``, ``bank``, ``heel_twist``, ``toe_twist``, ``toe_tap``, ``ik_fk``."""
@@ -144,20 +104,14 @@ class Human:
         self._mirrored(f"leg_{side}_pole", side, channels, frame)
 
     def fk_leg(self, frame: float, side: str, angles, looseness: float = 0.03) -> None:
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(LEG_JOINTS, angles, strict=True)):
-            if k:
-                ry, rz = self.b.vary(ry, looseness), self.b.vary(rz, looseness)
-            self._mirrored(f"{joint}_{side}_fk", side, {"rx": rx, "ry": ry, "rz": rz}, frame)
+        self._fk_joints(frame, LEG_JOINTS, side, angles, looseness)
 
     # --- arms and hands -------------------------------------------------------------------
     def arm(
         self, frame: float, side: str, angles, clavicle=(0.0, 0.0), looseness: float = 0.03
     ) -> None:
         """FK arm: (rx, ry, rz) for upper arm, forearm, hand; clavicle (ry, rz)."""
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(ARM_JOINTS, angles, strict=True)):
-            if k:
-                rx, rz = self.b.vary(rx, looseness), self.b.vary(rz, looseness)
-            self._mirrored(f"{joint}_{side}_fk", side, {"rx": rx, "ry": ry, "rz": rz}, frame)
+        self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
     def hand_ik(self, frame: float, side: str, **channels) -> None:
@@ -215,10 +169,8 @@ class Human:
     def polish(self, frames) -> None:
         """Secondary controls per shot (poles, eye line, toes), seeded; animated ones kept."""
         b = self.b
-        animated = set(b.controls)
-        layer = ClipBuilder(b.name, b.rng, variation=b.variation)
-        person = Human(layer)
-        for frame in frames:
+
+        def key_frame(person: Human, frame: float) -> None:
             for side in SIDES:
                 person.knee(
                     frame, side, tx=b.vary(2.0, 3.0), ty=b.vary(0.0, 3.0), tz=b.vary(0.0, 4.0)
@@ -227,7 +179,7 @@ class Human:
                     frame, side, tx=b.vary(0.0, 3.0), ty=b.vary(0.0, 3.0), tz=b.vary(-2.0, 4.0)
                 )
                 person.leg(frame, side, toe_tap=b.vary(0.0, 0.05), bank=b.vary(0.0, 0.04))
-            layer.pose(
+            person.b.pose(
                 frame,
                 {
                     "eye_aim.tx": b.vary(0.0, 12.0),
@@ -235,13 +187,18 @@ class Human:
                     "eye_aim.tz": b.vary(0.0, 10.0),
                 },
             )
-        for control in layer.controls:
-            if control not in animated:
-                for frame in frames:
-                    b.key(control, frame, layer.value_at(control, frame))
+
+        self._polish(frames, key_frame)
+
+
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
 
 
 # --- training clips ----------------------------------------------------------------------------
+
+
+@clips.train("Idle", "breathing, weight shifts, a glance, a foot readjusts")
 def idle(b: ClipBuilder) -> None:
     """Standing: breathing, weight shifts from foot to foot, a glance, fidgeting fingers."""
     h = Human(b)
@@ -297,6 +254,7 @@ def idle(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Walk", "three cycles of a casual walk, root travelling")
 def walk(b: ClipBuilder) -> None:
     """Three cycles of a casual walk; the root travels, planted feet slide back with it.
 
@@ -379,6 +337,7 @@ def walk(b: ClipBuilder) -> None:
         h.head(t, rx=0.05, ry=b.vary(0.0, 0.1))
 
 
+@clips.train("Reach", "steps in and reaches a shelf (FK to IK on a matched pose)")
 def reach(b: ClipBuilder) -> None:
     """Reach for a box on a shelf: one arm rises in FK, switches to IK on a matched pose,
     grabs; the other arm joins the same way and both hands bring it in, then back to FK."""
@@ -452,6 +411,7 @@ def reach(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Crouch", "squats low with arms forward, stands")
 def crouch(b: ClipBuilder) -> None:
     """Squat down low, balance with the arms forward, look at the floor, stand up."""
     h = Human(b)
@@ -510,6 +470,7 @@ def crouch(b: ClipBuilder) -> None:
     h.polish([0.0, 30.0, end])
 
 
+@clips.train("Wave", "raises a hand and waves")
 def wave(b: ClipBuilder) -> None:
     """Raise a hand and wave hello (forearm swinging, fingers spread), then lower it."""
     h = Human(b)
@@ -565,6 +526,7 @@ def _turned_foot(side: str, angle: float) -> tuple[float, float]:
     return SIDES[side] * (nx - x), nz - z
 
 
+@clips.train("Turn", "turns on the spot about 90 degrees in three steps")
 def turn(b: ClipBuilder) -> None:
     """Turn on the spot by about 90 degrees in three steps, head and chest leading."""
     h = Human(b)
@@ -630,6 +592,7 @@ def turn(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Pick Up", "bends down and lifts an object to the chest")
 def pick_up(b: ClipBuilder) -> None:
     """Bend down, pick an object off the floor with both hands, lift it to the chest."""
     h = Human(b)
@@ -680,6 +643,7 @@ def pick_up(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Kick", "kicks a ball with one leg in FK, then the other")
 def kick(b: ClipBuilder) -> None:
     """Kick a ball with one leg (switched to FK), recover, then a smaller kick with the other."""
     h = Human(b)
@@ -746,6 +710,7 @@ def kick(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Look Around", "looks around the room, head following the world")
 def look_around(b: ClipBuilder) -> None:
     """Look around a room: head, eyes and chest turn, the head follows the world for a beat."""
     h = Human(b)
@@ -790,6 +755,7 @@ def look_around(b: ClipBuilder) -> None:
     h.polish([0.0, 40.0, end])
 
 
+@clips.train("Point & Shrug", "points far off, then shrugs palms up")
 def point_and_shrug(b: ClipBuilder) -> None:
     """Point at something far off, look, then shrug with both palms up."""
     h = Human(b)
@@ -863,6 +829,7 @@ def point_and_shrug(b: ClipBuilder) -> None:
     h.polish([0.0, end])
 
 
+@clips.train("Side Step", "two steps to one side and back")
 def side_step(b: ClipBuilder) -> None:
     """Two steps to one side and back, like making room in a queue."""
     h = Human(b)
@@ -935,6 +902,7 @@ def side_step(b: ClipBuilder) -> None:
 
 
 # --- test clips ------------------------------------------------------------------------------
+@clips.test("Range of Motion", "arms, torso and legs to their extremes")
 def range_of_motion(b: ClipBuilder) -> None:
     """A rig test: arms overhead and behind, torso bends and twists, legs kick high (FK)."""
     h = Human(b)
@@ -982,6 +950,7 @@ def range_of_motion(b: ClipBuilder) -> None:
     h.stand(90.0)
 
 
+@clips.test("Swing Dance", "rock steps, kicks and spins, fast")
 def swing_dance(b: ClipBuilder) -> None:
     """Lindy-style footwork: rock steps, triple steps, kicks and two fast spins."""
     h = Human(b)
@@ -1036,6 +1005,7 @@ def swing_dance(b: ClipBuilder) -> None:
         )
 
 
+@clips.test("Tai Chi", "slow deep stance, arm circles, crane stand")
 def tai_chi(b: ClipBuilder) -> None:
     """Slow form: sink into a horse stance, wide arm circles, weight shifts, a crane stand."""
     h = Human(b)
@@ -1093,24 +1063,4 @@ def tai_chi(b: ClipBuilder) -> None:
     h.stand(110.0, arms=True, hands=None)
 
 
-LIBRARY = MotionLibrary(
-    rig="biped",
-    train=(
-        Motion("Idle", idle, "breathing, weight shifts, a glance, a foot readjusts"),
-        Motion("Walk", walk, "three cycles of a casual walk, root travelling"),
-        Motion("Reach", reach, "steps in and reaches a shelf (FK to IK on a matched pose)"),
-        Motion("Crouch", crouch, "squats low with arms forward, stands"),
-        Motion("Wave", wave, "raises a hand and waves"),
-        Motion("Turn", turn, "turns on the spot about 90 degrees in three steps"),
-        Motion("Pick Up", pick_up, "bends down and lifts an object to the chest"),
-        Motion("Kick", kick, "kicks a ball with one leg in FK, then the other"),
-        Motion("Look Around", look_around, "looks around the room, head following the world"),
-        Motion("Point & Shrug", point_and_shrug, "points far off, then shrugs palms up"),
-        Motion("Side Step", side_step, "two steps to one side and back"),
-    ),
-    test=(
-        Motion("Range of Motion", range_of_motion, "arms, torso and legs to their extremes"),
-        Motion("Swing Dance", swing_dance, "rock steps, kicks and spins, fast"),
-        Motion("Tai Chi", tai_chi, "slow deep stance, arm circles, crane stand"),
-    ),
-)
+LIBRARY = clips.library("biped")

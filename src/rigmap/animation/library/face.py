@@ -11,7 +11,7 @@ its range at once: a scream, a full sneer, a grimace, shouting.
 
 from __future__ import annotations
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 SIDED = (
@@ -161,6 +161,10 @@ def _unit(value: float) -> float:
     return max(0.0, min(1.0, float(value)))
 
 
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
+
+
 def _expression_clip(b: ClipBuilder, beats) -> None:
     """Key (frame, preset name / slider dict / list of (preset, weight), intensity, extras)
     beats; extras may fix the mouth ``shift`` and ``jaw_side``, else they wander a little."""
@@ -177,6 +181,7 @@ def _expression_clip(b: ClipBuilder, beats) -> None:
         )
 
 
+@clips.train("Smile & Laugh", "a smile grows into a laugh")
 def smile_and_laugh(b: ClipBuilder) -> None:
     """A smile grows into a laugh (jaw bouncing), fades to a warm smile."""
     beats = [
@@ -193,6 +198,7 @@ def smile_and_laugh(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
+@clips.train("Surprise to Fear", "startle, gasp, worry")
 def surprise_to_fear(b: ClipBuilder) -> None:
     """Startled surprise, a gasp, then worry creeping in."""
     beats = [
@@ -209,6 +215,7 @@ def surprise_to_fear(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
+@clips.train("Anger & Disgust", "anger builds, a sneer")
 def anger_and_disgust(b: ClipBuilder) -> None:
     """Irritation builds to anger (jaw set forward), then a disgusted sneer."""
     side = b.sign()
@@ -226,6 +233,7 @@ def anger_and_disgust(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
+@clips.train("Sad Pout", "sadness, pout, puffed sigh, brave smile")
 def sad_pout(b: ClipBuilder) -> None:
     """Sadness, a pout, a sigh with puffed cheeks, a small brave smile."""
     beats = [
@@ -242,6 +250,7 @@ def sad_pout(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
+@clips.train("Funny Faces", "cheeks sucked, lips rolled, jaw slid")
 def funny_faces(b: ClipBuilder) -> None:
     """Pulling faces: cheeks sucked in, lips rolled, mouth pushed side to side, jaw slid."""
     beats = [
@@ -263,13 +272,14 @@ def _speech(
     b: ClipBuilder,
     text: str,
     *,
-    start: float,
-    rate: float,
     energy: float,
+    start: float = 0.0,
+    rate: float = 3.0,
     mood: str | None = None,
     mood_amount: float = 0.0,
 ) -> float:
-    """Key a viseme per letter group of ``text`` every ``rate`` frames; returns the end frame.
+    """Key a viseme per letter group of ``text`` every ``rate`` frames from ``start``; returns
+    the end frame.
 
     Letters map to visemes; a space is a short rest. Brows lift on stressed syllables
     and the eyes blink now and then, as people do while talking.
@@ -332,34 +342,22 @@ def _speech(
     return frame + 4.0
 
 
+@clips.train("Speech: Greeting", "'hello there, how are you today'")
 def speech_greeting(b: ClipBuilder) -> None:
-    _speech(
-        b,
-        "hello there how are you today",
-        start=0.0,
-        rate=3.0,
-        energy=0.9,
-        mood="smile",
-        mood_amount=0.4,
-    )
+    _speech(b, "hello there how are you today", energy=0.9, mood="smile", mood_amount=0.4)
 
 
+@clips.train("Speech: Counting", "counting to seven")
 def speech_counting(b: ClipBuilder) -> None:
-    _speech(b, "one two three four five six seven", start=0.0, rate=3.0, energy=0.8)
+    _speech(b, "one two three four five six seven", energy=0.8)
 
 
+@clips.train("Speech: Complaint", "an annoyed sentence")
 def speech_complaint(b: ClipBuilder) -> None:
-    _speech(
-        b,
-        "i told you not to move my things",
-        start=0.0,
-        rate=3.0,
-        energy=1.0,
-        mood="anger",
-        mood_amount=0.5,
-    )
+    _speech(b, "i told you not to move my things", energy=1.0, mood="anger", mood_amount=0.5)
 
 
+@clips.train("Blinks & Glances", "listening: blinks, a squint, a smile")
 def blinks_and_glances(b: ClipBuilder) -> None:
     """Listening: slow blinks, a squint of thought, a half smile."""
     face = Face(b)
@@ -381,6 +379,7 @@ def blinks_and_glances(b: ClipBuilder) -> None:
 
 
 # --- test: extremes --------------------------------------------------------------------------
+@clips.test("Extreme Expressions", "every slider group at its end")
 def extreme_expressions(b: ClipBuilder) -> None:
     """Every group at the end of its range: a scream, a full sneer, a grimace, a huge pout."""
     face = Face(b)
@@ -438,6 +437,7 @@ def extreme_expressions(b: ClipBuilder) -> None:
         face.pose(frame, weights, asymmetry=asym, shift=shift, jaw_side=jaw_side)
 
 
+@clips.test("Shouting", "yelling with fast, wide mouth shapes")
 def shouting(b: ClipBuilder) -> None:
     """Yelling across a field: wide jaw, stretched lips, brows slammed up, fast visemes."""
     _speech(
@@ -451,21 +451,4 @@ def shouting(b: ClipBuilder) -> None:
     )
 
 
-LIBRARY = MotionLibrary(
-    rig="face",
-    train=(
-        Motion("Smile & Laugh", smile_and_laugh, "a smile grows into a laugh"),
-        Motion("Surprise to Fear", surprise_to_fear, "startle, gasp, worry"),
-        Motion("Anger & Disgust", anger_and_disgust, "anger builds, a sneer"),
-        Motion("Sad Pout", sad_pout, "sadness, pout, puffed sigh, brave smile"),
-        Motion("Funny Faces", funny_faces, "cheeks sucked, lips rolled, jaw slid"),
-        Motion("Speech: Greeting", speech_greeting, "'hello there, how are you today'"),
-        Motion("Speech: Counting", speech_counting, "counting to seven"),
-        Motion("Speech: Complaint", speech_complaint, "an annoyed sentence"),
-        Motion("Blinks & Glances", blinks_and_glances, "listening: blinks, a squint, a smile"),
-    ),
-    test=(
-        Motion("Extreme Expressions", extreme_expressions, "every slider group at its end"),
-        Motion("Shouting", shouting, "yelling with fast, wide mouth shapes"),
-    ),
-)
+LIBRARY = clips.library("face")

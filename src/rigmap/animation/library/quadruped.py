@@ -20,10 +20,10 @@ import math
 
 import numpy as np
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
+from rigmap.animation.library.body import SIDES, BodyKeys
 from rigmap.animation.library.clip_builder import ClipBuilder
 
-SIDES = {"l": 1.0, "r": -1.0}
 FRONT = ("front_leg_l", "front_leg_r")
 HIND = ("hind_leg_l", "hind_leg_r")
 LEGS = FRONT + HIND
@@ -33,7 +33,6 @@ FK_JOINTS = {
 }
 TAIL = 12
 NECK = 3
-MIRRORED_CHANNELS = ("tx", "ry", "rz")
 # rest positions (cm) of what the turning helper rotates about
 COG_REST_Z = -3.0
 PAW_REST_XZ = {"front_leg": (8.0, 20.0), "hind_leg": (8.0, -31.0)}
@@ -52,25 +51,13 @@ def _end(leg: str) -> str:
     return "front" if leg.startswith("front") else "hind"
 
 
-class Dog:
+class Dog(BodyKeys):
     """Semantic keying on top of a :class:`ClipBuilder`: paws, legs, spine, head, tail."""
-
-    def __init__(self, b: ClipBuilder):
-        self.b = b
 
     # --- raw -------------------------------------------------------------------
     def key(self, frame: float, interpolation: str = "bezier", **values: float) -> None:
         """Key controls given as ``control__channel=value`` (``cog__ty=-3``)."""
         self.b.pose(frame, {k.replace("__", "."): v for k, v in values.items()}, interpolation)
-
-    def _mirrored(self, name: str, side: str, channels: dict, frame, interpolation) -> None:
-        sign = SIDES[side]
-        for channel, value in channels.items():
-            if value is None:
-                continue
-            if channel in MIRRORED_CHANNELS:
-                value = sign * value
-            self.b.key(f"{name}.{channel}", frame, value, interpolation)
 
     # --- legs --------------------------------------------------------------------
     def paw(self, frame: float, leg: str, interpolation: str = "bezier", **channels) -> None:
@@ -79,9 +66,7 @@ class Dog:
 
     def plant(self, leg: str, start: float, end: float, tx: float, ty: float, tz: float) -> None:
         """The IK paw stays put from ``start`` to ``end`` (in root space)."""
-        sign = SIDES[_side(leg)]
-        for channel, value in (("tx", sign * tx), ("ty", ty), ("tz", tz)):
-            self.b.hold(f"{leg}_ik.{channel}", start, end, value)
+        self._hold(f"{leg}_ik", _side(leg), start, end, tx, ty, tz)
 
     def leg(self, frame: float, leg: str, interpolation: str = "bezier", **attributes) -> None:
         """Leg attributes: ``roll``, ``bank``, ``toe_tap``, ``ik_fk``, ``hock`` (hind only)."""
@@ -102,11 +87,7 @@ class Dog:
         Below the top joint each twist and side bend gets a seeded wobble of up to
         ``looseness`` radians: hand-set FK poses are never exactly planar.
         """
-        joints = FK_JOINTS[_end(leg)]
-        for k, (joint, (rx, ry, rz)) in enumerate(zip(joints, angles, strict=True)):
-            if k:
-                ry, rz = self.b.vary(ry, looseness), self.b.vary(rz, looseness)
-            self.fk(frame, joint, _side(leg), rx=rx, ry=ry, rz=rz)
+        self._fk_joints(frame, FK_JOINTS[_end(leg)], _side(leg), angles, looseness)
 
     def toes(self, frame: float, leg: str, curl: float, spread: float, each=None) -> None:
         side = _side(leg)
@@ -176,31 +157,6 @@ class Dog:
         self.b.key("tail.wave_amplitude", frame, amplitude)
         self.b.key("tail.wave_phase", frame, phase, interpolation)
 
-    def spine(
-        self,
-        frame: float,
-        hips=(0.0, 0.0, 0.0),
-        chest=(0.0, 0.0, 0.0),
-        chest_t=(0.0, 0.0, 0.0),
-        mid=(0.0, 0.0, 0.0),
-    ) -> None:
-        values = {}
-        for prefix, triple, channels in (
-            ("hips", hips, ("rx", "ry", "rz")),
-            ("chest", chest, ("rx", "ry", "rz")),
-            ("chest", chest_t, ("tx", "ty", "tz")),
-            ("spine_mid", mid, ("tx", "ty", "tz")),
-        ):
-            for channel, value in zip(channels, triple, strict=True):
-                values[f"{prefix}.{channel}"] = value
-        self.b.pose(frame, values)
-
-    def cog(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"cog.{c}": v for c, v in channels.items()}, interpolation)
-
-    def root(self, frame: float, interpolation: str = "bezier", **channels) -> None:
-        self.b.pose(frame, {f"root.{c}": v for c, v in channels.items()}, interpolation)
-
     # --- the polish pass ------------------------------------------------------------------
     def carriage(self, frames, alert: float = 0.0) -> None:
         """Secondary controls an animator sets per shot: ears, toes, poles, eye line.
@@ -210,10 +166,8 @@ class Dog:
         animates are left alone, so call this last.
         """
         b = self.b
-        animated = set(b.controls)
-        polish = ClipBuilder(b.name, b.rng, variation=b.variation)
-        dog = Dog(polish)
-        for frame in frames:
+
+        def key_frame(dog: Dog, frame: float) -> None:
             for side in SIDES:
                 dog.ears(
                     frame,
@@ -233,10 +187,12 @@ class Dog:
                 )
                 dog.pole(frame, leg, tx=b.vary(1.5, 2.0), ty=b.vary(0.0, 2.0), tz=b.vary(0.0, 3.0))
             dog.eyes(frame, b.vary(0.0, 15.0), b.vary(-5.0, 8.0), b.vary(0.0, 10.0))
-        for control in polish.controls:
-            if control not in animated:
-                for frame in frames:
-                    b.key(control, frame, polish.value_at(control, frame))
+
+        self._polish(frames, key_frame)
+
+
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
 
 
 # --- gaits ----------------------------------------------------------------------------------
@@ -294,6 +250,7 @@ def _gait_plants(lifts, swing: float, period: float, position, first: float, las
     return plants, swings
 
 
+@clips.train("Walk", "two strides of a lateral-sequence walk, starting and stopping")
 def walk(b: ClipBuilder) -> None:
     """Stand, walk two strides forward with a lateral-sequence gait, stop and settle.
 
@@ -371,6 +328,7 @@ def walk(b: ClipBuilder) -> None:
     dog.carriage([0.0, t0 + period, end])
 
 
+@clips.train("Trot", "four trot cycles along a gentle curve, root travelling")
 def trot(b: ClipBuilder) -> None:
     """Four cycles of a trot along a gentle curve; the root travels.
 
@@ -472,69 +430,6 @@ def trot(b: ClipBuilder) -> None:
     dog.eyes(end, tx=30.0 * turn_, ty=-10.0)
 
 
-def _turn_paw(leg: str, angle: float, cog_z: float) -> tuple[float, float]:
-    """Left-side (tx, tz) of a paw that keeps its place under a body yawed by ``angle``."""
-    x, z = PAW_REST_XZ[leg[: leg.rindex("_")]]
-    sign = SIDES[_side(leg)]
-    x *= sign
-    rel_z = z - COG_REST_Z
-    nx = x * math.cos(angle) + rel_z * math.sin(angle)
-    nz = -x * math.sin(angle) + rel_z * math.cos(angle) + COG_REST_Z + cog_z
-    return sign * (nx - x), nz - z
-
-
-def turn(b: ClipBuilder) -> None:
-    """Turn on the spot by 45-60 degrees in two rounds of steps, head leading."""
-    dog = Dog(b)
-    direction = b.sign()
-    total = direction * b.vary(0.95, 0.1)
-    order = ["front_leg_r", "front_leg_l", "hind_leg_r", "hind_leg_l"]
-    if direction < 0:
-        order = [_other_side(leg) for leg in order]
-    # heading of the body at each round
-    t_steps = {leg: [8.0 + 4.0 * i, 32.0 + 4.0 * i] for i, leg in enumerate(order)}
-    end = 62.0
-    dog.cog(0.0, ry=0.0, ty=0.0)
-    dog.cog(6.0, ry=0.0, ty=-1.5, rz=-0.04 * direction)
-    dog.cog(20.0, ry=0.5 * total, ty=-2.5, rz=-0.06 * direction)
-    dog.cog(32.0, ry=0.6 * total, ty=-1.5, rz=-0.03 * direction)
-    dog.cog(46.0, ry=total, ty=-2.0, rz=-0.05 * direction)
-    dog.cog(end, ry=total, ty=0.0, rz=0.0)
-    headings = [0.0, 0.55 * total, total]
-    for leg in LEGS:
-        plants, swings = [], []
-        start = 0.0
-        place = _turn_paw(leg, 0.0, 0.0)
-        for i, lift in enumerate(t_steps[leg]):
-            land = lift + 6.0
-            plants.append((start, lift, place))
-            swings.append((lift, land, lift + 2.0))
-            start, place = land, _turn_paw(leg, headings[i + 1], 0.0)
-        plants.append((start, end, place))
-        _stepping(dog, leg, plants, swings, height=b.vary(5.0, 1.0), flex=0.6, peel=0.3)
-        for (_, s_end, _), angle in zip(plants, headings, strict=True):
-            dog.paw(s_end, leg, ry=angle)
-            dog.leg(s_end, leg, bank=-0.08 * direction)
-    for t, share in ((0.0, 0.0), (6.0, 0.5), (20.0, 1.0), (32.0, 0.6), (46.0, 1.0), (end, 0.0)):
-        dog.neck(t, ry=direction * 0.5 * share, rx=0.05)
-        dog.head(t, ry=direction * 0.35 * share, rz=-0.1 * direction * share)
-        dog.eyes(t, tx=direction * 45.0 * share)
-        dog.spine(
-            t,
-            hips=(0.0, -0.2 * direction * share, 0.0),
-            chest=(0.0, 0.25 * direction * share, 0.04 * share),
-        )
-        dog.tail(
-            t,
-            curl=0.3,
-            side_curl=-0.8 * direction * share,
-            lift=0.1,
-            sway=0.2,
-            phase=share * math.pi,
-        )
-    dog.carriage([0.0, 32.0, end], alert=0.5)
-
-
 # --- sitting, lying ---------------------------------------------------------------------------
 SIT = {"cog": dict(ty=-27.0, tz=-14.0, rx=-0.9), "hock": -1.08, "front_tz": -9.0}
 
@@ -558,6 +453,7 @@ def _sitting_tail(dog: Dog, frame: float, amount: float, side_curl: float = 0.0)
     )
 
 
+@clips.train("Sit Down & Stand Up", "sits, tilts its head, stands")
 def sit_down_stand_up(b: ClipBuilder) -> None:
     """Sit down, look about while sitting, stand back up."""
     dog = Dog(b)
@@ -607,6 +503,7 @@ def sit_down_stand_up(b: ClipBuilder) -> None:
     dog.carriage([0.0, sit_at, end], alert=0.3)
 
 
+@clips.train("Lie Down", "sits and lies down, front legs in FK, rolls on a hip")
 def lie_down(b: ClipBuilder) -> None:
     """Sit, then slide the front paws out and lie down (front legs in FK) and settle.
 
@@ -700,6 +597,7 @@ def lie_down(b: ClipBuilder) -> None:
 
 
 # --- head and tail ---------------------------------------------------------------------------
+@clips.train("Look Around", "looks left, right and up; a paw lifts")
 def look_around(b: ClipBuilder) -> None:
     """Standing, look left, right, up at something; ears swivel, one paw lifts (pointer)."""
     dog = Dog(b)
@@ -748,6 +646,7 @@ def look_around(b: ClipBuilder) -> None:
     dog.carriage([0.0, 84.0])
 
 
+@clips.train("Tail Wag", "a happy wag with hip wiggle and panting")
 def tail_wag(b: ClipBuilder) -> None:
     """A happy wag: the tail's wave runs (phase keyed as a sawtooth), hips wiggle, panting."""
     dog = Dog(b)
@@ -781,62 +680,6 @@ def tail_wag(b: ClipBuilder) -> None:
     dog.carriage([0.0, end])
 
 
-def sniff(b: ClipBuilder) -> None:
-    """Nose to the ground, following a scent a step forward, quick sniffs, head up."""
-    dog = Dog(b)
-    side = b.sign()
-    dog.cog(0.0, ty=0.0, rx=0.0, tz=0.0)
-    dog.cog(12.0, ty=-5.0, rx=0.2, tz=-2.0)
-    dog.cog(36.0, ty=-6.0, rx=0.22, tz=6.0, tx=2.0 * side)
-    dog.cog(60.0, ty=-6.0, rx=0.2, tz=8.0, tx=0.0)
-    dog.cog(78.0, ty=-1.0, rx=0.0, tz=8.0, tx=0.0)
-    for t, (down, sweep) in {
-        0.0: (0.0, 0.0),
-        12.0: (1.0, 0.0),
-        24.0: (1.0, side),
-        36.0: (1.1, 0.3 * side),
-        48.0: (1.0, -0.6 * side),
-        60.0: (0.9, 0.0),
-        78.0: (0.0, 0.0),
-    }.items():
-        dog.neck(t, rx=0.8 * down, ry=0.35 * sweep)
-        dog.spine(
-            t,
-            chest=(0.35 * down, 0.1 * sweep, 0.0),
-            hips=(-0.1 * down, 0.0, 0.0),
-            chest_t=(0.0, -3.0 * down, 2.0 * down),
-        )
-        dog.head(t, rx=0.45 * down, ry=0.25 * sweep, follow=1.0 - 0.4 * down)
-        dog.eyes(t, ty=-50.0 * down, tx=20.0 * sweep)
-        for s in SIDES:
-            dog.ears(t, s, curl=0.3 * down, rx=0.6 * down, rz=0.2)
-    # sniffs: quick small nose pumps
-    for t in (16.0, 18.0, 20.0, 40.0, 42.0, 44.0):
-        dog.key(t, jaw_ctrl__rx=0.02 if t % 4 else 0.06)
-    dog.key(0.0, jaw_ctrl__rx=0.0)
-    dog.key(78.0, jaw_ctrl__rx=0.0)
-    for t in (0.0, 30.0, 60.0, 78.0):
-        dog.tail(t, curl=0.2, lift=-0.1, sway=0.4, lag=0.5, phase=t / 10.0)
-    # front paws follow the nose a step
-    for i, leg in enumerate(FRONT if side > 0 else FRONT[::-1]):
-        lift = 28.0 + 6.0 * i
-        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (b.vary(1.0, 1.0), 10.0))]
-        _stepping(
-            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=5.0, flex=0.6, peel=0.35
-        )
-    for i, leg in enumerate(HIND):
-        lift = 46.0 + 6.0 * i
-        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (0.0, 8.0))]
-        _stepping(
-            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=4.0, flex=0.4, peel=0.3
-        )
-    for leg in FRONT:
-        dog.leg(20.0, leg, toe_tap=0.0)
-        dog.leg(24.0, leg, toe_tap=b.vary(0.3, 0.1))
-        dog.leg(28.0, leg, toe_tap=0.0)
-    dog.carriage([0.0, 78.0])
-
-
 # --- legs off the ground ------------------------------------------------------------------------
 # FK poses of a sitting hind leg (left-side convention, (rx, ry, rz) per joint, top down):
 # matched to where the IK leg sits, and reaching up behind the ear (upper and lower end
@@ -848,6 +691,7 @@ HIND_SCRATCH_FK = (
 )
 
 
+@clips.train("Scratch", "sits and scratches behind the ear with a hind leg in FK")
 def scratch(b: ClipBuilder) -> None:
     """Sit and scratch behind one ear with a hind leg switched to FK, then the other."""
     dog = Dog(b)
@@ -909,6 +753,64 @@ def scratch(b: ClipBuilder) -> None:
     dog.carriage([0.0, end])
 
 
+@clips.train("Sniff", "nose to the ground following a scent")
+def sniff(b: ClipBuilder) -> None:
+    """Nose to the ground, following a scent a step forward, quick sniffs, head up."""
+    dog = Dog(b)
+    side = b.sign()
+    dog.cog(0.0, ty=0.0, rx=0.0, tz=0.0)
+    dog.cog(12.0, ty=-5.0, rx=0.2, tz=-2.0)
+    dog.cog(36.0, ty=-6.0, rx=0.22, tz=6.0, tx=2.0 * side)
+    dog.cog(60.0, ty=-6.0, rx=0.2, tz=8.0, tx=0.0)
+    dog.cog(78.0, ty=-1.0, rx=0.0, tz=8.0, tx=0.0)
+    for t, (down, sweep) in {
+        0.0: (0.0, 0.0),
+        12.0: (1.0, 0.0),
+        24.0: (1.0, side),
+        36.0: (1.1, 0.3 * side),
+        48.0: (1.0, -0.6 * side),
+        60.0: (0.9, 0.0),
+        78.0: (0.0, 0.0),
+    }.items():
+        dog.neck(t, rx=0.8 * down, ry=0.35 * sweep)
+        dog.spine(
+            t,
+            chest=(0.35 * down, 0.1 * sweep, 0.0),
+            hips=(-0.1 * down, 0.0, 0.0),
+            chest_t=(0.0, -3.0 * down, 2.0 * down),
+        )
+        dog.head(t, rx=0.45 * down, ry=0.25 * sweep, follow=1.0 - 0.4 * down)
+        dog.eyes(t, ty=-50.0 * down, tx=20.0 * sweep)
+        for s in SIDES:
+            dog.ears(t, s, curl=0.3 * down, rx=0.6 * down, rz=0.2)
+    # sniffs: quick small nose pumps
+    for t in (16.0, 18.0, 20.0, 40.0, 42.0, 44.0):
+        dog.key(t, jaw_ctrl__rx=0.02 if t % 4 else 0.06)
+    dog.key(0.0, jaw_ctrl__rx=0.0)
+    dog.key(78.0, jaw_ctrl__rx=0.0)
+    for t in (0.0, 30.0, 60.0, 78.0):
+        dog.tail(t, curl=0.2, lift=-0.1, sway=0.4, lag=0.5, phase=t / 10.0)
+    # front paws follow the nose a step
+    for i, leg in enumerate(FRONT if side > 0 else FRONT[::-1]):
+        lift = 28.0 + 6.0 * i
+        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (b.vary(1.0, 1.0), 10.0))]
+        _stepping(
+            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=5.0, flex=0.6, peel=0.35
+        )
+    for i, leg in enumerate(HIND):
+        lift = 46.0 + 6.0 * i
+        plants = [(0.0, lift, (0.0, 0.0)), (lift + 6.0, 78.0, (0.0, 8.0))]
+        _stepping(
+            dog, leg, plants, [(lift, lift + 6.0, lift + 2.0)], height=4.0, flex=0.4, peel=0.3
+        )
+    for leg in FRONT:
+        dog.leg(20.0, leg, toe_tap=0.0)
+        dog.leg(24.0, leg, toe_tap=b.vary(0.3, 0.1))
+        dog.leg(28.0, leg, toe_tap=0.0)
+    dog.carriage([0.0, 78.0])
+
+
+@clips.train("Shake Paw", "sitting, gives one paw then the other (FK)")
 def shake_paw(b: ClipBuilder) -> None:
     """Sitting, give the right paw (FK), shake it, then the left one."""
     dog = Dog(b)
@@ -970,6 +872,7 @@ def shake_paw(b: ClipBuilder) -> None:
     dog.carriage([0.0, 48.0, end], alert=0.6)
 
 
+@clips.train("Play Bow", "two play bows, rump high, tail wagging")
 def play_bow(b: ClipBuilder) -> None:
     """Drop the chest into a play bow twice, rump high, tail wagging, then stand."""
     dog = Dog(b)
@@ -1017,7 +920,72 @@ def play_bow(b: ClipBuilder) -> None:
     dog.carriage([0.0, 34.0, end], alert=0.8)
 
 
+def _turn_paw(leg: str, angle: float, cog_z: float) -> tuple[float, float]:
+    """Left-side (tx, tz) of a paw that keeps its place under a body yawed by ``angle``."""
+    x, z = PAW_REST_XZ[leg[: leg.rindex("_")]]
+    sign = SIDES[_side(leg)]
+    x *= sign
+    rel_z = z - COG_REST_Z
+    nx = x * math.cos(angle) + rel_z * math.sin(angle)
+    nz = -x * math.sin(angle) + rel_z * math.cos(angle) + COG_REST_Z + cog_z
+    return sign * (nx - x), nz - z
+
+
+@clips.train("Turn", "turns on the spot in two rounds of steps")
+def turn(b: ClipBuilder) -> None:
+    """Turn on the spot by 45-60 degrees in two rounds of steps, head leading."""
+    dog = Dog(b)
+    direction = b.sign()
+    total = direction * b.vary(0.95, 0.1)
+    order = ["front_leg_r", "front_leg_l", "hind_leg_r", "hind_leg_l"]
+    if direction < 0:
+        order = [_other_side(leg) for leg in order]
+    # heading of the body at each round
+    t_steps = {leg: [8.0 + 4.0 * i, 32.0 + 4.0 * i] for i, leg in enumerate(order)}
+    end = 62.0
+    dog.cog(0.0, ry=0.0, ty=0.0)
+    dog.cog(6.0, ry=0.0, ty=-1.5, rz=-0.04 * direction)
+    dog.cog(20.0, ry=0.5 * total, ty=-2.5, rz=-0.06 * direction)
+    dog.cog(32.0, ry=0.6 * total, ty=-1.5, rz=-0.03 * direction)
+    dog.cog(46.0, ry=total, ty=-2.0, rz=-0.05 * direction)
+    dog.cog(end, ry=total, ty=0.0, rz=0.0)
+    headings = [0.0, 0.55 * total, total]
+    for leg in LEGS:
+        plants, swings = [], []
+        start = 0.0
+        place = _turn_paw(leg, 0.0, 0.0)
+        for i, lift in enumerate(t_steps[leg]):
+            land = lift + 6.0
+            plants.append((start, lift, place))
+            swings.append((lift, land, lift + 2.0))
+            start, place = land, _turn_paw(leg, headings[i + 1], 0.0)
+        plants.append((start, end, place))
+        _stepping(dog, leg, plants, swings, height=b.vary(5.0, 1.0), flex=0.6, peel=0.3)
+        for (_, s_end, _), angle in zip(plants, headings, strict=True):
+            dog.paw(s_end, leg, ry=angle)
+            dog.leg(s_end, leg, bank=-0.08 * direction)
+    for t, share in ((0.0, 0.0), (6.0, 0.5), (20.0, 1.0), (32.0, 0.6), (46.0, 1.0), (end, 0.0)):
+        dog.neck(t, ry=direction * 0.5 * share, rx=0.05)
+        dog.head(t, ry=direction * 0.35 * share, rz=-0.1 * direction * share)
+        dog.eyes(t, tx=direction * 45.0 * share)
+        dog.spine(
+            t,
+            hips=(0.0, -0.2 * direction * share, 0.0),
+            chest=(0.0, 0.25 * direction * share, 0.04 * share),
+        )
+        dog.tail(
+            t,
+            curl=0.3,
+            side_curl=-0.8 * direction * share,
+            lift=0.1,
+            sway=0.2,
+            phase=share * math.pi,
+        )
+    dog.carriage([0.0, 32.0, end], alert=0.5)
+
+
 # --- held-out test clips: large, fast, extreme --------------------------------------------------
+@clips.test("Jumping & Playing", "leaps, spins and pounces")
 def jumping_and_playing(b: ClipBuilder) -> None:
     """Crouch, leap forward, land, spin to chase the tail, pounce (fast and big)."""
     dog = Dog(b)
@@ -1084,6 +1052,7 @@ def jumping_and_playing(b: ClipBuilder) -> None:
     dog.eyes(76.0, ty=-40.0)
 
 
+@clips.test("Turning & Galloping", "gallops with sharp turns")
 def turning_and_galloping(b: ClipBuilder) -> None:
     """Rotary gallop with two sharp turns: long strides, suspension, banking into the turns."""
     dog = Dog(b)
@@ -1149,6 +1118,7 @@ def turning_and_galloping(b: ClipBuilder) -> None:
     dog.eyes(end, ty=-20.0)
 
 
+@clips.test("Begging Excitedly", "sits up begging, paws paddling")
 def begging_excitedly(b: ClipBuilder) -> None:
     """Sit up on the haunches, front paws paddling in FK, bouncing, tail going wild."""
     dog = Dog(b)
@@ -1204,24 +1174,4 @@ def begging_excitedly(b: ClipBuilder) -> None:
     dog.eyes(end, ty=40.0)
 
 
-LIBRARY = MotionLibrary(
-    rig="quadruped",
-    train=(
-        Motion("Walk", walk, "two strides of a lateral-sequence walk, starting and stopping"),
-        Motion("Trot", trot, "four trot cycles along a gentle curve, root travelling"),
-        Motion("Sit Down & Stand Up", sit_down_stand_up, "sits, tilts its head, stands"),
-        Motion("Lie Down", lie_down, "sits and lies down, front legs in FK, rolls on a hip"),
-        Motion("Look Around", look_around, "looks left, right and up; a paw lifts"),
-        Motion("Tail Wag", tail_wag, "a happy wag with hip wiggle and panting"),
-        Motion("Scratch", scratch, "sits and scratches behind the ear with a hind leg in FK"),
-        Motion("Sniff", sniff, "nose to the ground following a scent"),
-        Motion("Shake Paw", shake_paw, "sitting, gives one paw then the other (FK)"),
-        Motion("Play Bow", play_bow, "two play bows, rump high, tail wagging"),
-        Motion("Turn", turn, "turns on the spot in two rounds of steps"),
-    ),
-    test=(
-        Motion("Jumping & Playing", jumping_and_playing, "leaps, spins and pounces"),
-        Motion("Turning & Galloping", turning_and_galloping, "gallops with sharp turns"),
-        Motion("Begging Excitedly", begging_excitedly, "sits up begging, paws paddling"),
-    ),
-)
+LIBRARY = clips.library("quadruped")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from rigmap.animation.library import Motion, MotionLibrary
+from rigmap.animation.library import Clips
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 TAIL_SEGMENTS = 5
@@ -101,7 +101,14 @@ def _clamped(control: str, value: float) -> float:
     return min(max(value, lo), hi)
 
 
+# this library's clip functions, in corpus order (see rigmap.animation.library.Clips)
+clips = Clips()
+
+
 # --- training clips -------------------------------------------------------------------------
+
+
+@clips.train("Hop", "three hops forward with squash and stretch")
 def hop(b: ClipBuilder) -> None:
     """Three hops forward: squash to anticipate, stretch in the air, squash on landing."""
     sq = Squirrel(b)
@@ -183,6 +190,7 @@ def hop(b: ClipBuilder) -> None:
     sq.pose(t + 10.0, root__tz=z, root__tx=x, root__ry=heading, look=(-0.1, b.vary(0.3, 0.2), 0.1))
 
 
+@clips.train("Look Around", "head darts left, right and up; ears swivel")
 def look_around(b: ClipBuilder) -> None:
     """Sitting up, head darting left and right and up, ears swivelling, tail flicking."""
     sq = Squirrel(b)
@@ -212,6 +220,7 @@ def look_around(b: ClipBuilder) -> None:
         )
 
 
+@clips.train("Nibble", "bends to a nut, sits up and nibbles")
 def nibble(b: ClipBuilder) -> None:
     """Bend down to a nut, pick it up in both paws, sit up and nibble (cheeks puffing)."""
     sq = Squirrel(b)
@@ -281,6 +290,7 @@ def nibble(b: ClipBuilder) -> None:
     )
 
 
+@clips.train("Stretch Up", "stretches tall and alert, relaxes")
 def stretch_up(b: ClipBuilder) -> None:
     """Alert: stretch up tall on the hind legs, ears up, look far; then relax down."""
     sq = Squirrel(b)
@@ -324,6 +334,7 @@ def stretch_up(b: ClipBuilder) -> None:
     sq.pose(62.0)
 
 
+@clips.train("Side Bend & Twist", "looks behind over each shoulder")
 def side_bend_twist(b: ClipBuilder) -> None:
     """Look behind over one shoulder, then the other: body twists and bends sideways."""
     sq = Squirrel(b)
@@ -354,6 +365,7 @@ def side_bend_twist(b: ClipBuilder) -> None:
         )
 
 
+@clips.train("Tail Flick", "tail flicks in waves and fluffs up")
 def tail_flick(b: ClipBuilder) -> None:
     """Sitting, the tail flicks in waves and fluffs up; the body answers a little."""
     sq = Squirrel(b)
@@ -376,6 +388,7 @@ def tail_flick(b: ClipBuilder) -> None:
     sq.pose(60.0, tail__curl=0.2)
 
 
+@clips.train("Groom", "paws rub the face, head shake")
 def groom(b: ClipBuilder) -> None:
     """Grooming: paws rub the face, head tilts into them, a shake of the head."""
     sq = Squirrel(b)
@@ -406,6 +419,7 @@ def groom(b: ClipBuilder) -> None:
     sq.pose(60.0, tail__fluff=0.2)
 
 
+@clips.train("Startle", "flinches, jumps back, freezes upright")
 def startle(b: ClipBuilder) -> None:
     """A noise: flinch down, jump back, freeze upright, then relax."""
     sq = Squirrel(b)
@@ -466,6 +480,7 @@ def startle(b: ClipBuilder) -> None:
     sq.pose(50.0, root__tz=-14.0, root__tx=away, root__ry=0.2 * away / 8.0, tail__fluff=0.2)
 
 
+@clips.train("Dig", "digs to bury a nut, looks around, pats it down")
 def dig(b: ClipBuilder) -> None:
     """Digging to bury a nut: bent over, paws scooping in turn, a look around, patting down."""
     sq = Squirrel(b)
@@ -525,6 +540,9 @@ def dig(b: ClipBuilder) -> None:
 
 
 # --- test: exaggerated -------------------------------------------------------------------------
+@clips.test(
+    "Exaggerated Squash & Stretch", "huge fast hops and spins at the ends of squash and stretch"
+)
 def exaggerated_squash_stretch(b: ClipBuilder) -> None:
     """Huge, fast hops with spins: the body at the ends of squash and stretch each beat."""
     sq = Squirrel(b)
@@ -570,6 +588,9 @@ def exaggerated_squash_stretch(b: ClipBuilder) -> None:
     sq.pose(52.0, root__ry=turn)
 
 
+@clips.test(
+    "Exaggerated Bend & Twist", "full bends and twists with the neck folded and thrown back"
+)
 def exaggerated_bend_twist(b: ClipBuilder) -> None:
     """Contortions: full forward bend with the neck folded, full twists, head thrown back."""
     sq = Squirrel(b)
@@ -603,29 +624,4 @@ def exaggerated_bend_twist(b: ClipBuilder) -> None:
         )
 
 
-LIBRARY = MotionLibrary(
-    rig="squirrel",
-    train=(
-        Motion("Hop", hop, "three hops forward with squash and stretch"),
-        Motion("Look Around", look_around, "head darts left, right and up; ears swivel"),
-        Motion("Nibble", nibble, "bends to a nut, sits up and nibbles"),
-        Motion("Stretch Up", stretch_up, "stretches tall and alert, relaxes"),
-        Motion("Side Bend & Twist", side_bend_twist, "looks behind over each shoulder"),
-        Motion("Tail Flick", tail_flick, "tail flicks in waves and fluffs up"),
-        Motion("Groom", groom, "paws rub the face, head shake"),
-        Motion("Startle", startle, "flinches, jumps back, freezes upright"),
-        Motion("Dig", dig, "digs to bury a nut, looks around, pats it down"),
-    ),
-    test=(
-        Motion(
-            "Exaggerated Squash & Stretch",
-            exaggerated_squash_stretch,
-            "huge fast hops and spins at the ends of squash and stretch",
-        ),
-        Motion(
-            "Exaggerated Bend & Twist",
-            exaggerated_bend_twist,
-            "full bends and twists with the neck folded and thrown back",
-        ),
-    ),
-)
+LIBRARY = clips.library("squirrel")

@@ -5,12 +5,12 @@ Blender runs in worker processes with their own Python (bpy pins numpy<2):
 the workers (code in :mod:`.in_blender` runs inside them), :mod:`.rig` is the
 :class:`~rigmap.rigs.base.Rig`, :mod:`.rigify` the built-in rigs, :mod:`.export`
 writes control curves as keyframes into a .blend, :mod:`.retarget` is the
-constraint-based script baseline.
+constraint-based script baseline, :mod:`.lookup` finds a Blender rig by name or config.
 """
 
 from rigmap.rigs.blender.environment import BlenderNotFoundError, blender_available, find_blender
 from rigmap.rigs.blender.export import export_blend, read_blend_animation
-from rigmap.rigs.blender.retarget import constraint_retarget
+from rigmap.rigs.blender.lookup import blender_rig, constraint_retarget
 from rigmap.rigs.blender.rig import BlenderRig
 from rigmap.rigs.blender.worker_process import RequestTimeout, WorkerCrashed, WorkerError
 
@@ -21,6 +21,7 @@ __all__ = [
     "WorkerCrashed",
     "WorkerError",
     "blender_available",
+    "blender_rig",
     "constraint_retarget",
     "export_blend",
     "find_blender",

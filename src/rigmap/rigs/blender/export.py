@@ -13,23 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.rigs.base import Pose, Rig
+from rigmap.rigs.base import Pose
+from rigmap.rigs.blender.lookup import blender_rig
 from rigmap.rigs.blender.rig import BlenderRig
 
 FRAME_COLUMN = "frame"
-
-
-def blender_rig(rig_config_or_rig) -> BlenderRig:
-    """The :class:`BlenderRig` named by a rig, a rig name or a rig config."""
-    from rigmap.rigs.registry import load
-
-    rig = rig_config_or_rig if isinstance(rig_config_or_rig, Rig) else load(rig_config_or_rig)
-    if not isinstance(rig, BlenderRig):
-        raise TypeError(
-            f"rig {rig.name!r} is a {type(rig).__name__}, not a Blender rig; "
-            "only Blender rigs (rigify_human, rigify_wolf, blend_file) can be written to .blend"
-        )
-    return rig
 
 
 def _control_table(rig: BlenderRig, controls) -> tuple[np.ndarray, np.ndarray, list[str]]:

@@ -31,6 +31,7 @@ from rigmap.rigs.blender.cache import cache_dir, read_json, write_json_atomic
 from rigmap.rigs.blender.environment import BlenderCommand, find_blender
 from rigmap.rigs.blender.in_blender.protocol import PROTOCOL_VERSION
 from rigmap.rigs.blender.pool import DEFAULT_CHUNK_ROWS, WorkerPool, default_worker_count
+from rigmap.rigs.blender.retarget import solve_constraints
 
 # Bumped when what a worker reports about a rig changes, so stale descriptions are ignored.
 DESCRIPTION_FORMAT = 5
@@ -101,6 +102,28 @@ def soft_range_overrides(
     return chosen
 
 
+def _control_table(controls: list[dict], used, soft_ranges, name: str) -> ControlTable:
+    """The controls Blender described, with the config's used flags and soft ranges."""
+    names = [c["name"] for c in controls]
+    used_flags = select_names(names, used, f"rig {name!r} used")
+    ranges = soft_range_overrides(
+        names, [c["default"] for c in controls], soft_ranges, f"rig {name!r} soft_ranges"
+    )
+    return ControlTable(
+        [
+            Control(
+                c["name"],
+                c["kind"],
+                c["default"],
+                *ranges.get(i, (c["lower"], c["upper"])),
+                flag,
+                c["group"],
+            )
+            for i, (c, flag) in enumerate(zip(controls, used_flags, strict=True))
+        ]
+    )
+
+
 class BlenderRig(Rig):
     """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
 
@@ -166,28 +189,11 @@ class BlenderRig(Rig):
 
         try:  # a rig that fails to build leaves no worker behind
             info = self._describe()
-            controls = info["controls"]
-            names = [c["name"] for c in controls]
-            used_flags = select_names(names, used, f"rig {name!r} used")
-            ranges = soft_range_overrides(
-                names, [c["default"] for c in controls], soft_ranges, f"rig {name!r} soft_ranges"
-            )
+            self.controls = _control_table(info["controls"], used, soft_ranges, name)
         except BaseException:
             self.close()
             raise
-        self.controls = ControlTable(
-            [
-                Control(
-                    c["name"],
-                    c["kind"],
-                    c["default"],
-                    *ranges.get(i, (c["lower"], c["upper"])),
-                    flag,
-                    c["group"],
-                )
-                for i, (c, flag) in enumerate(zip(controls, used_flags, strict=True))
-            ]
-        )
+        controls = info["controls"]
         self.channels = controls  # per control: bone, attribute/axis or property (for export)
         self.joint_names = list(info["joint_names"])
         self.parents = np.asarray(info["parents"], dtype=np.int64)
@@ -276,12 +282,10 @@ class BlenderRig(Rig):
     def constraint_retarget(self, positions, cog=None, cog_rotation=None, *, mapping=None):
         """Full control vectors ``(N, C)`` from the constraint-based retarget (one solve a frame).
 
-        See :func:`rigmap.rigs.blender.retarget.constraint_retarget`; the mapping
+        See :func:`rigmap.rigs.blender.retarget.solve_constraints`; the mapping
         defaults to the rig's ``retarget`` list.
         """
-        from rigmap.rigs.blender.retarget import constraint_retarget
-
-        return constraint_retarget(self, positions, cog, cog_rotation, mapping=mapping)
+        return solve_constraints(self, positions, cog, cog_rotation, mapping=mapping)
 
     # --- evaluation -----------------------------------------------------------
     def _pose(self, Y) -> Pose:

@@ -11,129 +11,42 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigmap.rigs.characters.biped import SIDES, _mirror
 from rigmap.rigs.engine.builder import RigBuilder
-from rigmap.rigs.features.aim import aim_joint
+from rigmap.rigs.engine.torch_rig import TorchRig
 from rigmap.rigs.features.chain_attributes import chain_attributes
-from rigmap.rigs.features.fixed_joint import fixed_joint
-from rigmap.rigs.features.fk_chain import fk_chain
+from rigmap.rigs.features.fk_chain import fk_chain, fk_joint
+from rigmap.rigs.features.head import HeadSpec, head
 from rigmap.rigs.features.limb import FootSpec, LimbUsage, limb
-from rigmap.rigs.features.space_blend import space_blend_control
-from rigmap.rigs.features.spline_spine import spline_spine
+from rigmap.rigs.features.sides import SIDES, mirror
+from rigmap.rigs.features.torso import TorsoSpec, torso
 
+TORSO = TorsoSpec(
+    cog=(0, 60, -3),  # lying down lowers the body ~42 cm (the COG's ±60 cm range)
+    hips=(0, 0, -27),
+    chest=(0, 2, 25),
+    spine_mid=(0, 1, -1),
+    spine=("pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "spine_chest"),
+)
+HEAD = HeadSpec(
+    neck=((0, 66, 28), (0, 72, 34), (0, 78, 39)),
+    head=(0, 83, 44),
+    head_end=(0, 84, 63),
+    jaw=(0, 80, 47),
+    jaw_end=(0, 76, 61),
+    jaw_open=0.7,
+    eye_aim=(0, 87, 110),
+    eye=(3.5, 87, 52),
+    pupil=1.5,
+)
 TAIL_JOINTS = 12
 TOES = 4
 
 
 def build_quadruped():
     b = RigBuilder("quadruped")
-    b.transform_control("root", parent=None, group="root", used="tx tz ry", translate_range=300.0)
-    b.transform_control(
-        "cog",
-        parent="root",
-        offset=(0, 60, -3),
-        group="torso",
-        used="tx ty tz rx ry rz",
-        translate_range=60.0,  # lying down lowers the body ~42 cm
-    )
-    b.transform_control(
-        "hips", parent="cog", offset=(0, 0, -27), group="torso", used="rx ry rz", rotate_range=0.8
-    )
-    b.transform_control(
-        "chest",
-        parent="cog",
-        offset=(0, 2, 25),
-        group="torso",
-        used="tx ty tz rx ry rz",
-        rotate_range=1.0,
-    )
-    spine_mid = b.transform_control(
-        "spine_mid",
-        parent="cog",
-        offset=(0, 1, -1),
-        group="torso",
-        used="tx ty tz",
-        translate_range=15.0,
-    )
-    spine = ["pelvis", "spine_1", "spine_2", "spine_3", "spine_4", "spine_chest"]
-    spline_spine(
-        b, spine, hips="hips", chest="chest", mid=spine_mid, parent_joint=None, group="torso"
-    )
+    torso(b, TORSO)
 
-    fk_chain(
-        b,
-        ["neck_1", "neck_2", "neck_3"],
-        parent="spine_chest",
-        positions=[(0, 66, 28), (0, 72, 34), (0, 78, 39)],
-        group="head",
-        used="rx ry rz",
-        rotate_range=0.8,
-    )
-    space_blend_control(
-        b,
-        "head",
-        parent="neck_3",
-        world_space="root",
-        position=(0, 83, 44),
-        group="head",
-        used="rx ry rz",
-    )
-    b.joint("head", "neck_3")
-    fixed_joint(b, "head_end", parent="head", position=(0, 84, 63))
-    fk_chain(
-        b,
-        ["jaw"],
-        parent="head",
-        positions=[(0, 80, 47)],
-        group="head",
-        used="rx",
-        rotate_range={"rx": (-0.1, 0.7), "ry": (-0.3, 0.3), "rz": (-0.2, 0.2)},
-        control_suffix="_ctrl",
-    )
-    fixed_joint(b, "jaw_end", parent="jaw", position=(0, 76, 61))
-    b.transform_control(
-        "eye_aim",
-        parent="root",
-        offset=(0, 87, 110),
-        group="head",
-        used="tx ty tz",
-        translate_range=60.0,
-    )
-    for side, sign in SIDES:
-        eye = _mirror((3.5, 87, 52), sign)
-        b.transform_control(
-            f"eye_{side}_aim",
-            parent="eye_aim",
-            offset=_mirror((3.5, 0, 0), sign),
-            group="head",
-            used="",
-            translate_range=10.0,
-        )
-        aim_joint(
-            b,
-            f"eye_{side}",
-            f"eye_end_{side}",
-            parent="head",
-            target=f"eye_{side}_aim",
-            position=eye,
-            end_position=eye + np.array([0.0, 0.0, 1.5]),
-        )
-        ear = chain_attributes(
-            b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5), side_sign=sign
-        )
-        fk_chain(
-            b,
-            [f"ear_{i}_{side}" for i in (1, 2, 3)],
-            parent="head",
-            joint_parent="head",
-            positions=[_mirror(p, sign) for p in ((5, 92, 45), (7, 97, 44), (9, 102, 43))],
-            group="head",
-            used="rx rz",
-            rotate_range=1.2,
-            layer=ear,
-            tip=_mirror((10, 107, 42), sign),
-            tip_name=f"ear_tip_{side}",
-        )
+    head(b, HEAD, parent="spine_chest", per_side=lambda side, sign: _ear(b, side, sign))
 
     tail = chain_attributes(b, "tail", group="tail", curl_range=(-2.5, 2.5))
     fk_chain(
@@ -152,30 +65,48 @@ def build_quadruped():
     for side, sign in SIDES:
         _front_leg(b, side, sign)
         _hind_leg(b, side, sign)
-    return b.build(description="Dog quadruped, digitigrade hind legs, tail and ears (cm, radians)")
+    return TorchRig(
+        b, description="Dog quadruped, digitigrade hind legs, tail and ears (cm, radians)"
+    )
+
+
+def _ear(b: RigBuilder, side: str, sign: float) -> None:
+    """A curling ear of three FK joints on the head."""
+    ear = chain_attributes(b, f"ear_{side}", group="head", curl_range=(-1.5, 1.5), side_sign=sign)
+    fk_chain(
+        b,
+        [f"ear_{i}_{side}" for i in (1, 2, 3)],
+        parent="head",
+        joint_parent="head",
+        positions=[mirror(p, sign) for p in ((5, 92, 45), (7, 97, 44), (9, 102, 43))],
+        group="head",
+        used="rx rz",
+        rotate_range=1.2,
+        layer=ear,
+        tip=mirror((10, 107, 42), sign),
+        tip_name=f"ear_tip_{side}",
+    )
 
 
 def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
-    group = f"front_leg_{side}"
-    fk_chain(
+    fk_joint(
         b,
-        [f"scapula_{side}"],
+        f"scapula_{side}",
         parent="spine_chest",
-        positions=[_mirror((6, 66, 20), sign)],
-        group=group,
+        position=mirror((6, 66, 20), sign),
+        group=f"front_leg_{side}",
         used="rx ry rz",
         rotate_range=0.5,
-        control_suffix="_ctrl",
     )
     rest = {
-        f"upper_arm_{side}": _mirror((8, 52, 24), sign),
-        f"forearm_{side}": _mirror((8, 36, 17), sign),
-        f"wrist_{side}": _mirror((8, 12, 20), sign),
+        f"upper_arm_{side}": mirror((8, 52, 24), sign),
+        f"forearm_{side}": mirror((8, 36, 17), sign),
+        f"wrist_{side}": mirror((8, 12, 20), sign),
     }
     foot = FootSpec(
-        heel=_mirror((8, 1.0, 17), sign),
-        ball=_mirror((8, 3, 24), sign),
-        toe=_mirror((8, 0.5, 29), sign),
+        heel=mirror((8, 1.0, 17), sign),
+        ball=mirror((8, 3, 24), sign),
+        toe=mirror((8, 0.5, 29), sign),
         half_width=3.0,
         ball_joint=f"front_paw_{side}",
         toe_joint=f"front_toe_{side}",
@@ -183,13 +114,8 @@ def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
     limb(
         b,
         f"front_leg_{side}",
-        joints=list(rest),
         rest=rest,
         parent=f"scapula_{side}",
-        parent_joint=f"scapula_{side}",
-        ik_space="root",
-        pole_distance=40.0,
-        group=group,
         side_sign=sign,
         foot=foot,
         usage=LimbUsage(fk="rx ry rz", attributes=("ik_fk",)),
@@ -206,30 +132,24 @@ def _front_leg(b: RigBuilder, side: str, sign: float) -> None:
 
 
 def _hind_leg(b: RigBuilder, side: str, sign: float) -> None:
-    group = f"hind_leg_{side}"
     rest = {
-        f"thigh_{side}": _mirror((7, 57, -30), sign),
-        f"stifle_{side}": _mirror((8, 38, -22), sign),
-        f"hock_{side}": _mirror((8, 18, -36), sign),
-        f"hind_paw_{side}": _mirror((8, 4, -31), sign),
+        f"thigh_{side}": mirror((7, 57, -30), sign),
+        f"stifle_{side}": mirror((8, 38, -22), sign),
+        f"hock_{side}": mirror((8, 18, -36), sign),
+        f"hind_paw_{side}": mirror((8, 4, -31), sign),
     }
     foot = FootSpec(
-        heel=_mirror((8, 0.5, -34), sign),
-        ball=_mirror((8, 1.5, -28), sign),
-        toe=_mirror((8, 0.5, -24), sign),
+        heel=mirror((8, 0.5, -34), sign),
+        ball=mirror((8, 1.5, -28), sign),
+        toe=mirror((8, 0.5, -24), sign),
         half_width=3.0,
         toe_joint=f"hind_toe_{side}",
     )
     limb(
         b,
         f"hind_leg_{side}",
-        joints=list(rest),
         rest=rest,
         parent="pelvis",
-        parent_joint="pelvis",
-        ik_space="root",
-        pole_distance=40.0,
-        group=group,
         side_sign=sign,
         foot=foot,
         digitigrade=True,
@@ -269,13 +189,13 @@ def _toes(
             [f"{prefix}_{k + 1}"],
             parent=parent,
             joint_parent=parent_joint,
-            positions=[_mirror(base, sign)],
+            positions=[mirror(base, sign)],
             group=f"paws_{side}",
             used="rx",
             rotate_range=0.9,
             layer=attrs,
             declare_joints=False,
             xform_prefix="toe_base:",
-            tip=_mirror(tip, sign),
+            tip=mirror(tip, sign),
             tip_name=f"{prefix}_{k + 1}",
         )

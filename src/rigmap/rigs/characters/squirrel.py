@@ -209,22 +209,10 @@ class SquirrelRig(MeshRig):
             length=TWIST_LENGTH,
             center_xz=(0.0, 0.0),
         )
-        points = bend(
-            points,
-            self.column(Y, "body.bend_side"),
-            base=BEND_BASE,
-            length=BEND_LENGTH,
-            axis="x",
-            center=0.0,
-        )
-        return bend(
-            points,
-            self.column(Y, "body.bend_forward"),
-            base=BEND_BASE,
-            length=BEND_LENGTH,
-            axis="z",
-            center=0.0,
-        )
+        for control, axis in (("body.bend_side", "x"), ("body.bend_forward", "z")):
+            amount = self.column(Y, control)
+            points = bend(points, amount, base=BEND_BASE, length=BEND_LENGTH, axis=axis, center=0.0)
+        return points
 
     def _local_matrices(self, Y: torch.Tensor) -> dict[str, torch.Tensor]:
         def rotation(prefix: str, extra_rx=None) -> torch.Tensor:

@@ -2,8 +2,9 @@
 
 A character script creates control objects and feature units in dependency
 order; each unit appends a *step* (a function of the evaluation context) that
-reads control columns and writes world transforms. ``RigBuilder.build`` turns
-the result into a :class:`TorchRig`.
+reads control columns and writes world transforms.
+:class:`~rigmap.rigs.engine.torch_rig.TorchRig` (``TorchRig(builder)``) runs the
+result; the builder knows nothing of it, so the two modules import one way.
 """
 
 from __future__ import annotations
@@ -122,7 +123,7 @@ class JointSpec:
 
 @dataclass
 class RigBuilder:
-    """Accumulates controls, joints and steps; ``build()`` makes the rig."""
+    """Accumulates controls, joints and steps; ``TorchRig(builder)`` makes the rig."""
 
     name: str
     controls: list[Control] = field(default_factory=list)
@@ -221,11 +222,6 @@ class RigBuilder:
     def step(self, fn: Step) -> Step:
         self.steps.append(fn)
         return fn
-
-    def build(self, **kwargs):
-        from rigmap.rigs.engine.torch_rig import TorchRig
-
-        return TorchRig(self, **kwargs)
 
 
 def _world_of(ctrl: TransformControl) -> Step:

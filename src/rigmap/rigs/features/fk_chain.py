@@ -95,3 +95,27 @@ def fk_chain(
 
     b.step(step)
     return controls
+
+
+def fk_joint(
+    b: RigBuilder,
+    joint: str,
+    *,
+    parent: str,
+    position: Sequence[float],
+    group: str,
+    used: str,
+    rotate_range: float | dict,
+) -> TransformControl:
+    """One joint turned by its own control ``<joint>_ctrl`` (a jaw, a clavicle, a scapula)."""
+    (control,) = fk_chain(
+        b,
+        [joint],
+        parent=parent,
+        positions=[position],
+        group=group,
+        used=used,
+        rotate_range=rotate_range,
+        control_suffix="_ctrl",
+    )
+    return control

@@ -1,0 +1,1 @@
+"""The built-in rigs' manifests, one module each (``MANIFEST``); see :mod:`rigmap.rigs.manifest`."""

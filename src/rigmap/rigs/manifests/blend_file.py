@@ -1,0 +1,5 @@
+"""Any user .blend with an armature (``path`` required), evaluated by Blender workers."""
+
+from rigmap.rigs.manifest import RigManifest
+
+MANIFEST = RigManifest("blend_file", "rigmap.rigs.blender.rigify:build_blend_file", "Blender file")
