@@ -35,7 +35,21 @@ def _parser() -> argparse.ArgumentParser:
         description="Learning inverse rig mappings: joint positions -> animation-rig controls.",
     )
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
+    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_reproduce):
+        add(commands)
+    return parser
 
+
+def _config_dir_argument(command) -> None:
+    command.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
+    )
+
+
+def _add_rigs(commands) -> None:
     rigs = commands.add_parser("rigs", help="list, describe and render rigs")
     rig_commands = rigs.add_subparsers(title="rig commands", metavar="RIG_COMMAND")
 
@@ -72,6 +86,8 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--out", type=Path, required=True, help="PNG to write")
     render.set_defaults(run=_rigs_render)
 
+
+def _add_corpus(commands) -> None:
     corpus = commands.add_parser("corpus", help="look at the animator corpus")
     corpus_commands = corpus.add_subparsers(title="corpus commands", metavar="CORPUS_COMMAND")
     show = corpus_commands.add_parser(
@@ -93,6 +109,8 @@ def _parser() -> argparse.ArgumentParser:
     show.add_argument("--columns", type=int, default=6, help="contact-sheet columns")
     show.set_defaults(run=_corpus_show)
 
+
+def _add_export(commands) -> None:
     export = commands.add_parser(
         "export-blend",
         help="write predicted controls as keyframes on a Blender rig (.blend for animators)",
@@ -107,6 +125,8 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--out", type=Path, required=True, help=".blend file to write")
     export.set_defaults(run=_export_blend)
 
+
+def _add_fit(commands) -> None:
     fit = commands.add_parser(
         "fit",
         help="fit an inverse mapping into models/<rig>/<regressor>-<sampler>-<kernel>/",
@@ -122,14 +142,11 @@ def _parser() -> argparse.ArgumentParser:
         help="Hydra overrides of conf/config.yaml (rig=, regressor=, kernel=, sampler=, "
         "experiment=, budget.*=, paths.*=)",
     )
-    fit.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )
+    _config_dir_argument(fit)
     fit.set_defaults(run=_fit)
 
+
+def _add_evaluate(commands) -> None:
     evaluate = commands.add_parser(
         "evaluate",
         help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
@@ -147,14 +164,11 @@ def _parser() -> argparse.ArgumentParser:
         help="Hydra overrides of conf/config.yaml (rig=, evaluate.set=, evaluate.methods=, "
         "sampler=, kernel=, experiment=, tracking.uri=, paths.*=)",
     )
-    evaluate.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )
+    _config_dir_argument(evaluate)
     evaluate.set_defaults(run=_evaluate)
 
+
+def _add_reproduce(commands) -> None:
     reproduce = commands.add_parser(
         "reproduce",
         help="run the DVC pipeline (dvc repro) for an experiment and print where the report is",
@@ -196,7 +210,6 @@ def _parser() -> argparse.ArgumentParser:
         help="the repository (folder with dvc.yaml and conf/; default: found from here up)",
     )
     reproduce.set_defaults(run=_reproduce)
-    return parser
 
 
 def find_config_dir(explicit: Path | None = None) -> Path:

@@ -9,16 +9,17 @@ stem of its files (``<name>.json`` + payload, see :mod:`rigmap.regression.model_
 
 The fit stage (:mod:`rigmap.regression.fitting`) asks the model, through the
 hooks below, what it needs instead of testing its class: extra ``fit``
-arguments (``fit_options``), its kernel's label, a learned Jacobian to fit
-beside it (``learned_jacobian``), and what to say about the fit in its log
-and ``fit.json``. Adding a regressor is one subclass plus one yaml file.
+arguments (``fit_options``), its kernel's label, and what to say about the fit
+in its log and ``fit.json``. Whether a learned Jacobian is fitted beside it is
+:func:`rigmap.regression.learned_jacobian.learned_jacobian_plan`'s answer.
+Adding a regressor is one subclass plus one yaml file.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -26,9 +27,6 @@ from sklearn.base import BaseEstimator
 from rigmap.regression import model_io
 from rigmap.regression.errors import ModelFileError
 from rigmap.regression.fingerprint import ModelFingerprint
-
-if TYPE_CHECKING:
-    from rigmap.regression.learned_jacobian import LearnedJacobian
 
 NO_KERNEL = "none"  # the kernel label of regressors that have none (the network)
 
@@ -73,14 +71,6 @@ class Regressor(BaseEstimator):
         """The kernel part of the model id: the kernel's label, or ``none``."""
         kernel = getattr(self, "kernel", None)
         return kernel.label if kernel is not None else NO_KERNEL
-
-    def learned_jacobian(self) -> tuple[np.ndarray, LearnedJacobian] | None:
-        """Rows at which to learn the rig's Jacobian, and the unfitted model to learn it.
-
-        ``None`` (the default): this regressor comes without one (§4.3-4.4 give it
-        to the multiquadric GPR only).
-        """
-        return None
 
     def describe_plan(self, rows: int) -> str:
         """One log line saying what ``fit`` is about to do."""

@@ -43,6 +43,7 @@ from rigmap.error_measures import control_std, ground_truth_error, joint_error
 from rigmap.errors import RigmapError
 from rigmap.regression.base import Regressor
 from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
+from rigmap.regression.learned_jacobian import learned_jacobian_plan
 from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import Placement, find_placement
 from rigmap.sampling import sampler_name
@@ -315,7 +316,7 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     details = fitted.regressor.fit_facts()
 
     learned = None
-    wanted = fitted.regressor.learned_jacobian()
+    wanted = learned_jacobian_plan(fitted.regressor)
     if wanted is not None:
         learned, jacobian_details = fit_learned_jacobian(fitted, wanted, rig, data, log=log)
         details["learned_jacobian"] = jacobian_details
@@ -407,7 +408,7 @@ def fit_learned_jacobian(
 ) -> tuple[JacobianMapping, dict[str, Any]]:
     """§4.3-4.4: finite-difference Jacobians at the rows the model names, learned by its model.
 
-    ``wanted`` is ``regressor.learned_jacobian()``: the training rows (the GPR's support
+    ``wanted`` is ``learned_jacobian_plan(regressor)``: the training rows (the GPR's support
     poses) and the unfitted learned Jacobian; it learns behind the mapping's placement.
     """
     from rigmap.refine import jacobian

@@ -344,30 +344,6 @@ class GaussianProcessRegressor(Regressor):
     def kernel_name(self) -> str:
         return self._kernel().label
 
-    def learned_jacobian(self):
-        """§4.3-4.4: the multiquadric GPR's Jacobian, learned at its support poses.
-
-        The Jacobian GPR takes this model's settings (regularisation, search range,
-        splits, seed) and its fitted kernel.
-        """
-        self._check_fitted()
-        if not isinstance(self.kernel_, MultiquadricKernel):
-            return None
-        from rigmap.regression.learned_jacobian import LearnedJacobian
-
-        learned = LearnedJacobian(
-            kernel=self.kernel_,
-            regularization=self.regularization,
-            search_length_scale=self.search_length_scale,
-            length_scale_range=self.search_range,
-            n_length_scales=self.n_length_scales,
-            cv_splits=self.cv_splits,
-            cv_max_outputs=self.cv_max_outputs,
-            normalize=self.normalize,
-            seed=self.seed,
-        )
-        return np.asarray(self.support_indices_), learned
-
     def describe_plan(self, rows: int) -> str:
         target = rows if self.n_points is None else min(int(self.n_points), rows)
         steps = []

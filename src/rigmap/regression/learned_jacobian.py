@@ -23,7 +23,7 @@ from rigmap.regression.base import Regressor
 from rigmap.regression.errors import ModelFileError, RegressionInputError
 from rigmap.regression.fingerprint import ModelFingerprint
 from rigmap.regression.gpr import GaussianProcessRegressor
-from rigmap.regression.kernels import Kernel
+from rigmap.regression.kernels import Kernel, MultiquadricKernel
 from rigmap.regression.model_io import arrays_from_bytes, arrays_to_bytes
 from rigmap.regression.validation import as_float_array, check_finite
 
@@ -148,3 +148,31 @@ class LearnedJacobian(Regressor):
                 f"expected {shape[0]} x {shape[1]} from jacobian_shape"
             )
         self.jacobian_shape_ = (shape[0], shape[1])
+
+
+def learned_jacobian_plan(regressor) -> tuple[np.ndarray, LearnedJacobian] | None:
+    """§4.3-4.4: the rows at which to learn the rig's Jacobian beside a fitted regressor, and
+    the unfitted model to learn it; ``None`` unless it is a multiquadric GPR (the paper gives
+    the learned Jacobian to that model only).
+
+    The Jacobian GPR takes the regressor's settings (regularisation, search range, splits,
+    seed) and its fitted kernel, and learns at the regressor's support poses. It lives here,
+    not on the GPR, because the learned Jacobian is itself a GPR: one direction of import.
+    """
+    if not isinstance(regressor, GaussianProcessRegressor):
+        return None
+    regressor._check_fitted()
+    if not isinstance(regressor.kernel_, MultiquadricKernel):
+        return None
+    learned = LearnedJacobian(
+        kernel=regressor.kernel_,
+        regularization=regressor.regularization,
+        search_length_scale=regressor.search_length_scale,
+        length_scale_range=regressor.search_range,
+        n_length_scales=regressor.n_length_scales,
+        cv_splits=regressor.cv_splits,
+        cv_max_outputs=regressor.cv_max_outputs,
+        normalize=regressor.normalize,
+        seed=regressor.seed,
+    )
+    return np.asarray(regressor.support_indices_), learned

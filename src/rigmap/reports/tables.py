@@ -100,6 +100,20 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         **_paper_record(paper),
                     }
                 )
+    notes = _methods_notes(settings) + budget_notes + _left_out_notes(tree, others, settings)
+    return Table(
+        name="table1_methods",
+        title="Table 1 — inverse rig mapping methods on the test clips",
+        columns=columns,
+        rows=rows,
+        data=pd.DataFrame.from_records(records),
+        notes=notes,
+        row_classes=classes,
+    )
+
+
+def _methods_notes(settings: ReportSettings) -> list[str]:
+    """Table 1's first notes: the measures, the models behind the rows, the extra rows."""
     extras = [m.label for m in METHODS if m.extra and m.key in settings.methods]
     notes = [
         JOINT_ERROR_NOTE,
@@ -112,7 +126,12 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     ]
     if extras:
         notes.append(f"Rows marked (extra) are not in the paper: {', '.join(extras)}.")
-    notes += budget_notes
+    return notes
+
+
+def _left_out_notes(tree, others, settings: ReportSettings) -> list[str]:
+    """Table 1's last notes: the rigs compared elsewhere, and methods an experiment skips."""
+    notes = []
     if others:
         compared = ", ".join(rig_label(rig) for rig in tree)
         notes.append(
@@ -125,15 +144,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     for rig, left_out in excluded.items():
         labels = ", ".join(find_row(METHODS, m, "method").label for m in left_out)
         notes.append(f"{rig_label(rig)}: not evaluated by this experiment: {labels}.")
-    return Table(
-        name="table1_methods",
-        title="Table 1 — inverse rig mapping methods on the test clips",
-        columns=columns,
-        rows=rows,
-        data=pd.DataFrame.from_records(records),
-        notes=notes,
-        row_classes=classes,
-    )
+    return notes
 
 
 def frames_per_clip(metrics: RigMetrics, methods: Sequence[str]) -> int | None:

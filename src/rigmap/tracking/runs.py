@@ -282,24 +282,8 @@ def log_method_run(
     try:
         _log_params(client, run_id, flatten_config(config) if config is not None else {})
         _log_metrics(client, run_id, metrics)
-        with tempfile.TemporaryDirectory(prefix="rigmap-run-") as scratch:
-            folder = Path(scratch)
-            write_text_atomically(folder / "metrics.json", _json(summary))
-            if config is not None:
-                artifacts.write_config_yaml(config, folder / "config.yaml")
-            if per_frame is not None:
-                write_text_atomically(folder / "per_frame.csv", per_frame.to_csv(index=False))
-                artifacts.plot_per_frame_errors(
-                    per_frame,
-                    folder / "per_frame_error.png",
-                    title=f"{rig} · {name}",
-                    length_unit=str(summary.get("length_unit", "cm")),
-                )
-            if predicted_controls is not None:
-                artifacts.write_control_curves(
-                    predicted_controls, folder / "predicted_controls.parquet"
-                )
-            client.log_artifacts(run_id, str(folder))
+        _log_run_artifacts(client, run_id, summary, config, per_frame, predicted_controls,
+                           title=f"{rig} · {name}")  # fmt: skip
         logged = None
         if model is not None:
             logged = log_inverse_mapping(
@@ -322,6 +306,28 @@ def log_method_run(
 
 
 # --------------------------------------------------------------------------- helpers
+def _log_run_artifacts(client, run_id, summary, config, per_frame, predicted_controls, *, title):
+    """The run's files: metrics JSON, config, per-frame CSV and plot, predicted curves."""
+    with tempfile.TemporaryDirectory(prefix="rigmap-run-") as scratch:
+        folder = Path(scratch)
+        write_text_atomically(folder / "metrics.json", _json(summary))
+        if config is not None:
+            artifacts.write_config_yaml(config, folder / "config.yaml")
+        if per_frame is not None:
+            write_text_atomically(folder / "per_frame.csv", per_frame.to_csv(index=False))
+            artifacts.plot_per_frame_errors(
+                per_frame,
+                folder / "per_frame_error.png",
+                title=title,
+                length_unit=str(summary.get("length_unit", "cm")),
+            )
+        if predicted_controls is not None:
+            artifacts.write_control_curves(
+                predicted_controls, folder / "predicted_controls.parquet"
+            )
+        client.log_artifacts(run_id, str(folder))
+
+
 def _log_params(client: MlflowClient, run_id: str, params: Mapping[str, str]) -> None:
     items = [Param(k, v) for k, v in params.items()]
     for start in range(0, len(items), _BATCH):
