@@ -18,6 +18,7 @@ CONF = Path(__file__).resolve().parents[1] / "conf" / "rig"
 )
 def test_yaml_matches_the_preset(name, preset):
     config = yaml.safe_load((CONF / f"{name}.yaml").read_text())
+    config.pop("_overrides_", None)  # the stage budgets a slow rig sets (rigmap.stage)
     assert config == {"name": name, **preset}
 
 

@@ -37,8 +37,8 @@ STAGES = {
     "fit": (
         ["pipelines/fit.py", "rig=quadruped", "regressor=nn", "sampler=none"],
         [
-            "models/quadruped/nn-none-none/network.pt",
-            "models/quadruped/nn-none-none/network.json",
+            "models/quadruped/nn-none-none/nn.pt",
+            "models/quadruped/nn-none-none/nn.json",
             "models/quadruped/nn-none-none/placement.json",
         ],
         "network training:",

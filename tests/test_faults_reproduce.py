@@ -81,7 +81,7 @@ BAD_OVERRIDES = {
     "corpus.variation=0": "finite number > 0",
     "tracking.probe_timeout_s=-3": "finite number > 0",
     "rig.name='quadruped; touch pwned'": "shell metacharacter",  # defect 3: ran a command
-    "sampler.name='a$(id)'": "shell metacharacter",
+    "tracking.experiment_prefix='a$(id)'": "shell metacharacter",
     "paths.data='d`id`'": "shell metacharacter",
     "evaluate.methods=[nn,'gpr|x']": "shell metacharacter",
 }

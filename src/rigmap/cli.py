@@ -40,15 +40,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _config_dir_argument(command) -> None:
-    command.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )
-
-
 def _add_rigs(commands) -> None:
     rigs = commands.add_parser("rigs", help="list, describe and render rigs")
     rig_commands = rigs.add_subparsers(title="rig commands", metavar="RIG_COMMAND")
@@ -127,27 +118,22 @@ def _add_export(commands) -> None:
 
 
 def _add_fit(commands) -> None:
-    fit = commands.add_parser(
+    _add_stage_command(
+        commands,
         "fit",
         help="fit an inverse mapping into models/<rig>/<regressor>-<sampler>-<kernel>/",
         description="Runs the fit stage (pipelines/fit.py) with Hydra overrides, e.g. "
         "rigmap fit rig=biped regressor=gpr kernel=gaussian sampler=none, or "
         "rigmap fit rig=quadruped regressor=nn sampler=pca_gaussian experiment=paper. "
         "Paths in the config (paths.data, paths.models) are relative to the working directory.",
+        overrides="rig=, regressor=, kernel=, sampler=, experiment=, budget.*=, paths.*=",
+        run=_fit,
     )
-    fit.add_argument(
-        "overrides",
-        nargs="*",
-        metavar="KEY=VALUE",
-        help="Hydra overrides of conf/config.yaml (rig=, regressor=, kernel=, sampler=, "
-        "experiment=, budget.*=, paths.*=)",
-    )
-    _config_dir_argument(fit)
-    fit.set_defaults(run=_fit)
 
 
 def _add_evaluate(commands) -> None:
-    evaluate = commands.add_parser(
+    _add_stage_command(
+        commands,
         "evaluate",
         help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
         description="Runs the evaluate stage (as pipelines/evaluate.py, in this process) with "
@@ -156,16 +142,28 @@ def _add_evaluate(commands) -> None:
         "evaluate.set=samplers, rigmap evaluate rig=face 'evaluate.methods=[gpr,nn]' "
         "evaluate.log_to_mlflow=false. Paths in the config (paths.data, paths.models, "
         "paths.metrics) are relative to the working directory.",
+        overrides="rig=, evaluate.set=, evaluate.methods=, sampler=, kernel=, experiment=, "
+        "tracking.uri=, paths.*=",
+        run=_evaluate,
     )
-    evaluate.add_argument(
+
+
+def _add_stage_command(commands, name, *, help, description, overrides, run) -> None:
+    """A verb that runs a pipeline stage in this process with Hydra overrides."""
+    command = commands.add_parser(name, help=help, description=description)
+    command.add_argument(
         "overrides",
         nargs="*",
         metavar="KEY=VALUE",
-        help="Hydra overrides of conf/config.yaml (rig=, evaluate.set=, evaluate.methods=, "
-        "sampler=, kernel=, experiment=, tracking.uri=, paths.*=)",
+        help=f"Hydra overrides of conf/config.yaml ({overrides})",
     )
-    _config_dir_argument(evaluate)
-    evaluate.set_defaults(run=_evaluate)
+    command.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
+    )
+    command.set_defaults(run=run)
 
 
 def _add_reproduce(commands) -> None:

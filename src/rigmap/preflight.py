@@ -40,7 +40,7 @@ def check_pipeline_needs(
     project = Path(project)
     checks, problems = [], []
     for name, check in (
-        ("Blender worker environment", lambda: _blender(project)),
+        ("Blender worker environment", lambda: _blender(project, params)),
         ("tracking store", lambda: _tracking(project, params, environ)),
         ("output folders", lambda: _output_folders(project, params)),
     ):
@@ -57,21 +57,35 @@ def check_pipeline_needs(
     return checks
 
 
-def blender_rigs(project: Path) -> list[str]:
-    """Rigs of ``dvc.yaml``'s stage matrices whose ``conf/rig/<rig>.yaml`` is a Blender rig."""
+def blender_rigs(project: Path, params: Mapping[str, Any] | None = None) -> list[str]:
+    """Rigs of ``dvc.yaml``'s stage matrices whose ``conf/rig/<rig>.yaml`` is a Blender rig.
+
+    A matrix may name its list in the params (``rig: ${pipeline.blender_rigs}``, as DVC
+    interpolates it); that list is read from ``params``.
+    """
     dvc = yaml.safe_load((project / "dvc.yaml").read_text(encoding="utf-8")) or {}
     rigs: list[str] = []
     for stage in (dvc.get("stages") or {}).values():
         matrix = stage.get("matrix") if isinstance(stage, Mapping) else None
-        for rig in (matrix or {}).get("rig", []) if isinstance(matrix, Mapping) else []:
+        listed = (matrix or {}).get("rig", []) if isinstance(matrix, Mapping) else []
+        for rig in _interpolated(listed, params or {}):
             config = project / "conf" / "rig" / f"{rig}.yaml"
             if rig not in rigs and config.is_file() and "blender" in config.read_text("utf-8"):
                 rigs.append(str(rig))
     return rigs
 
 
-def _blender(project: Path) -> list[str] | None:
-    rigs = blender_rigs(project)
+def _interpolated(value: Any, params: Mapping[str, Any]) -> list:
+    """A matrix list, or the params list a ``${dotted.key}`` string names (else empty)."""
+    if isinstance(value, str) and value.startswith("${") and value.endswith("}"):
+        for key in value[2:-1].split("."):
+            params = params.get(key) if isinstance(params, Mapping) else None
+        value = params
+    return list(value) if isinstance(value, list | tuple) else []
+
+
+def _blender(project: Path, params: Mapping[str, Any]) -> list[str] | None:
+    rigs = blender_rigs(project, params)
     if not rigs:
         return None
     from rigmap.rigs.blender import BlenderNotFoundError, find_blender

@@ -122,15 +122,7 @@ class ClipResult:
         return self.frames / self.total_time_s
 
     def summary(self) -> dict[str, float | int]:
-        return {
-            "frames": self.frames,
-            "joint_error": self.joint_error,
-            "ground_truth_error": self.ground_truth_error,
-            "total_time_s": self.total_time_s,
-            "fps": self.fps,
-            "rig_evaluations": self.rig_evaluations,
-            "rig_calls": self.rig_calls,
-        }
+        return _summary(self)
 
 
 @dataclass
@@ -193,15 +185,7 @@ class MethodResult:
         return sum(c.rig_calls for c in self.clips)
 
     def average(self) -> dict[str, float | int]:
-        return {
-            "frames": self.frames,
-            "joint_error": self.joint_error,
-            "ground_truth_error": self.ground_truth_error,
-            "total_time_s": self.total_time_s,
-            "fps": self.fps,
-            "rig_evaluations": self.rig_evaluations,
-            "rig_calls": self.rig_calls,
-        }
+        return _summary(self)
 
     # --- files --------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -247,6 +231,17 @@ class MethodResult:
                 ),
             }
         )
+
+
+SUMMARY_FIELDS = (
+    "frames", "joint_error", "ground_truth_error", "total_time_s", "fps", "rig_evaluations",
+    "rig_calls",
+)  # fmt: skip
+
+
+def _summary(result) -> dict[str, float | int]:
+    """A clip's or a method's numbers, in the metrics files' order."""
+    return {name: getattr(result, name) for name in SUMMARY_FIELDS}
 
 
 def write_per_frame_csv(result: MethodResult, path: str | os.PathLike) -> Path:

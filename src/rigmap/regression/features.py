@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigmap.rigs.base import RigInputError, check_positions
+from rigmap.rigs.base import RigInputError, check_placement, check_positions
 
 PLACEMENT_WIDTH = 12  # cog x, y, z + the 3x3 rotation, row-major
 
@@ -23,15 +23,7 @@ def inverse_features(positions, cog, cog_rotation, *, n_joints: int, where: str)
     """``(N, 3J + 12)`` regression inputs from a pose (see :class:`rigmap.rigs.Pose`)."""
     X = check_positions(positions, n_joints, where)
     n = len(X)
-    cog = np.asarray(cog, dtype=np.float64)
-    cog_rotation = np.asarray(cog_rotation, dtype=np.float64)
-    if cog.shape != (n, 3) or cog_rotation.shape != (n, 3, 3):
-        raise RigInputError(
-            f"{where}: expected cog (N, 3) and cog_rotation (N, 3, 3) with N = {n}, "
-            f"got {cog.shape} and {cog_rotation.shape}"
-        )
-    if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
-        raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
+    cog, cog_rotation = check_placement(cog, cog_rotation, n, where)
     return np.concatenate([X.reshape(n, -1), cog, cog_rotation.reshape(n, 9)], axis=1)
 
 

@@ -164,15 +164,10 @@ def learned_jacobian_plan(regressor) -> tuple[np.ndarray, LearnedJacobian] | Non
     regressor._check_fitted()
     if not isinstance(regressor.kernel_, MultiquadricKernel):
         return None
+    shared = ("regularization", "search_length_scale", "n_length_scales", "cv_splits",
+              "cv_max_outputs", "normalize", "seed")  # fmt: skip
+    settings = {name: getattr(regressor, name) for name in shared}
     learned = LearnedJacobian(
-        kernel=regressor.kernel_,
-        regularization=regressor.regularization,
-        search_length_scale=regressor.search_length_scale,
-        length_scale_range=regressor.search_range,
-        n_length_scales=regressor.n_length_scales,
-        cv_splits=regressor.cv_splits,
-        cv_max_outputs=regressor.cv_max_outputs,
-        normalize=regressor.normalize,
-        seed=regressor.seed,
+        kernel=regressor.kernel_, length_scale_range=regressor.search_range, **settings
     )
     return np.asarray(regressor.support_indices_), learned
