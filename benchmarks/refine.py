@@ -14,7 +14,7 @@ shared, so every number carries the 1-minute load average around it.
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
         [--rigs quadruped biped rigify_wolf] [--iterations 3] [--workers 2] \\
-        [--frames-per-clip N] [--blender-frames-per-clip 12]
+        [--frames-per-clip N] [--blender-frames-per-clip 12] [--repeats 1]
 
 Models: ``<models>/<rig>/gpr-none-multiquadric`` (with ``learned_jacobian/``)
 and ``<models>/<rig>/nn-none-none``, from pipelines/fit.py.
@@ -106,13 +106,16 @@ def benchmark_rig(name: str, args) -> list[dict]:
         for method in args.methods:
             if method == "nn_autodiff_jacobian" and not rig.differentiable:
                 continue
-            for variant in args.variants:
-                if variant == "reuse" and "computed" not in method:
-                    continue
-                row = measure(rig, method, test_set, models, variant, args.iterations)
-                row["rig"] = name
-                print(json.dumps(row), file=sys.stderr, flush=True)
-                rows.append(row)
+            variants = [v for v in args.variants if v != "reuse" or "computed" in method]
+            best: dict[str, dict] = {}
+            for _ in range(args.repeats):  # old and new alternate, so both see the same load
+                for variant in variants:
+                    row = measure(rig, method, test_set, models, variant, args.iterations)
+                    row["rig"] = name
+                    print(json.dumps(row), file=sys.stderr, flush=True)
+                    if variant not in best or row["fps"] > best[variant]["fps"]:
+                        best[variant] = row
+            rows.extend(best[v] for v in variants)
         return rows
     finally:
         close = getattr(rig, "close", None)
@@ -131,6 +134,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="Blender workers")
     parser.add_argument("--frames-per-clip", type=int, default=None)
     parser.add_argument("--blender-frames-per-clip", type=int, default=12)
+    parser.add_argument("--repeats", type=int, default=1, help="best of, alternating variants")
     args = parser.parse_args()
     rows = []
     for name in args.rigs:
