@@ -54,7 +54,8 @@ def smallest_singular_value(
     v = torch.randn(n_columns, 1, generator=generator, dtype=J.dtype).expand(n_frames, -1, -1)
     basis = []
     for _ in range(steps):
-        v = torch.cholesky_solve(v, shifted_factor)
+        half = torch.linalg.solve_triangular(shifted_factor, v, upper=False)
+        v = torch.linalg.solve_triangular(shifted_factor.transpose(1, 2), half, upper=True)
         v = v / torch.linalg.vector_norm(v, dim=1, keepdim=True)
         basis.append(v)
     Q, _ = torch.linalg.qr(torch.cat(basis, dim=2))  # (F, C, steps), orthonormal

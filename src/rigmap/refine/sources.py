@@ -43,6 +43,7 @@ class ComputedJacobian:
     rig: Rig
     method: str = "finite_difference"
     differences: str = "central"
+    step: float | None = None  # finite-difference step in control units (None: jacobian's)
     per_iteration: bool = True
 
     def __post_init__(self) -> None:
@@ -66,7 +67,12 @@ class ComputedJacobian:
         # pose rate on the quadruped); a worker pool: everything in one call
         chunk = 8 if getattr(self.rig, "differentiable", False) else None
         J = jacobian(
-            self.rig, Y_full, method=self.method, differences=self.differences, chunk=chunk
+            self.rig,
+            Y_full,
+            method=self.method,
+            differences=self.differences,
+            chunk=chunk,
+            step=self.step,
         )
         return J, len(Y_full) * self.cost_per_pose()
 
