@@ -279,16 +279,15 @@ def initial_guess(guess: str, problem: Problem, args, rng: np.random.Generator) 
 
 
 def jacobian_source(name: str, problem: Problem, args):
-    from rigmap.refine import ComputedJacobian
+    from rigmap.refine import ComputedJacobian, PredictedJacobian
 
     if name != "learned":
         return ComputedJacobian(problem.rig, name)
-    from rigmap.evaluation.methods import LearnedJacobianAtTargets
     from rigmap.regression import load_learned_jacobian
 
     folder = args.models / problem.rig.name / LEARNED_JACOBIAN_FOLDER
     model = load_learned_jacobian(folder, rig=problem.rig)
-    return LearnedJacobianAtTargets(model, problem.features(), problem.targets)
+    return PredictedJacobian(model, problem.features())
 
 
 if __name__ == "__main__":

@@ -18,14 +18,13 @@ from rigmap.animation.posing import pose_corpus
 from rigmap.evaluation import (
     METHODS,
     EvaluationSetupError,
-    LearnedJacobianAtTargets,
     RefineSettings,
     TestSet,
     evaluation_jobs,
     get_method,
     run_method,
 )
-from rigmap.refine import jacobian
+from rigmap.refine import PredictedJacobian, jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
     GaussianKernel,
@@ -202,6 +201,10 @@ def test_refinement_lowers_the_joint_error_of_its_initial_guess(face_runs, refin
         "max_iterations": 2,
         "control_scale": "training_std",
         "keep_in_range": True,
+        "solver": "cholesky",
+        "differences": "central",
+        "share_every": 1,
+        "jacobian_update": "recompute",
     }
     assert extra["initial_joint_error"]["average"] == pytest.approx(guess_result.joint_error)
 
@@ -254,20 +257,21 @@ def test_script_on_the_biped_counts_its_read_backs(biped, tmp_path):
 
 
 # --------------------------------------------------------------------------- pieces
-def test_learned_jacobian_source_finds_the_frames_refinement_asks_for(face_setup):
+def test_learned_jacobian_source_gives_the_frames_refinement_asks_for(face_setup):
+    """Refinement passes the frames' indices; the source predicts from their features."""
     clip = face_setup["test_set"].clips[0]
     rig = face_setup["rig"]
     X = inverse_features(
         clip.positions, clip.cog, clip.cog_rotation, n_joints=rig.n_joints, where="t"
     )
-    source = LearnedJacobianAtTargets(face_setup["learned"], X, clip.positions)
+    source = PredictedJacobian(face_setup["learned"], X)
     expected = face_setup["learned"].predict(X)
     frames = np.array([1, 4, 5])
-    J, cost = source(rig.default_controls(3), clip.positions[frames])
+    J, cost = source(rig.default_controls(3), clip.positions[frames], frames)
     np.testing.assert_allclose(J, expected[frames])
     assert cost == 0 and J.shape == (3, 3 * rig.n_joints, len(rig.used_controls))
-    with pytest.raises(EvaluationSetupError, match="not among the clip's targets"):
-        source(rig.default_controls(1), clip.positions[:1] + 1.0)
+    with pytest.raises(ValueError, match="pass the frames' indices"):
+        source(rig.default_controls(1), clip.positions[:1])
 
 
 def test_bad_setups_are_refused_with_what_was_expected(face_setup):

@@ -149,6 +149,9 @@ class RefineSettings:
     deviations of the controls (λ in cm per std), ``"none"`` in each control's
     own unit (λ in cm per unit, the literal Eq. 13); ``keep_in_range`` keeps
     refined controls inside their soft ranges (see rigmap.refine, issue #7).
+    ``solver`` (cholesky | svd), ``differences`` (central | forward),
+    ``share_every`` and ``jacobian_update`` choose how the step is solved and how a
+    computed Jacobian is reused (``rigmap.refine.jacobian_reuse``, issue #16).
     """
 
     damping: float | str = "auto"
@@ -156,6 +159,10 @@ class RefineSettings:
     max_iterations: int = 10
     control_scale: str = "training_std"
     keep_in_range: bool = True
+    solver: str = "cholesky"
+    differences: str = "central"
+    share_every: int = 1
+    jacobian_update: str = "recompute"
 
     def __post_init__(self) -> None:
         number = isinstance(self.damping, int | float) and np.isfinite(self.damping)
@@ -180,6 +187,35 @@ class RefineSettings:
             raise EvaluationSetupError(
                 f"refine.keep_in_range: expected true or false, got {self.keep_in_range!r}"
             )
+        self._check_speed_settings()
+
+    def _check_speed_settings(self) -> None:
+        from rigmap.refine import DIFFERENCES, SOLVERS
+
+        if self.solver not in SOLVERS:
+            raise EvaluationSetupError(
+                f"refine.solver: expected one of {SOLVERS}, got {self.solver!r}"
+            )
+        if self.differences not in DIFFERENCES:
+            raise EvaluationSetupError(
+                f"refine.differences: expected one of {DIFFERENCES}, got {self.differences!r}"
+            )
+        if not (isinstance(self.share_every, int) and self.share_every >= 1):
+            raise EvaluationSetupError(
+                f"refine.share_every: expected an integer >= 1, got {self.share_every!r}"
+            )
+        from rigmap.refine.jacobian_reuse import UPDATES
+
+        if self.jacobian_update not in UPDATES:
+            raise EvaluationSetupError(
+                f"refine.jacobian_update: expected one of {UPDATES}, got {self.jacobian_update!r}"
+            )
+
+    def reuse(self):
+        """The computed Jacobian's reuse policy (``rigmap.refine.JacobianReuse``)."""
+        from rigmap.refine import JacobianReuse
+
+        return JacobianReuse(share_every=self.share_every, update=self.jacobian_update)
 
     @classmethod
     def from_config(cls, config: Mapping[str, Any], method: Method) -> RefineSettings:
@@ -209,6 +245,10 @@ class RefineSettings:
             max_iterations=int(config["max_iterations"]),
             control_scale=str(config.get("control_scale", cls.control_scale)),
             keep_in_range=config.get("keep_in_range", cls.keep_in_range),
+            solver=str(config.get("solver", cls.solver)),
+            differences=str(config.get("differences", cls.differences)),
+            share_every=config.get("share_every", cls.share_every),
+            jacobian_update=str(config.get("jacobian_update", cls.jacobian_update)),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -218,6 +258,10 @@ class RefineSettings:
             "max_iterations": self.max_iterations,
             "control_scale": self.control_scale,
             "keep_in_range": self.keep_in_range,
+            "solver": self.solver,
+            "differences": self.differences,
+            "share_every": self.share_every,
+            "jacobian_update": self.jacobian_update,
         }
 
 
@@ -506,7 +550,7 @@ class _Retargeter:
         self.train_std = train_std  # (C_used,) the training corpus's, as the metric uses
 
     def __call__(self, clip: TestClip, frames: np.ndarray):
-        from rigmap.refine import ComputedJacobian, damped_least_squares
+        from rigmap.refine import ComputedJacobian, PredictedJacobian, damped_least_squares
 
         positions, cog = clip.positions[frames], clip.cog[frames]
         rotation = clip.cog_rotation[frames]
@@ -520,10 +564,10 @@ class _Retargeter:
         if self.method.refine == "none":
             return Y_used, None
         if self.method.refine == "computed_jacobian":
-            source = ComputedJacobian(self.rig, self.method.jacobian)
-        else:
+            source = ComputedJacobian(self.rig, self.method.jacobian, self.refine.differences)
+        else:  # predicted once per frame from its features: no rig evaluation
             features = self._features(clip, positions, cog, rotation)
-            source = LearnedJacobianAtTargets(self.learned_jacobian, features, positions)
+            source = PredictedJacobian(self.learned_jacobian, features)
         refined = damped_least_squares(
             self.rig,
             Y_used,
@@ -534,6 +578,8 @@ class _Retargeter:
             max_iterations=self.refine.max_iterations,
             control_scale=self.train_std if self.refine.control_scale == "training_std" else None,
             keep_in_range=self.refine.keep_in_range,
+            solver=self.refine.solver,
+            reuse=self.refine.reuse(),
         )
         return refined.Y_used, refined
 
@@ -547,45 +593,6 @@ class _Retargeter:
             n_joints=self.rig.n_joints,
             where=f"test clip {clip.name!r} of rig {self.rig.name!r}",
         )
-
-
-class LearnedJacobianAtTargets:
-    """A learned Jacobian predicted once per target pose from its full input features.
-
-    The learned model reads the same features as the inverse mapping (joints +
-    COG placement, ``inverse_features``), while damped least squares hands a
-    Jacobian source only the COG-relative targets of the frames still moving.
-    The Jacobians of every frame are predicted up front (no rig evaluation);
-    a call finds its frames among the targets — refinement passes them in
-    increasing frame order, so each is matched to the first equal target after
-    the previous one.
-    """
-
-    per_iteration = False
-
-    def __init__(self, model: Any, features: np.ndarray, positions: np.ndarray):
-        n = len(positions)
-        self._targets = np.asarray(positions, dtype=np.float64).reshape(n, -1)
-        J = np.asarray(model.predict(features), dtype=np.float64)
-        self.jacobians = J.reshape(n, self._targets.shape[1], -1)
-        self._rows: dict[bytes, list[int]] = {}
-        for index, row in enumerate(self._targets):
-            self._rows.setdefault(row.tobytes(), []).append(index)
-
-    def __call__(self, Y_full: np.ndarray, X_target: np.ndarray) -> tuple[np.ndarray, int]:
-        flat = np.asarray(X_target, dtype=np.float64).reshape(len(X_target), -1)
-        chosen, previous = [], -1
-        for row in flat:
-            candidates = self._rows.get(row.tobytes(), [])
-            later = [i for i in candidates if i > previous]
-            if not later:
-                raise EvaluationSetupError(
-                    "learned Jacobian: refinement asked for a target pose that is not among the "
-                    "clip's targets (or out of frame order)"
-                )
-            previous = later[0]
-            chosen.append(previous)
-        return self.jacobians[chosen], 0
 
 
 def _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine) -> None:

@@ -1,20 +1,25 @@
 """Refinement of predicted controls: rig Jacobians and damped least squares (§4.3)."""
 
-from rigmap.refine.damped_least_squares import (
-    ComputedJacobian,
-    PredictedJacobian,
-    RefineResult,
-    chiaverini_damping,
-    damped_least_squares,
-)
-from rigmap.refine.jacobian import JACOBIAN_METHODS, jacobian
+from rigmap.refine.damped_least_squares import RefineResult, damped_least_squares
+from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
+from rigmap.refine.jacobian import DIFFERENCES, JACOBIAN_METHODS, jacobian
+from rigmap.refine.jacobian_reuse import JacobianReuse
+from rigmap.refine.normal_equations import SOLVERS, Damping, damped_solver
+from rigmap.refine.sources import ComputedJacobian, JacobianSource, PredictedJacobian
 
 __all__ = [
+    "DIFFERENCES",
     "JACOBIAN_METHODS",
+    "SOLVERS",
     "ComputedJacobian",
+    "Damping",
+    "JacobianReuse",
+    "JacobianSource",
     "PredictedJacobian",
     "RefineResult",
     "chiaverini_damping",
     "damped_least_squares",
+    "damped_solver",
     "jacobian",
+    "smallest_singular_value",
 ]

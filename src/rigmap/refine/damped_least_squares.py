@@ -23,60 +23,29 @@ so a 0-1 switch stays a switch.
 The Jacobian comes from a *source*: computed on the rig at every iteration
 (finite differences, valid for any black-box rig; or autodiff on a built-in
 rig), or predicted once at the target by a learned model (§4.4) — the
-paper's cheaper variant. Every rig evaluation is counted, because on a real
-DCC rig they are what costs time.
+paper's cheaper variant (``rigmap.refine.sources``). Every rig evaluation
+is counted, because on a real DCC rig they are what costs time.
+
+All frames of a clip are refined as one batch: residuals, Jacobians and
+steps for every frame still moving go through the rig and the solver
+together, and each frame leaves the batch when it reaches the tolerance.
+The step is solved by normal equations and a batched Cholesky factorisation
+(``solver="cholesky"``, ``rigmap.refine.normal_equations``) — factorised once
+per frame for a learned Jacobian, which stays fixed — or by each frame's SVD
+(``solver="svd"``, exact λ, the original implementation). A computed Jacobian
+can be reused across frames and iterations (``rigmap.refine.jacobian_reuse``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
-from rigmap.refine.jacobian import jacobian
+from rigmap.refine.jacobian_reuse import JacobianReuse, anchor_frames, broyden_update
+from rigmap.refine.normal_equations import SOLVERS, Damping, damped_solver
+from rigmap.refine.sources import JacobianSource
 from rigmap.rigs.base import Rig, RigInputError, check_positions
-
-
-class JacobianSource(Protocol):
-    """Gives ``(N, 3J, C_used)`` Jacobians and says how many rig evaluations that cost."""
-
-    #: True when the Jacobian depends on the current controls (recomputed each iteration)
-    per_iteration: bool
-
-    def __call__(self, Y_full: np.ndarray, X_target: np.ndarray) -> tuple[np.ndarray, int]: ...
-
-
-@dataclass
-class ComputedJacobian:
-    """The rig's own Jacobian at the current controls (finite differences or autodiff)."""
-
-    rig: Rig
-    method: str = "finite_difference"
-    per_iteration: bool = True
-
-    def __call__(self, Y_full: np.ndarray, X_target: np.ndarray) -> tuple[np.ndarray, int]:
-        J = jacobian(self.rig, Y_full, method=self.method)
-        n_used = len(self.rig.controls.used_indices)
-        # central differences: two evaluations per used control per frame; autodiff: one pass
-        cost = len(Y_full) * (2 * n_used if self.method == "finite_difference" else 1)
-        return J, cost
-
-
-@dataclass
-class PredictedJacobian:
-    """A learned Jacobian predicted once at the target pose (Algorithm 1, line 9).
-
-    ``model.predict(X_flat)`` must return ``(N, 3J, C_used)`` (or flattened).
-    """
-
-    model: object
-    per_iteration: bool = False
-
-    def __call__(self, Y_full: np.ndarray, X_target: np.ndarray) -> tuple[np.ndarray, int]:
-        n = len(X_target)
-        J = np.asarray(self.model.predict(X_target.reshape(n, -1)))
-        return J.reshape(n, X_target[0].size, -1), 0
 
 
 @dataclass
@@ -88,21 +57,6 @@ class RefineResult:
     initial_joint_error: np.ndarray  # (N,)
     iterations: np.ndarray  # (N,) iterations each frame ran
     rig_evaluations: int  # poses evaluated, including finite-difference perturbations
-
-
-def chiaverini_damping(
-    singular_values: np.ndarray, epsilon: float, max_damping: float
-) -> np.ndarray:
-    """λ per frame from the smallest singular value (Chiaverini 1993, paper refs [12][23]).
-
-    No damping while ``σ_min ≥ ε``; below it λ² grows smoothly to ``max_damping²``
-    as ``σ_min → 0``, so steps stay bounded near singular poses. A rig with more
-    controls than its joints can tell apart has ``σ_min = 0`` at every pose, and
-    then this is simply ``λ = max_damping``.
-    """
-    smallest = singular_values[:, -1]
-    ratio = np.clip(smallest / epsilon, 0.0, 1.0)
-    return np.sqrt((1.0 - ratio**2) * max_damping**2)
 
 
 def damped_least_squares(
@@ -118,6 +72,8 @@ def damped_least_squares(
     keep_in_range: bool = False,
     auto_epsilon: float = 1.0,
     auto_max_damping: float = 1.0,
+    solver: str = "cholesky",
+    reuse: JacobianReuse | None = None,
 ) -> RefineResult:
     """Refine ``(N, C_used)`` controls so the rig reproduces ``X_target`` (COG-relative).
 
@@ -132,7 +88,9 @@ def damped_least_squares(
     ``[lower, upper]`` (or where it started, if the guess was already outside).
     A frame stops when its mean squared joint error is below ``tolerance``
     (units²). The best iterate seen per frame is returned, so a diverging step
-    never makes a frame worse.
+    never makes a frame worse. ``solver`` is ``"cholesky"`` or ``"svd"``;
+    ``reuse`` says how a computed Jacobian is reused (default: recomputed for
+    every frame at every iteration).
     """
     X_target = check_positions(X_target, rig.n_joints, f"refine target for rig {rig.name!r}")
     Y_used = np.asarray(Y_used, dtype=np.float64)
@@ -148,64 +106,126 @@ def damped_least_squares(
         raise ValueError(f"damping must be a non-negative number or 'auto', got {damping!r}")
     if max_iterations < 0:
         raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
-    scale = _checked_scale(rig, control_scale, n_used)
+    if solver not in SOLVERS:
+        raise ValueError(f"refine solver: expected one of {SOLVERS}, got {solver!r}")
+    lam = (
+        Damping(None, auto_epsilon, auto_max_damping)
+        if damping == "auto"
+        else Damping(float(damping))
+    )
+    refinement = _Refinement(
+        rig, Y_used, X_target, jacobian_source, lam, solver, reuse or JacobianReuse()
+    )
+    refinement.scale = _checked_scale(rig, control_scale, n_used)
     if keep_in_range:
         used = rig.controls.used_indices
-        lower = np.minimum(rig.controls.lower[used], Y_used)
-        upper = np.maximum(rig.controls.upper[used], Y_used)
+        refinement.bounds = (
+            np.minimum(rig.controls.lower[used], Y_used),
+            np.maximum(rig.controls.upper[used], Y_used),
+        )
+    return refinement.run(tolerance, max_iterations)
 
-    n = len(X_target)
-    target = X_target.reshape(n, -1)
-    y = Y_used.copy()
-    evaluations = 0
 
-    def error_of(controls: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        nonlocal evaluations
-        x = rig.evaluate(rig.expand_used(controls)).reshape(len(frames), -1)
-        evaluations += len(frames)
-        residual = target[frames] - x
+class _Refinement:
+    """The state of one batch: controls, residuals, Jacobians, solvers, the evaluation count."""
+
+    def __init__(self, rig, Y_used, X_target, source, damping, solver, reuse):
+        self.rig, self.source, self.damping, self.solver, self.reuse = (
+            rig,
+            source,
+            damping,
+            solver,
+            reuse,
+        )
+        self.X_target = X_target
+        self.n = len(X_target)
+        self.target = X_target.reshape(self.n, -1)
+        self.y = Y_used.copy()
+        self.evaluations = 0
+        self.scale: np.ndarray | None = None
+        self.bounds: tuple[np.ndarray, np.ndarray] | None = None
+        self.J: np.ndarray | None = None  # (N, R, C) current Jacobians (reused sources)
+        self.has_jacobian = np.zeros(self.n, dtype=bool)
+        self.stalled = np.zeros(self.n, dtype=bool)
+        self.fixed_solver = None  # a fixed source's factorised solver, built once
+        self.solver_row = np.full(self.n, -1)
+
+    def error_of(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = self.rig.evaluate(self.rig.expand_used(self.y[frames])).reshape(len(frames), -1)
+        self.evaluations += len(frames)
+        residual = self.target[frames] - x
         return residual, (residual**2).mean(axis=1)
 
-    all_frames = np.arange(n)
-    residual, error = error_of(y, all_frames)
-    initial = error.copy()
-    best_y, best_error = y.copy(), error.copy()
-    iterations = np.zeros(n, dtype=np.int64)
-    cached_J = None
-    active = error >= tolerance
-    for _ in range(max_iterations):
-        frames = np.flatnonzero(active)
-        if frames.size == 0:
-            break
-        if jacobian_source.per_iteration or cached_J is None:
-            J, cost = jacobian_source(rig.expand_used(y[frames]), X_target[frames])
-            evaluations += cost
-            if not jacobian_source.per_iteration:
-                cached_J = np.empty((n, *J.shape[1:]))
-                cached_J[frames] = J
-        if cached_J is not None:
-            J = cached_J[frames]
-        J_scaled = J if scale is None else J * scale  # ∂x/∂z with y = scale · z
-        U, s, Vt = np.linalg.svd(J_scaled, full_matrices=False)
-        lam = (
-            chiaverini_damping(s, auto_epsilon, auto_max_damping)
-            if damping == "auto"
-            else np.full(len(frames), float(damping))
-        )
-        gain = s / (s**2 + lam[:, None] ** 2)  # (F, k): the damped pseudo-inverse's spectrum
-        projected = np.einsum("fjk,fj->fk", U, residual[frames])
-        step = np.einsum("fkc,fk->fc", Vt, gain * projected)
-        y[frames] += step if scale is None else step * scale
-        if keep_in_range:
-            y[frames] = np.clip(y[frames], lower[frames], upper[frames])
-        iterations[frames] += 1
-        new_residual, new_error = error_of(y[frames], frames)
-        residual[frames], error[frames] = new_residual, new_error
-        better = new_error < best_error[frames]
-        best_y[frames[better]] = y[frames[better]]
-        best_error[frames[better]] = new_error[better]
-        active[frames] = new_error >= tolerance
-    return RefineResult(best_y, best_error, initial, iterations, evaluations)
+    def compute(self, frames: np.ndarray) -> np.ndarray:
+        J, cost = self.source(self.rig.expand_used(self.y[frames]), self.X_target[frames], frames)
+        self.evaluations += cost
+        return np.asarray(J, dtype=np.float64)
+
+    def scaled(self, J: np.ndarray) -> np.ndarray:
+        return J if self.scale is None else J * self.scale  # ∂x/∂z with y = scale · z
+
+    def step(self, frames: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """Δy for ``frames`` (in the controls' units) from their residuals."""
+        if not self.source.per_iteration:
+            if self.fixed_solver is None:
+                J = self.scaled(self.compute(frames))
+                self.fixed_solver = damped_solver(J, self.damping, self.solver)
+                self.solver_row[frames] = np.arange(len(frames))
+            dz = self.fixed_solver.solve(residual, self.solver_row[frames])
+        else:
+            if self.reuse.recomputes_every_iteration:
+                J = self.compute(frames)
+            else:
+                J = self.reused_jacobians(frames)
+            dz = damped_solver(self.scaled(J), self.damping, self.solver).solve(residual)
+        return dz if self.scale is None else dz * self.scale
+
+    def reused_jacobians(self, frames: np.ndarray) -> np.ndarray:
+        if self.J is None:
+            self.J = np.zeros((self.n, self.target.shape[1], self.y.shape[1]))
+        if self.reuse.update == "recompute":
+            self.has_jacobian[frames] = False
+        new = frames[~self.has_jacobian[frames]]
+        if new.size:
+            anchors, nearest = anchor_frames(new, self.reuse.share_every)
+            self.J[new] = self.compute(anchors)[nearest]
+        if self.reuse.recompute_on_stall:
+            own = frames[self.has_jacobian[frames] & self.stalled[frames]]
+            if own.size:
+                self.J[own] = self.compute(own)
+        self.has_jacobian[frames] = True
+        return self.J[frames]
+
+    def run(self, tolerance: float, max_iterations: int) -> RefineResult:
+        all_frames = np.arange(self.n)
+        residual, error = self.error_of(all_frames)
+        initial = error.copy()
+        best_y, best_error = self.y.copy(), error.copy()
+        iterations = np.zeros(self.n, dtype=np.int64)
+        active = error >= tolerance
+        broyden = self.source.per_iteration and self.reuse.update == "broyden"
+        for _ in range(max_iterations):
+            frames = np.flatnonzero(active)
+            if frames.size == 0:
+                break
+            before = self.y[frames].copy()
+            self.y[frames] += self.step(frames, residual[frames])
+            if self.bounds is not None:
+                self.y[frames] = np.clip(
+                    self.y[frames], self.bounds[0][frames], self.bounds[1][frames]
+                )
+            iterations[frames] += 1
+            new_residual, new_error = self.error_of(frames)
+            if broyden:  # Δx = f(y_new) − f(y_old) = r_old − r_new
+                dx = residual[frames] - new_residual
+                self.J[frames] = broyden_update(self.J[frames], self.y[frames] - before, dx)
+            self.stalled[frames] = new_error >= error[frames]
+            residual[frames], error[frames] = new_residual, new_error
+            better = new_error < best_error[frames]
+            best_y[frames[better]] = self.y[frames[better]]
+            best_error[frames[better]] = new_error[better]
+            active[frames] = new_error >= tolerance
+        return RefineResult(best_y, best_error, initial, iterations, self.evaluations)
 
 
 def _checked_scale(rig: Rig, control_scale, n_used: int) -> np.ndarray | None:

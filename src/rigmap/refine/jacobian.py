@@ -15,6 +15,7 @@ from rigmap.rigs.base import Rig, RigInputError
 
 JacobianMethod = Literal["finite_difference", "autodiff"]
 JACOBIAN_METHODS = ("finite_difference", "autodiff")
+DIFFERENCES = ("central", "forward")
 
 
 def jacobian(
@@ -23,13 +24,17 @@ def jacobian(
     method: JacobianMethod = "finite_difference",
     *,
     step: float | None = None,
-    chunk: int = 64,
+    chunk: int | None = 64,
+    differences: str = "central",
 ) -> np.ndarray:
     """``(N, 3J, C_used)`` Jacobians of the COG-relative joint positions at ``Y``.
 
     ``Y`` holds full control vectors ``(N, C)`` (or one ``(C,)``). Finite
-    differences are central with ``step`` (default 1e-6 in float64, 1e-3 in
-    float32), in the controls' own units.
+    differences are ``"central"`` or ``"forward"`` (one-sided: half the rig
+    evaluations, an error of the order of the step) with ``step`` (default
+    1e-6 in float64, 1e-3 in float32), in the controls' own units. ``chunk``
+    poses go to the rig per ``evaluate`` call (``None``: all in one call, what
+    a worker pool wants).
     """
     Y = np.asarray(Y)
     squeeze = Y.ndim == 1
@@ -39,8 +44,11 @@ def jacobian(
             f"jacobian of rig {rig.name!r}: expected controls of shape (N, {rig.n_controls}), "
             f"got {Y.shape}"
         )
+    if differences not in DIFFERENCES:
+        raise ValueError(f"unknown differences {differences!r}; choose one of {DIFFERENCES}")
+    chunk = len(Y2) if chunk is None else chunk
     if method == "finite_difference":
-        J = _finite_difference(rig, Y2, step, chunk)
+        J = _finite_difference(rig, Y2, step, max(chunk, 1), differences == "central")
     elif method == "autodiff":
         J = _autodiff(rig, Y2, chunk)
     else:
@@ -48,22 +56,30 @@ def jacobian(
     return J[0] if squeeze else J
 
 
-def _finite_difference(rig: Rig, Y: np.ndarray, step: float | None, chunk: int) -> np.ndarray:
+def _finite_difference(
+    rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool
+) -> np.ndarray:
     dtype = np.float32 if Y.dtype == np.float32 else np.float64
     h = step if step is not None else (1e-3 if dtype == np.float32 else 1e-6)
     used = rig.controls.used_indices
     n_used = len(used)
+    k = np.arange(n_used)
     blocks = []
     for start in range(0, len(Y), chunk):
         Yc = Y[start : start + chunk].astype(dtype)
         n = len(Yc)
-        # rows: for each pose, +h on each used control, then -h on each
-        perturbed = np.repeat(Yc[:, None, :], 2 * n_used, axis=1)
-        k = np.arange(n_used)
+        # rows: for each pose, +h on each used control, then -h on each (central) or the
+        # pose itself (forward)
+        perturbed = np.repeat(Yc[:, None, :], 2 * n_used if central else n_used + 1, axis=1)
         perturbed[:, k, used] += h
-        perturbed[:, n_used + k, used] -= h
-        X = rig.evaluate(perturbed.reshape(n * 2 * n_used, -1)).reshape(n, 2 * n_used, -1)
-        blocks.append(((X[:, :n_used] - X[:, n_used:]) / (2 * h)).transpose(0, 2, 1))
+        if central:
+            perturbed[:, n_used + k, used] -= h
+        rows = perturbed.shape[1]
+        X = rig.evaluate(perturbed.reshape(n * rows, -1)).reshape(n, rows, -1)
+        if central:
+            blocks.append(((X[:, :n_used] - X[:, n_used:]) / (2 * h)).transpose(0, 2, 1))
+        else:
+            blocks.append(((X[:, :n_used] - X[:, n_used:]) / h).transpose(0, 2, 1))
     return np.concatenate(blocks).astype(dtype, copy=False)
 
 

@@ -1,0 +1,146 @@
+"""Refinement speed: frames/s, rig evaluations per frame and joint error per method; prints JSON.
+
+Each refined method of Table 1 runs on a rig's test clips through the
+evaluation runner (``rigmap.evaluation.run_method``: the pipeline's own
+timing, warm-up and rig counting) twice in the same process: with today's
+settings (``old``: per-frame SVD for λ and the step, central differences
+recomputed for every frame at every iteration) and with issue #16's
+(``new``: batched Cholesky with the inverse-iteration λ, factorised once for
+a learned Jacobian; one-sided differences) and, for a computed Jacobian,
+``reuse`` (Jacobians on every 4th frame shared with the neighbours, a frame's
+own recomputed when its error stops falling). The machine may be
+shared, so every number carries the 1-minute load average around it.
+
+    PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
+        --data /tmp/refine_data --models /tmp/refine_models \\
+        [--rigs quadruped biped rigify_wolf] [--iterations 3] [--workers 2] \\
+        [--frames-per-clip N] [--blender-frames-per-clip 12] [--repeats 1]
+
+Models: ``<models>/<rig>/gpr-none-multiquadric`` (with ``learned_jacobian/``)
+and ``<models>/<rig>/nn-none-none``, from pipelines/fit.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from rigmap.evaluation import RefineSettings, TestSet, run_method
+from rigmap.regression import load_learned_jacobian, load_regressor
+
+METHODS = (
+    "gpr_learned_jacobian",
+    "nn_learned_jacobian",
+    "gpr_computed_jacobian",
+    "nn_computed_jacobian",
+    "nn_autodiff_jacobian",
+)
+
+#: today's refinement, and issue #16's (the conf/refine defaults)
+VARIANTS = {
+    "old": {"solver": "svd"},
+    "new": {"solver": "cholesky", "differences": "forward"},
+    "reuse": {"solver": "cholesky", "differences": "forward", "share_every": 4},
+}
+
+
+def load_rig(name: str, workers: int):
+    from omegaconf import OmegaConf
+
+    from rigmap.rigs import load
+
+    options = OmegaConf.to_container(OmegaConf.load(f"conf/rig/{name}.yaml"), resolve=True)
+    options.pop("corpus", None)
+    if name.startswith("rigify"):
+        options["workers"] = workers
+    return load(options)
+
+
+def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, iterations: int):
+    settings = RefineSettings(max_iterations=iterations, **VARIANTS[variant])
+    regressor = models["gpr"] if method.startswith("gpr") else models["nn"]
+    learned = models["learned"] if "learned" in method else None
+    load_before = os.getloadavg()[0]
+    started = time.perf_counter()
+    evaluation = run_method(
+        rig, method, test_set, regressor=regressor, learned_jacobian=learned, refine=settings
+    )
+    average = evaluation.result.to_dict()["average"]
+    return {
+        "method": method,
+        "variant": variant,
+        "settings": settings.to_dict(),
+        "frames": test_set.frames,
+        "fps": round(average["fps"], 2),
+        "rig_evaluations_per_frame": round(average["rig_evaluations"] / test_set.frames, 1),
+        "joint_error_cm2": average["joint_error"],
+        "ground_truth_error": average["ground_truth_error"],
+        "initial_joint_error_cm2": evaluation.result.extra["initial_joint_error"]["average"],
+        "wall_s": round(time.perf_counter() - started, 2),
+        "load_average_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],
+    }
+
+
+def benchmark_rig(name: str, args) -> list[dict]:
+    rig = load_rig(name, args.workers)
+    try:
+        folder = args.models / name
+        gpr_folder = folder / "gpr-none-multiquadric"
+        needs = {m.split("_")[0] for m in args.methods} | {
+            "learned" for m in args.methods if "learned" in m
+        }
+        models = {
+            "gpr": load_regressor(gpr_folder, rig=rig) if "gpr" in needs else None,
+            "nn": load_regressor(folder / "nn-none-none", rig=rig) if "nn" in needs else None,
+            "learned": load_learned_jacobian(gpr_folder / "learned_jacobian", rig=rig)
+            if "learned" in needs
+            else None,
+        }
+        frames = args.blender_frames_per_clip if name.startswith("rigify") else args.frames_per_clip
+        test_set = TestSet.load(rig, args.data / name).first_frames(frames)
+        rows = []
+        for method in args.methods:
+            if method == "nn_autodiff_jacobian" and not rig.differentiable:
+                continue
+            variants = [v for v in args.variants if v != "reuse" or "computed" in method]
+            best: dict[str, dict] = {}
+            for _ in range(args.repeats):  # old and new alternate, so both see the same load
+                for variant in variants:
+                    row = measure(rig, method, test_set, models, variant, args.iterations)
+                    row["rig"] = name
+                    print(json.dumps(row), file=sys.stderr, flush=True)
+                    if variant not in best or row["fps"] > best[variant]["fps"]:
+                        best[variant] = row
+            rows.extend(best[v] for v in variants)
+        return rows
+    finally:
+        close = getattr(rig, "close", None)
+        if close is not None:
+            close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, required=True)
+    parser.add_argument("--models", type=Path, required=True)
+    parser.add_argument("--rigs", nargs="+", default=["quadruped", "biped", "rigify_wolf"])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--iterations", type=int, default=3, help="the quick experiment's cap")
+    parser.add_argument("--workers", type=int, default=2, help="Blender workers")
+    parser.add_argument("--frames-per-clip", type=int, default=None)
+    parser.add_argument("--blender-frames-per-clip", type=int, default=12)
+    parser.add_argument("--repeats", type=int, default=1, help="best of, alternating variants")
+    args = parser.parse_args()
+    rows = []
+    for name in args.rigs:
+        rows.extend(benchmark_rig(name, args))
+    print(json.dumps({"iterations": args.iterations, "results": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
