@@ -153,7 +153,9 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
     assert {name: m.method for name, m in catalog.items()} == METHODS  # the yamls are Table 1
     assert sorted(p.stem for p in (ROOT / "conf" / "method").glob("*.yaml")) == sorted(METHODS)
     computed = catalog["gpr_computed_jacobian"]
-    assert computed.refine == RefineSettings(damping=0.3, tolerance=1e-4, max_iterations=4)
+    assert computed.refine == RefineSettings(
+        damping=0.3, tolerance=1e-4, max_iterations=4, differences="forward"
+    )
     assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
     assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"
     learned = catalog["nn_learned_jacobian"]

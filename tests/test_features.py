@@ -30,7 +30,7 @@ def test_features_round_trip_and_name_every_column(biped):
 
 def test_bad_features_input(biped):
     pose = biped.pose(biped.default_controls(2))
-    with pytest.raises(RigInputError, match=r"cog \(N, 3\)"):
+    with pytest.raises(RigInputError, match=r"expected cog \(2, 3\) and cog_rotation \(2, 3, 3\)"):
         inverse_features(pose.positions, pose.cog[:1], pose.cog_rotation, n_joints=73, where="t")
     bad = pose.cog.copy()
     bad[1, 2] = np.nan
