@@ -106,6 +106,12 @@ def damped_least_squares(
         raise ValueError(f"damping must be a non-negative number or 'auto', got {damping!r}")
     if max_iterations < 0:
         raise ValueError(f"max_iterations must be >= 0, got {max_iterations}")
+    if len(X_target) == 0:
+        raise RigInputError(f"refine on rig {rig.name!r}: no frames to refine (an empty batch)")
+    if not (isinstance(tolerance, int | float) and np.isfinite(tolerance) and tolerance >= 0):
+        raise RigInputError(
+            f"refine tolerance must be a finite number >= 0 (units²), got {tolerance!r}"
+        )
     if solver not in SOLVERS:
         raise ValueError(f"refine solver: expected one of {SOLVERS}, got {solver!r}")
     lam = (

@@ -44,6 +44,8 @@ def jacobian(
             f"jacobian of rig {rig.name!r}: expected controls of shape (N, {rig.n_controls}), "
             f"got {Y.shape}"
         )
+    if step is not None and not (np.isfinite(step) and step > 0):
+        raise RigInputError(f"jacobian step must be a finite number > 0, got {step!r}")
     if differences not in DIFFERENCES:
         raise ValueError(f"unknown differences {differences!r}; choose one of {DIFFERENCES}")
     chunk = len(Y2) if chunk is None else chunk
