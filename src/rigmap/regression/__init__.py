@@ -46,6 +46,12 @@ def load_regressor(folder: str | os.PathLike, rig: Any = None):
     folder = Path(folder)
     if has_placement(folder):
         return InverseMapping.load(folder, rig=rig)
+    if (folder / "fit.json").is_file():  # a fit always writes the placement beside the model
+        raise ModelFileError(
+            f"{folder}: placement.json is missing; the fit stage writes it beside every model, "
+            "and without it the model would read world-placed poses as placement-free ones "
+            "(re-run the fit stage for this model)"
+        )
     classes = [cls for cls in regressor_classes() if cls is not LearnedJacobian]
     found = [cls for cls in classes if has_model_file(folder, (cls.name, *cls.legacy_names))]
     if len(found) != 1:
