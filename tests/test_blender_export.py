@@ -147,3 +147,28 @@ def test_cli_export_blend_writes_the_file(human, tmp_path, capsys):
         == 2
     )
     assert "missing.parquet does not exist" in capsys.readouterr().err
+
+
+def test_the_cli_keys_one_clip_of_rigmaps_own_controls_table(human, tmp_path, capsys):
+    """``predicted_controls.parquet`` (clip, frame, controls) exports with ``--clip``."""
+    from rigmap.cli import main
+
+    rng = np.random.default_rng(2)
+    tables = []
+    for clip, frames in (("Walk", [1, 2, 3]), ("Jump", [1, 2])):
+        Y = animated_controls(human, frames, rng)
+        table = pd.DataFrame(Y[:, human.controls.used_indices], columns=human.used_controls)
+        table.insert(0, "frame", frames)
+        table.insert(0, "clip", clip)
+        tables.append(table)
+    path = tmp_path / "predicted_controls.parquet"
+    pd.concat(tables).to_parquet(path)
+    out = tmp_path / "jump.blend"
+    args = ["export-blend", "--rig", "rigify_human", "--controls", str(path), "--out", str(out)]
+    assert main(args) == 2
+    assert "holds 2 clips ['Walk', 'Jump']: pick one with --clip NAME" in capsys.readouterr().err
+    assert not out.exists()
+    assert main([*args, "--clip", "Jump"]) == 0
+    played, _ = read_blend_animation(human, out, frames=[1, 2])
+    expected = tables[1][human.used_controls].to_numpy()
+    np.testing.assert_allclose(played[human.used_controls].to_numpy(), expected, atol=1e-4)

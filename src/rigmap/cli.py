@@ -1,4 +1,4 @@
-"""``rigmap`` command line: inspect rigs now; fit, corpus and reproduce as they land.
+"""``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate and reproduce.
 
 Subcommands take plain flags (argparse); experiment commands pass Hydra
 overrides (``key=value``) straight to the pipeline apps.
@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.errors import RigmapError
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
@@ -22,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return args.run(args) or 0
-    except (KeyError, ValueError, FileNotFoundError) as error:
+    except (RigmapError, KeyError, ValueError, FileNotFoundError, PermissionError) as error:
         # KeyError's str() wraps the message in quotes; show it plain
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"rigmap: error: {message}", file=sys.stderr)
@@ -111,7 +113,11 @@ def _add_export(commands) -> None:
         "--controls",
         type=Path,
         required=True,
-        help="parquet with a `frame` column and one column per control",
+        help="parquet with a `frame` column and one column per control (and a `clip` column, "
+        "as in rigmap's predicted_controls.parquet: see --clip)",
+    )
+    export.add_argument(
+        "--clip", default=None, help="the clip to key when the table holds several (its `clip`)"
     )
     export.add_argument("--out", type=Path, required=True, help=".blend file to write")
     export.set_defaults(run=_export_blend)
@@ -278,12 +284,13 @@ def _export_blend(args) -> int:
     import pandas as pd
 
     from rigmap.rigs import load
-    from rigmap.rigs.blender.export import export_blend
+    from rigmap.rigs.blender.export import clip_rows, export_blend
 
     if not args.controls.exists():
         raise FileNotFoundError(f"controls file {args.controls} does not exist")
+    controls = clip_rows(pd.read_parquet(args.controls), args.clip)
     with load(args.rig) as rig:
-        out = export_blend(rig, pd.read_parquet(args.controls), args.out)
+        out = export_blend(rig, controls, args.out)
     print(out)
     return 0
 

@@ -58,6 +58,33 @@ def _control_table(rig: BlenderRig, controls) -> tuple[np.ndarray, np.ndarray, l
     return frames, values, names
 
 
+CLIP_COLUMN = "clip"
+
+
+def clip_rows(controls, clip: str | None = None):
+    """The rows of one clip of a table with a ``clip`` column, without that column.
+
+    rigmap's own control tables (MLflow's ``predicted_controls.parquet``, the corpus) carry
+    ``clip`` beside ``frame``; a table of one clip needs no choice, several need ``clip``.
+    A table without the column is returned as it is (``clip`` must then be ``None``).
+    """
+    if CLIP_COLUMN not in controls.columns:
+        if clip is not None:
+            raise ValueError(f"controls table has no {CLIP_COLUMN!r} column to pick {clip!r} from")
+        return controls
+    clips = list(dict.fromkeys(str(c) for c in controls[CLIP_COLUMN]))
+    if clip is None:
+        if len(clips) != 1:
+            raise ValueError(
+                f"controls table holds {len(clips)} clips {clips[:6]}: pick one with --clip NAME"
+            )
+        clip = clips[0]
+    if clip not in clips:
+        raise ValueError(f"controls table has no clip {clip!r}; clips: {clips[:10]}")
+    rows = controls[controls[CLIP_COLUMN].astype(str) == clip]
+    return rows.drop(columns=[CLIP_COLUMN]).reset_index(drop=True)
+
+
 def export_blend(rig_config_or_rig, controls, out_path, *, action_name: str | None = None) -> Path:
     """Write ``controls`` as keyframes on the rig into a new .blend at ``out_path``.
 
