@@ -188,6 +188,7 @@ class Rig(ABC):
         """Positions plus the COG placement, for a batch of control vectors."""
         Y, squeeze = self._check_controls(Y)
         pose = self._pose(Y)
+        _check_finite_pose(self.name, pose)
         if squeeze:
             pose = Pose(*(p[0] for p in pose))
         return pose
@@ -309,6 +310,22 @@ def check_placement(cog, cog_rotation, n: int, where: str) -> tuple[np.ndarray, 
     if not (np.isfinite(cog).all() and np.isfinite(cog_rotation).all()):
         raise RigInputError(f"{where}: cog or cog_rotation contains NaN or infinity")
     return cog, cog_rotation
+
+
+def _check_finite_pose(rig_name: str, pose: Pose) -> None:
+    """A numpy pose with NaN or infinity is an error naming the first bad row: finite but
+    huge controls (far outside the soft ranges) can overflow a rig's trigonometry."""
+    positions = pose.positions
+    if _is_torch(positions):
+        return  # differentiable batches are checked by their callers
+    finite = np.isfinite(positions).all(axis=(1, 2)) & np.isfinite(pose.cog).all(axis=1)
+    if not finite.all():
+        row = int(np.flatnonzero(~finite)[0])
+        raise RigInputError(
+            f"rig {rig_name!r} gave NaN or infinite joint positions for {int((~finite).sum())} "
+            f"of {len(finite)} control rows (first row {row}); are its controls far outside "
+            "their soft ranges?"
+        )
 
 
 def _is_torch(x) -> bool:

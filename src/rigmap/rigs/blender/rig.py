@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.rigs.base import Control, ControlTable, Pose, Rig, _is_torch
+from rigmap.rigs.base import Control, ControlTable, Pose, Rig, RigInputError, _is_torch
 from rigmap.rigs.blender.cache import cache_dir, read_json, write_json_atomic
 from rigmap.rigs.blender.environment import BlenderCommand, find_blender
 from rigmap.rigs.blender.in_blender.protocol import PROTOCOL_VERSION
@@ -160,6 +160,12 @@ class BlenderRig(Rig):
         path = Path(path).expanduser().resolve()
         if not path.is_file():
             raise FileNotFoundError(f"rig {name!r}: blend file {path} does not exist")
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                    or workers < 1):  # fmt: skip
+            raise RigInputError(
+                f"rig {name!r}: workers must be a whole number >= 1 (or null: one per core), "
+                f"got {workers!r}"
+            )
         include, exclude = _patterns(joints, f"rig {name!r} joints")
         self.name = name
         self.path = path
