@@ -11,7 +11,6 @@ the rig's axes (Y up, facing +Z).
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from rigmap.errors import RigmapError
 from rigmap.map.clip import MapSettings, solve_controls
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.world_subset_rig import WorldSubsetRig
+from rigmap.store import read_data_file
 
 
 class EffectorError(RigmapError, ValueError):
@@ -30,12 +30,7 @@ class EffectorError(RigmapError, ValueError):
 def read_effector_targets(path: str | os.PathLike, joints) -> np.ndarray:
     """``(N, K, 3)`` targets of ``joints`` (in that order) from a targets JSON file."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"effector targets file {path} does not exist")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise EffectorError(f"{path}: not valid JSON ({error})") from None
+    data = read_data_file(path, "effector targets file", EffectorError)
     if not isinstance(data, dict) or ("targets" in data) == ("frames" in data):
         raise EffectorError(f"{path}: expected an object with 'targets' (one pose) or 'frames'")
     frames = [data["targets"]] if "targets" in data else data["frames"]

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from rigmap.errors import RigmapError
 from rigmap.map.tracks import LENGTH_UNITS_CM, SOURCE_UNIT, JointTracks
+from rigmap.store import read_data_file
 
 RIG_AXES = {"left": 0, "up": 1, "forward": 2}  # rig x = left, y = up, z = forward
 AXIS_NAMES = {"x": 0, "y": 1, "z": 2}
@@ -88,13 +88,7 @@ class RetargetMap:
     # --- reading -------------------------------------------------------------------------
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> RetargetMap:
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"retarget map {path} does not exist")
-        try:
-            data = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as error:
-            raise RetargetMapError(f"{path}: not valid YAML ({error})") from None
+        data = read_data_file(path, "retarget map", RetargetMapError)
         return cls.from_mapping(data, source_file=str(path))
 
     @classmethod

@@ -39,6 +39,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
+from rigmap.config_objects import instantiate_as
 from rigmap.error_measures import control_std, ground_truth_error, joint_error
 from rigmap.errors import RigmapError
 from rigmap.regression.base import Regressor
@@ -278,15 +279,7 @@ def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
 
 def _regressor_from_config(regressor_cfg: DictConfig) -> Regressor:
     """The unfitted regressor a ``conf/regressor`` node builds (``hydra.utils.instantiate``)."""
-    import hydra.utils
-
-    model = hydra.utils.instantiate(regressor_cfg, _convert_="all")
-    if not isinstance(model, Regressor):
-        raise FitInputError(
-            f"regressor config: _target_ {regressor_cfg.get('_target_')!r} built a "
-            f"{type(model).__name__}, expected a rigmap.regression.Regressor"
-        )
-    return model
+    return instantiate_as(regressor_cfg, Regressor, "regressor", FitInputError)
 
 
 def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:

@@ -82,17 +82,15 @@ def per_frame_figure(metrics: RigMetrics, settings: ReportSettings, out: str | P
         axes[index // columns][index % columns].set_visible(False)
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=8, frameon=False)
-    fig.suptitle(
+    title = (
         f"{rig_label(metrics.rig)}: joint error per frame (log scale; zeros drawn at "
-        f"{floor:.1e} {unit}²)",
-        fontsize=11,
+        f"{floor:.1e} {unit}²)"
     )
-    path = save_figure(fig, out, dpi=DPI)
     caption = (
         f"{rig_label(metrics.rig)}: per-frame joint error of every method on each test clip "
         "(from the per-frame CSVs)."
     )
-    return FigureFile(path, caption)
+    return _finished(fig, out, title, caption)
 
 
 def time_figure(
@@ -126,13 +124,12 @@ def time_figure(
         ax.set_title(f"{rig_label(rig)} ({frames} test frames)", fontsize=10)
         ax.grid(True, axis="x", which="major", alpha=0.3)
     axes[-1].set_xlabel("frames per second (log scale)")
-    fig.suptitle("Speed of each method: frames per second over all test frames", fontsize=11)
-    path = save_figure(fig, out, dpi=DPI)
     caption = (
         "Frames per second of each method (log scale) with its total wall-clock seconds over "
         "all test clips."
     )
-    return FigureFile(path, caption)
+    return _finished(fig, out, "Speed of each method: frames per second over all test frames",
+                     caption)  # fmt: skip
 
 
 def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile | None:
@@ -168,13 +165,18 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
         ax.set_title(rig_label(rig), fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle("The network's joint error against the number of supersamples", fontsize=11)
-    path = save_figure(fig, out, dpi=DPI)
     caption = (
         "Joint error of the network (Average of the test clips) against the number of extra "
         "supersampled poses it was trained with."
     )
-    return FigureFile(path, caption)
+    return _finished(fig, out, "The network's joint error against the number of supersamples",
+                     caption)  # fmt: skip
+
+
+def _finished(fig, out: str | Path, title: str, caption: str) -> FigureFile:
+    """Title the figure, save it atomically, and pair it with its caption."""
+    fig.suptitle(title, fontsize=11)
+    return FigureFile(save_figure(fig, out, dpi=DPI), caption)
 
 
 def _sampler_colors() -> dict[str, tuple]:

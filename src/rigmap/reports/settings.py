@@ -63,23 +63,13 @@ class ReportSettings:
             if repeated:
                 raise ValueError(f"report settings: {name} repeats {repeated}")
             object.__setattr__(self, name, values)
-        method_rigs = tuple(str(r) for r in self.method_rigs)
-        outside = [r for r in method_rigs if r not in self.rigs]
-        if outside:
-            raise ValueError(
-                f"report settings: method_rigs {outside} are not among rigs {list(self.rigs)}"
-            )
-        object.__setattr__(self, "method_rigs", method_rigs)
+        self._set_rig_subset("method_rigs", self.method_rigs)
         if self.sampler_rigs is None:
-            sampler_rigs = tuple(r for r in self.rigs if r not in METHODS_ONLY_RIGS)
-        else:
-            sampler_rigs = tuple(str(r) for r in self.sampler_rigs)
-        outside = [r for r in sampler_rigs if r not in self.rigs]
-        if outside:
-            raise ValueError(
-                f"report settings: sampler_rigs {outside} are not among rigs {list(self.rigs)}"
+            self._set_rig_subset(
+                "sampler_rigs", [r for r in self.rigs if r not in METHODS_ONLY_RIGS]
             )
-        object.__setattr__(self, "sampler_rigs", sampler_rigs)
+        else:
+            self._set_rig_subset("sampler_rigs", self.sampler_rigs)
         for key in self.methods:
             find_row(METHODS, key, "method")
         for key in self.samplers:
@@ -96,6 +86,16 @@ class ReportSettings:
         object.__setattr__(self, "excluded_methods", excluded)
         if self.clips is not None:
             object.__setattr__(self, "clips", tuple(str(c) for c in self.clips))
+
+    def _set_rig_subset(self, name: str, rigs) -> None:
+        """Store ``rigs`` as the tuple ``name``; each must be one of ``self.rigs``."""
+        subset = tuple(str(r) for r in rigs)
+        outside = [r for r in subset if r not in self.rigs]
+        if outside:
+            raise ValueError(
+                f"report settings: {name} {outside} are not among rigs {list(self.rigs)}"
+            )
+        object.__setattr__(self, name, subset)
 
     def methods_for(self, rig: str) -> tuple[str, ...]:
         """The Table 1 methods the experiment evaluated on ``rig`` (none off ``method_rigs``)."""

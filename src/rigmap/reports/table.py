@@ -65,20 +65,21 @@ class Table:
 # --------------------------------------------------------------------------- numbers
 def format_error(value: float) -> str:
     """Errors like the paper (3 decimals); tiny non-zero ones in scientific notation."""
-    if value is None or not math.isfinite(value):
-        return MISSING
-    if value != 0 and abs(value) < 5e-4:
-        return f"{value:.2e}"
-    return f"{value:.3f}"
+    return _format_number(value, decimals=3)
 
 
 def format_seconds(value: float) -> str:
     """Seconds and frames per second with 2 decimals (scientific below 0.005)."""
+    return _format_number(value, decimals=2)
+
+
+def _format_number(value: float, *, decimals: int) -> str:
+    """``decimals`` places; non-zero values that would round to zero in scientific notation."""
     if value is None or not math.isfinite(value):
         return MISSING
-    if value != 0 and abs(value) < 5e-3:
+    if value != 0 and abs(value) < 0.5 * 10.0**-decimals:
         return f"{value:.2e}"
-    return f"{value:.2f}"
+    return f"{value:.{decimals}f}"
 
 
 # --------------------------------------------------------------------------- renderings

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from rigmap.config_objects import instantiate_as
 from rigmap.sampling.base import Sampler, SamplerInputError, sampler_classes
 
 # importing the strategies makes them subclasses of Sampler (the names below come from them)
@@ -46,23 +47,11 @@ def instantiate_sampler(config: Mapping[str, Any], **overrides: Any) -> Sampler:
 
     ``overrides`` replace or add hyper-parameters (e.g. the rig's soft range).
     """
-    import hydra.utils
     from omegaconf import DictConfig, OmegaConf
 
     if isinstance(config, DictConfig):
         config = OmegaConf.to_container(config, resolve=True)
-    options = {**dict(config), **overrides}
-    if "_target_" not in options:
-        raise SamplerInputError(
-            f"sampler config: no _target_ (the sampler class), got keys {sorted(options)}"
-        )
-    sampler = hydra.utils.instantiate(options, _convert_="all")
-    if not isinstance(sampler, Sampler):
-        raise SamplerInputError(
-            f"sampler config: _target_ {options['_target_']!r} built a "
-            f"{type(sampler).__name__}, expected a rigmap.sampling.Sampler"
-        )
-    return sampler
+    return instantiate_as({**dict(config), **overrides}, Sampler, "sampler", SamplerInputError)
 
 
 def sampler_name(config: Mapping[str, Any]) -> str:

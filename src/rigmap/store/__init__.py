@@ -6,7 +6,8 @@
 - :mod:`rigmap.store.atomic` writes files and folders so a killed writer leaves nothing
   half-written;
 - :mod:`rigmap.store.table_file` reads and writes parquet tables with JSON metadata;
-- :func:`json_ready` turns numpy values into plain JSON.
+- :func:`json_ready` turns numpy values into plain JSON;
+- :func:`read_data_file` reads a hand-written JSON or YAML file with errors naming it.
 """
 
 from rigmap.store.atomic import (
@@ -16,6 +17,7 @@ from rigmap.store.atomic import (
     write_json_atomic,
     write_text_atomic,
 )
+from rigmap.store.data_file import read_data_file
 from rigmap.store.json_ready import json_ready
 from rigmap.store.layout import Layout, ModelId
 from rigmap.store.table_file import TableFileError, read_table_file, write_table_file
@@ -26,6 +28,7 @@ __all__ = [
     "TableFileError",
     "atomic_file",
     "json_ready",
+    "read_data_file",
     "read_table_file",
     "write_bytes_atomic",
     "write_folder_atomic",

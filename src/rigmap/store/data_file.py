@@ -1,0 +1,32 @@
+"""Small JSON and YAML files a user writes by hand (targets, retarget maps): read with errors
+that name the file, never executing anything (``yaml.safe_load``)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+def read_data_file(path: str | os.PathLike, what: str, error: type[Exception]) -> Any:
+    """The parsed contents of a ``.json``, ``.yaml`` or ``.yml`` file (by its suffix).
+
+    A missing file is ``FileNotFoundError`` naming ``what``; unparsable text is ``error``
+    naming the file and the parser's complaint.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} {path} does not exist")
+    text = path.read_text(encoding="utf-8")
+    if path.suffix.lower() == ".json":
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as problem:
+            raise error(f"{path}: not valid JSON ({problem})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as problem:
+        raise error(f"{path}: not valid YAML ({problem})") from None
