@@ -42,6 +42,10 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _folder_option(command, flag: str, help: str) -> None:
+    command.add_argument(flag, type=Path, default=None, help=help)
+
+
 def _add_rigs(commands) -> None:
     rigs = commands.add_parser("rigs", help="list, describe and render rigs")
     rig_commands = rigs.add_subparsers(title="rig commands", metavar="RIG_COMMAND")
@@ -163,12 +167,10 @@ def _add_stage_command(commands, name, *, help, description, overrides, run) -> 
         metavar="KEY=VALUE",
         help=f"Hydra overrides of conf/config.yaml ({overrides})",
     )
-    command.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )
+    _folder_option(
+        command, "--config-dir",
+        "the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
+    )  # fmt: skip
     command.set_defaults(run=run)
 
 
@@ -207,12 +209,10 @@ def _add_reproduce(commands) -> None:
         action="store_true",
         help="only write params.yaml (then run dvc repro / dvc exp run yourself)",
     )
-    reproduce.add_argument(
-        "--project",
-        type=Path,
-        default=None,
-        help="the repository (folder with dvc.yaml and conf/; default: found from here up)",
-    )
+    _folder_option(
+        reproduce, "--project",
+        "the repository (folder with dvc.yaml and conf/; default: found from here up)",
+    )  # fmt: skip
     reproduce.set_defaults(run=_reproduce)
 
 

@@ -178,38 +178,29 @@ class RefineSettings:
             raise EvaluationSetupError(
                 f"refine.max_iterations: expected an integer >= 0, got {self.max_iterations!r}"
             )
-        if self.control_scale not in CONTROL_SCALES:
-            raise EvaluationSetupError(
-                f"refine.control_scale: expected one of {CONTROL_SCALES}, "
-                f"got {self.control_scale!r}"
-            )
         if not isinstance(self.keep_in_range, bool):
             raise EvaluationSetupError(
                 f"refine.keep_in_range: expected true or false, got {self.keep_in_range!r}"
-            )
-        self._check_speed_settings()
-
-    def _check_speed_settings(self) -> None:
-        from rigmap.refine import DIFFERENCES, SOLVERS
-
-        if self.solver not in SOLVERS:
-            raise EvaluationSetupError(
-                f"refine.solver: expected one of {SOLVERS}, got {self.solver!r}"
-            )
-        if self.differences not in DIFFERENCES:
-            raise EvaluationSetupError(
-                f"refine.differences: expected one of {DIFFERENCES}, got {self.differences!r}"
             )
         if not (isinstance(self.share_every, int) and self.share_every >= 1):
             raise EvaluationSetupError(
                 f"refine.share_every: expected an integer >= 1, got {self.share_every!r}"
             )
+        self._check_choices()
+
+    def _check_choices(self) -> None:
+        """Each named option is one of its choices (``refine.<name>: expected one of …``)."""
+        from rigmap.refine import DIFFERENCES, SOLVERS
         from rigmap.refine.jacobian_reuse import UPDATES
 
-        if self.jacobian_update not in UPDATES:
-            raise EvaluationSetupError(
-                f"refine.jacobian_update: expected one of {UPDATES}, got {self.jacobian_update!r}"
-            )
+        choices = {"control_scale": CONTROL_SCALES, "solver": SOLVERS,
+                   "differences": DIFFERENCES, "jacobian_update": UPDATES}  # fmt: skip
+        for name, allowed in choices.items():
+            value = getattr(self, name)
+            if value not in allowed:
+                raise EvaluationSetupError(
+                    f"refine.{name}: expected one of {allowed}, got {value!r}"
+                )
 
     def reuse(self):
         """The computed Jacobian's reuse policy (``rigmap.refine.JacobianReuse``)."""

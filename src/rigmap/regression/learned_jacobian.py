@@ -27,6 +27,10 @@ from rigmap.regression.kernels import Kernel, MultiquadricKernel
 from rigmap.regression.model_io import arrays_from_bytes, arrays_to_bytes
 from rigmap.regression.validation import as_float_array, check_finite
 
+# the GPR settings a learned Jacobian shares with the GPR it is learned beside (§4.4)
+GPR_SETTINGS = ("regularization", "search_length_scale", "n_length_scales", "cv_splits",
+                "cv_max_outputs", "normalize", "seed")  # fmt: skip
+
 
 class LearnedJacobian(Regressor):
     """GPR from poses ``(N, D)`` to Jacobians ``(N, R, C)`` (R = 3 x joints, C = used controls).
@@ -65,19 +69,12 @@ class LearnedJacobian(Regressor):
         self.seed = seed
 
     def _regressor(self) -> GaussianProcessRegressor:
+        """The GPR on the flattened Jacobians: every support pose, one shared output scale."""
+        settings = {name: getattr(self, name) for name in GPR_SETTINGS}
         return GaussianProcessRegressor(
-            kernel=self.kernel,
-            regularization=self.regularization,
-            n_points=None,
-            search_length_scale=self.search_length_scale,
-            length_scale_range=self.length_scale_range,
-            n_length_scales=self.n_length_scales,
-            cv_splits=self.cv_splits,
-            cv_max_outputs=self.cv_max_outputs,
-            normalize=self.normalize,
-            output_scale="shared",
-            seed=self.seed,
-        )
+            kernel=self.kernel, n_points=None, length_scale_range=self.length_scale_range,
+            output_scale="shared", **settings,
+        )  # fmt: skip
 
     def fit(
         self,
@@ -164,9 +161,7 @@ def learned_jacobian_plan(regressor) -> tuple[np.ndarray, LearnedJacobian] | Non
     regressor._check_fitted()
     if not isinstance(regressor.kernel_, MultiquadricKernel):
         return None
-    shared = ("regularization", "search_length_scale", "n_length_scales", "cv_splits",
-              "cv_max_outputs", "normalize", "seed")  # fmt: skip
-    settings = {name: getattr(regressor, name) for name in shared}
+    settings = {name: getattr(regressor, name) for name in GPR_SETTINGS}
     learned = LearnedJacobian(
         kernel=regressor.kernel_, length_scale_range=regressor.search_range, **settings
     )

@@ -175,10 +175,14 @@ class Placement:
             )
         return Y
 
+    def _controls_and_placement(self, Y: Any, X_pose: Any, where: str):
+        """A checked copy of the controls, and the COG position and rotation of each row."""
+        positions, cog, rotation = self._split(X_pose, where)
+        return self._check_controls(Y, len(positions), where).copy(), cog, rotation
+
     def targets(self, Y_used: Any, X_pose: Any, where: str = "training rows") -> np.ndarray:
         """Used controls with the root channels replaced by their placement-free offsets."""
-        positions, cog, rotation = self._split(X_pose, where)
-        Y = self._check_controls(Y_used, len(positions), where).copy()
+        Y, cog, rotation = self._controls_and_placement(Y_used, X_pose, where)
         if self.ground is None:
             return Y
         gx, gz = self.ground
@@ -195,8 +199,7 @@ class Placement:
 
     def controls(self, Y_targets: Any, X_pose: Any, where: str = "pose rows") -> np.ndarray:
         """The inverse of :meth:`targets`: root channels from the COG placement."""
-        positions, cog, rotation = self._split(X_pose, where)
-        Y = self._check_controls(Y_targets, len(positions), where).copy()
+        Y, cog, rotation = self._controls_and_placement(Y_targets, X_pose, where)
         if self.ground is None:
             return Y
         gx, gz = self.ground

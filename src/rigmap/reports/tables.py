@@ -9,6 +9,8 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
@@ -220,18 +222,14 @@ def _paper_record(paper: published.PublishedMethodRow | None) -> dict:
 
 # --------------------------------------------------------------------------- Tables 2 and §7.1
 def _per_rig_table(
-    tree: Mapping[str, RigMetrics],
-    keys: Sequence[str],
-    catalogue,
-    attribute: str,
-    *,
-    name: str,
-    title: str,
-    what: str,
-    paper: Mapping[str, tuple[str, str]] | None,
-    notes: list[str],
+    tree: Mapping[str, RigMetrics], settings: ReportSettings, spec: _PerRigSpec
 ) -> Table:
-    """Rows = ``keys`` (samplers or kernels); per rig a group of Joint / Ground Truth Error."""
+    """Rows = the ``spec``'s samplers or kernels; per rig of ``settings.sampler_rigs`` a group
+    of Joint / Ground Truth Error; the spec's notes follow the two error notes."""
+    tree = {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs}
+    keys, catalogue, attribute = getattr(settings, spec.attribute), spec.catalogue, spec.attribute
+    name, title, what, paper = spec.name, spec.title, spec.what, spec.paper
+    notes = [JOINT_ERROR_NOTE, GROUND_TRUTH_NOTE, *spec.notes]
     first_column = "Method" if catalogue is SAMPLERS else "Kernel"
     columns = [Column(first_column, numeric=False)]
     for rig, metrics in tree.items():
@@ -279,46 +277,43 @@ def _per_rig_table(
     )
 
 
+@dataclass(frozen=True)
+class _PerRigSpec:
+    """What a per-rig table compares: the settings list and metrics attribute it reads."""
+
+    attribute: str  # "samplers" or "kernels": the ReportSettings list and RigMetrics field
+    catalogue: Any
+    what: str
+    name: str
+    title: str
+    paper: Mapping[str, tuple[str, str]] | None
+    notes: tuple[str, ...]
+
+
+_SAMPLING = _PerRigSpec(
+    "samplers", SAMPLERS, "sampler", "table2_sampling",
+    "Table 2 — the network trained with each supersampling method (Average of the test clips)",
+    published.TABLE2,
+    ("'No Extra Samples' trains on the animator corpus alone; the others add the same "
+     "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
+     PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on."),
+)  # fmt: skip
+_KERNELS = _PerRigSpec(
+    "kernels", KERNELS, "kernel", "table_kernels",
+    "GPR kernels (§7.1) — Average of the test clips", None,
+    ("The paper reports no numbers for this comparison, only that the multiquadric "
+     "kernel did best (§7.1).",),
+)  # fmt: skip
+
+
 def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
     """Table 2: the network trained on the corpus plus each sampler's supersamples."""
-    return _per_rig_table(
-        {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs},
-        settings.samplers,
-        SAMPLERS,
-        "samplers",
-        name="table2_sampling",
-        title="Table 2 — the network trained with each supersampling method (Average of the "
-        "test clips)",
-        what="sampler",
-        paper=published.TABLE2,
-        notes=[
-            JOINT_ERROR_NOTE,
-            GROUND_TRUTH_NOTE,
-            "'No Extra Samples' trains on the animator corpus alone; the others add the same "
-            "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
-            PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on.",
-        ],
-    )
+    return _per_rig_table(tree, settings, _SAMPLING)
 
 
 def kernels_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
     """§7.1: GPR on the train corpus with each kernel (no published numbers exist)."""
-    return _per_rig_table(
-        {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs},
-        settings.kernels,
-        KERNELS,
-        "kernels",
-        name="table_kernels",
-        title="GPR kernels (§7.1) — Average of the test clips",
-        what="kernel",
-        paper=None,
-        notes=[
-            JOINT_ERROR_NOTE,
-            GROUND_TRUTH_NOTE,
-            "The paper reports no numbers for this comparison, only that the multiquadric "
-            "kernel did best (§7.1).",
-        ],
-    )
+    return _per_rig_table(tree, settings, _KERNELS)
 
 
 # --------------------------------------------------------------------------- Table 3
