@@ -13,14 +13,14 @@ in :mod:`rigmap.regression.fitting`, shared with ``rigmap fit``.
 
 from __future__ import annotations
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from rigmap.regression.fitting import FitResult, fit_from_config
 from rigmap.stage import run_stage
 
 
 def run(cfg: DictConfig) -> FitResult:
-    return fit_from_config(cfg)
+    return fit_from_config(OmegaConf.to_container(cfg, resolve=True))
 
 
 if __name__ == "__main__":

@@ -260,9 +260,13 @@ def compose_config(
 
 
 def _fit(args) -> int:
-    from rigmap.regression.fitting import fit_from_config
+    from omegaconf import OmegaConf
 
-    result = fit_from_config(compose_config(args.overrides, args.config_dir))
+    from rigmap.regression.fitting import fit_from_config
+    from rigmap.stage.runner import apply_rig_overrides
+
+    cfg = apply_rig_overrides(compose_config(args.overrides, args.config_dir))
+    result = fit_from_config(OmegaConf.to_container(cfg, resolve=True))
     print(result.folder)
     return 0
 

@@ -29,13 +29,12 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
@@ -261,36 +260,27 @@ class FitResult:
     record: dict[str, Any]
 
 
-def rig_from_config(rig_cfg: DictConfig):
-    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's)."""
+def fit_from_config(config: Mapping[str, Any], *, log: Log = _print) -> FitResult:
+    """Read the training data a composed config (a plain mapping: ``rig``, ``regressor``,
+    ``sampler``, ``paths`` …) names, fit its regressor, write the model folder."""
     from rigmap.rigs import load
 
-    options = OmegaConf.to_container(rig_cfg, resolve=True)
-    options.pop("corpus", None)
-    return load(options)
-
-
-def fit_from_config(cfg: DictConfig, *, log: Log = _print) -> FitResult:
-    """Read the training data ``cfg`` names, fit ``cfg.regressor``, write the model folder."""
     started = time.perf_counter()
-    with rig_from_config(cfg.rig) as rig:  # a DCC rig's worker processes end with the fit
-        return _fit_with_rig(cfg, rig, started, log)
+    rig_options = {k: v for k, v in dict(config["rig"]).items() if k != "corpus"}
+    with load(rig_options) as rig:  # a DCC rig's worker processes end with the fit
+        return _fit_with_rig(config, rig, started, log)
 
 
-def _regressor_from_config(regressor_cfg: DictConfig) -> Regressor:
-    """The unfitted regressor a ``conf/regressor`` node builds (``hydra.utils.instantiate``)."""
-    return instantiate_as(regressor_cfg, Regressor, "regressor", FitInputError)
-
-
-def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
-    sampler = sampler_name(cfg.sampler)
-    model = _regressor_from_config(cfg.regressor)
+def _fit_with_rig(config: Mapping[str, Any], rig, started: float, log: Log) -> FitResult:
+    sampler = sampler_name(config["sampler"])
+    model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
     regressor, kernel_label = model.name, model.kernel_name
     model_id = ModelId(regressor, sampler, kernel_label)
-    folder = Layout(models=Path(cfg.paths.models)).model(rig.name, model_id)
+    layout = Layout.from_paths(config["paths"])
+    folder = layout.model(rig.name, model_id)
     log(f"fit {rig.name}: {regressor} (kernel {kernel_label}, sampler {sampler}) -> {folder}")
 
-    data = load_training_data(rig, cfg.paths.data, sampler)
+    data = load_training_data(rig, layout.data, sampler)
     log(
         f"  training rows: {data.rows} = {data.corpus_rows} corpus frames"
         f"{' + 1 rest pose' if data.rest_pose_added else ''} + {data.sample_rows} samples; "
@@ -330,7 +320,7 @@ def _fit_with_rig(cfg: DictConfig, rig, started: float, log: Log) -> FitResult:
     record = {
         **_fit_record(rig, model_id, data, placement, seconds, error),
         **details,
-        "config": OmegaConf.to_container(cfg, resolve=True),
+        "config": json_ready(config),
     }
 
     def fill(staging: Path) -> None:
