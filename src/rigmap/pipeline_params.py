@@ -149,6 +149,8 @@ def check_params(
     flat_plain: Mapping[str, Any],
     dvc_yaml: Path,
     overrides: Sequence[str] = (),
+    *,
+    verdict: str = "params.yaml not written",
 ) -> None:
     """Refuse (``ParamsError``, one line per bad key) values that may not reach params.yaml."""
     interpolated = interpolated_params(dvc_yaml) if dvc_yaml.is_file() else set()
@@ -156,8 +158,7 @@ def check_params(
     if problems:
         given = f" (overrides {list(overrides)})" if overrides else ""
         raise ParamsError(
-            f"params.yaml not written{given}: {len(problems)} bad value(s):\n  "
-            + "\n  ".join(problems)
+            f"{verdict}{given}: {len(problems)} bad value(s):\n  " + "\n  ".join(problems)
         )
 
 
@@ -187,3 +188,48 @@ def reaching_stages(keys: Sequence[str], dvc_yaml: str | Path) -> list[str]:
     """Which of ``keys`` some stage reads, directly or through a node it interpolates."""
     read = interpolated_params(dvc_yaml)
     return [k for k in keys if any(k == r or k.startswith(f"{r}.") for r in read)]
+
+
+CHECKED_STAMP = "params_checked.txt"  # the check_params stage's output, which every stage reads
+
+
+def check_params_file(project: str | Path, params_file: str | Path = PARAMS_FILE) -> None:
+    """The ``check_params`` DVC stage: refuse a ``params.yaml`` however it was written.
+
+    ``rigmap reproduce`` checks values before it writes them; ``dvc exp run -S`` and a
+    hand-edited file do not pass through it. Every stage depends on this stage's stamp,
+    so DVC runs it first and stops at a bad value before any command interpolates it.
+    The stamp's text never changes, so a passing check re-runs nothing downstream.
+    """
+    import yaml
+
+    project = Path(project)
+    path = project / params_file
+    try:
+        params = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as error:
+        raise ParamsError(f"{path}: not readable as YAML ({error})") from None
+    plain = yaml.safe_load(compose_params(project / "conf", ()))
+    verdict = f"{path} refused before any stage ran"
+    check_params(flatten(params), flatten(plain), project / "dvc.yaml", verdict=verdict)
+    write_text_atomic(project / "data" / CHECKED_STAMP, "params.yaml checked\n")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m rigmap.pipeline_params check [params.yaml]`` (the check_params stage)."""
+    import sys
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] != "check" or len(args) > 2:
+        print("usage: python -m rigmap.pipeline_params check [params.yaml]", file=sys.stderr)
+        return 2
+    try:
+        check_params_file(Path.cwd(), args[1] if len(args) == 2 else PARAMS_FILE)
+    except ParamsError as error:
+        print(f"error: check_params: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
