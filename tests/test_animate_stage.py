@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
@@ -16,21 +15,10 @@ from scipy.spatial import cKDTree
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
 from rigmap.rigs import load
+from stage_scripts import load_stage as _stage
 
 ROOT = Path(__file__).resolve().parents[1]
 _RUNS: dict = {}
-
-
-def _stage(name: str):
-    """A pipelines/<name>.py module (they are scripts, not a package)."""
-    sys.path.insert(0, str(ROOT / "pipelines"))
-    try:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "pipelines" / f"{name}.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        return module
-    finally:
-        sys.path.remove(str(ROOT / "pipelines"))
 
 
 def config(*overrides: str):

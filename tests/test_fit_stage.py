@@ -6,7 +6,6 @@ per session in a temporary data folder; fits use tiny budgets.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -31,6 +30,7 @@ from rigmap.regression.fitting import load_training_data
 from rigmap.regression.mapping import InverseMapping
 from rigmap.sampling import make_sampler, supersample
 from rigmap.store import write_folder_atomic as write_model_folder
+from stage_scripts import load_stage as _stage
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SAMPLES = 300
@@ -43,18 +43,6 @@ TINY = [
     "budget.batch_size=64",
     f"budget.samples={N_SAMPLES}",
 ]
-
-
-def _stage(name: str):
-    """A pipelines/<name>.py module (they are scripts, not a package)."""
-    sys.path.insert(0, str(ROOT / "pipelines"))
-    try:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "pipelines" / f"{name}.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        return module
-    finally:
-        sys.path.remove(str(ROOT / "pipelines"))
 
 
 def config(*overrides: str):

@@ -10,7 +10,6 @@ frames, scored with the evaluation's metric functions.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 import textwrap
@@ -24,6 +23,7 @@ from rigmap.evaluation.methods import TestSet, run_method
 from rigmap.evaluation.metrics import ground_truth_error, joint_error
 from rigmap.regression import load_regressor
 from rigmap.sampling import load_samples
+from stage_scripts import load_stage as _stage
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SAMPLES = 200
@@ -88,18 +88,6 @@ class RidgeRegressor(Regressor):
         Y = X @ self.coef_.T + self.intercept_
         return Y[0] if single else Y
 '''
-
-
-def _stage(name: str):
-    """A pipelines/<name>.py module (they are scripts, not a package)."""
-    sys.path.insert(0, str(ROOT / "pipelines"))
-    try:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "pipelines" / f"{name}.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        return module
-    finally:
-        sys.path.remove(str(ROOT / "pipelines"))
 
 
 @pytest.fixture(scope="module")
