@@ -75,6 +75,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "supersample": 6 * len(rigs) + 1,
         "fit_nn": 6 * len(rigs) + 1,
         "fit_gpr": 4 * len(rigs) + 1,
+        "fit_mean": len(params["pipeline"]["table1_rigs"]) + 1,
         "sample_figures": len(rigs),
         "evaluate": 3,
         "evaluate_samplers": len(rigs),
@@ -82,7 +83,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "sample_sweep": 2,
         "report": 1,
     }
-    assert len(stages) == 96 and len(blender) == 1
+    assert len(stages) == 99 and len(blender) == 1
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
@@ -120,7 +121,7 @@ def test_the_blender_family_runs_table_1_only(stages):
         "nn_autodiff_jacobian" not in evaluate.cmd and "evaluate.frames_per_clip=12" in evaluate.cmd
     )
     metrics = [o.def_path for o in evaluate.outs if o.metric]
-    assert len(metrics) == 7  # Table 1 without autodiff: the rig is a black box
+    assert len(metrics) == 8  # Table 1 without autodiff (the rig is a black box), with the mean
     assert all(not o.use_cache for o in evaluate.outs)
 
 
@@ -128,7 +129,7 @@ def test_evaluations_declare_metrics_and_per_frame_plots(stages):
     evaluate = stages["evaluate@quadruped"]
     metrics = [o.def_path for o in evaluate.outs if o.metric]
     plots = [o.def_path for o in evaluate.outs if o.plot]
-    assert len(metrics) == len(plots) == 8
+    assert len(metrics) == len(plots) == 9
     assert [Path(p).with_suffix(".csv").as_posix() for p in metrics] == plots
     assert "models/quadruped" in paths(evaluate.deps)
     kernels = stages["evaluate_kernels@face"]

@@ -156,9 +156,9 @@ def test_table1_has_every_method_row_per_clip_and_average(project):
             methods = rows[rows["motion"] == motion]["method"].tolist()
             assert methods == list(SETTINGS.methods_for(rig))
     assert "script" not in table[table["rig"] == "face"]["method"].tolist()
-    assert len(SETTINGS.methods_for("quadruped")) == 8
+    assert len(SETTINGS.methods_for("quadruped")) == 9
     extras = table[table["extra"].astype(str) == "True"]["method"].unique().tolist()
-    assert sorted(extras) == ["nn_autodiff_jacobian", "nn_learned_jacobian"]
+    assert sorted(extras) == ["mean", "nn_autodiff_jacobian", "nn_learned_jacobian"]
     for column in ("joint_error", "ground_truth_error", "total_time_s", "fps"):
         values = table[column].astype(float).to_numpy()
         assert np.isfinite(values).all() and (values >= 0).all()
@@ -187,6 +187,25 @@ def test_table1_numbers_are_the_metrics_numbers(project):
     assert averages["joint_error"].nunique() == len(RIDGES)
     markdown = (project["root"] / "reports" / "tables" / "table1_methods.md").read_text()
     assert f"| {result.joint_error:.3f} |" in markdown or f"{result.joint_error:.2e}" in markdown
+
+
+def test_table1_scale_free_columns_divide_by_the_mean_predictor_row(project):
+    table = _csv(project, "table1_methods")
+    rows = table[table["rig"] == "quadruped"]
+    for motion in rows["motion"].unique():
+        at = rows[rows["motion"] == motion].set_index("method")
+        baseline = at.loc["mean"]
+        for _, row in at.iterrows():
+            assert row["joint_rms"] == pytest.approx(math.sqrt(3 * row["joint_error"]))
+            ratio = row["joint_error"] / baseline["joint_error"]
+            assert row["joint_error_relative_to_mean"] == pytest.approx(ratio, rel=1e-12)
+            truth = row["ground_truth_error"] / baseline["ground_truth_error"]
+            assert row["ground_truth_error_relative_to_mean"] == pytest.approx(truth, rel=1e-12)
+        assert at.loc["mean", "joint_error_relative_to_mean"] == pytest.approx(1.0)
+    # the ridge fits of this tree write no character height: the share is left blank, not made up
+    assert rows["joint_rms_percent_of_height"].astype(str).isin(["", "nan"]).all()
+    html_text = (project["root"] / "reports" / "tables" / "table1_methods.md").read_text()
+    assert "Joint Error (unit not stated)" in html_text and "Mean Predictor" in html_text
 
 
 def test_published_values_sit_beside_ours_and_are_labelled(project):

@@ -67,6 +67,17 @@ def joint_error(X_pred: Any, X_target: Any) -> FrameErrors:
     return FrameErrors(((pred - target) ** 2).mean(axis=1))
 
 
+def joint_rms(mean_squared_coordinate_error: float) -> float:
+    """The joint error as a distance: the root mean squared joint distance, in the rig's
+    length unit. The joint error averages over the 3 coordinates of each joint, so the mean
+    squared distance is 3 x it; a reader compares centimetres, not centimetres squared."""
+    if not mean_squared_coordinate_error >= 0:
+        raise MetricInputError(
+            f"joint_rms: expected a mean squared error >= 0, got {mean_squared_coordinate_error!r}"
+        )
+    return float(np.sqrt(3.0 * mean_squared_coordinate_error))
+
+
 def _flat_positions(X: Any, where: str) -> np.ndarray:
     X = finite_array(X, where)
     if X.ndim == 3 and X.shape[2] == 3:

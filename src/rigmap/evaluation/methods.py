@@ -77,7 +77,7 @@ class Method:
 
     name: str
     guess: str  # "script" or "regressor"
-    regressor: str | None = None  # "gpr" or "nn" when guess == "regressor"
+    regressor: str | None = None  # "gpr", "nn", "mean" … when guess == "regressor"
     refine: str = "none"  # one of REFINEMENTS
     jacobian: str | None = None  # one of JACOBIANS when refine == "computed_jacobian"
 
@@ -128,6 +128,7 @@ METHODS: dict[str, Method] = {
         Method("nn_computed_jacobian", "regressor", "nn", "computed_jacobian", FINITE),
         Method("nn_learned_jacobian", "regressor", "nn", "learned_jacobian"),
         Method("nn_autodiff_jacobian", "regressor", "nn", "computed_jacobian", "autodiff"),
+        Method("mean", "regressor", "mean"),  # the yardstick of the scale-free column (ours)
     )
 }
 
@@ -283,6 +284,7 @@ class TestSet:
     control_names: list[str]  # the used controls, rig order
     control_kinds: list[str]
     train_std: np.ndarray  # (C_used,)
+    character_height: float | None = None  # the rig's rest height; errors as % of it
 
     __test__ = False  # a data class, not a pytest test class
 
@@ -303,7 +305,10 @@ class TestSet:
             )
             for c in self.clips
         ]
-        return TestSet(self.rig, clips, self.control_names, self.control_kinds, self.train_std)
+        return TestSet(
+            self.rig, clips, self.control_names, self.control_kinds, self.train_std,
+            self.character_height,
+        )  # fmt: skip
 
     @classmethod
     def load(
@@ -367,7 +372,7 @@ class TestSet:
             )
         kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
         std = control_std(train.table[used].to_numpy(dtype=np.float64))
-        return cls(rig.name, test_clips, used, kinds, std)
+        return cls(rig.name, test_clips, used, kinds, std, rig.rest_height())
 
 
 def _layout_of(data: Layout | str | Path, rig: str) -> Layout:
@@ -448,6 +453,7 @@ def run_method(
         warmup_frames=int(warmup_frames),
         skipped_controls=truth.skipped,
         extra=context,
+        character_height=test_set.character_height,
     )
     controls = pd.concat(curves, ignore_index=True)
     return MethodEvaluation(result, controls, initial)

@@ -29,6 +29,7 @@ from rigmap.error_measures import (  # noqa: F401  re-exported: evaluation code 
     control_std,
     ground_truth_error,
     joint_error,
+    joint_rms,
 )
 from rigmap.error_measures import finite_array as _finite_array
 from rigmap.store import json_ready, write_text_atomic
@@ -43,6 +44,8 @@ METRIC_UNITS = {
     "fps": "frames per second = frames / total_time_s",
     "rig_evaluations": "poses the rig evaluated (finite-difference perturbations included)",
     "rig_calls": "calls to the rig (each evaluates a batch of poses)",
+    "joint_rms": "{unit}, root mean squared joint distance = sqrt(3 x joint_error)",
+    "joint_rms_percent_of_height": "% of the character's rest height (scale-free)",
 }
 
 
@@ -143,8 +146,14 @@ class MethodResult:
     warmup_frames: int = 0
     skipped_controls: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
+    character_height: float | None = None  # rest height (length unit); None: not measured
 
     def __post_init__(self) -> None:
+        if self.character_height is not None and not self.character_height > 0:
+            raise MetricInputError(
+                f"{self.method} on rig {self.rig!r}: character_height must be > 0, "
+                f"got {self.character_height!r}"
+            )
         if not self.clips:
             raise MetricInputError(
                 f"{self.method} on rig {self.rig!r}: no clip results; expected at least one"
@@ -185,7 +194,15 @@ class MethodResult:
         return sum(c.rig_calls for c in self.clips)
 
     def average(self) -> dict[str, float | int]:
-        return _summary(self)
+        return self._scale_free(_summary(self))
+
+    def _scale_free(self, numbers: dict[str, float | int]) -> dict[str, float | int]:
+        """``numbers`` plus the joint error as an RMS distance, and as % of the height."""
+        rms = joint_rms(float(numbers["joint_error"]))
+        numbers = {**numbers, "joint_rms": rms}
+        if self.character_height is not None:
+            numbers["joint_rms_percent_of_height"] = 100.0 * rms / self.character_height
+        return numbers
 
     # --- files --------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -196,8 +213,9 @@ class MethodResult:
             "method": self.method,
             "sampler": self.sampler,
             "length_unit": self.length_unit,
+            "character_height": self.character_height,
             "average": self.average(),
-            "clips": {c.clip: c.summary() for c in self.clips},
+            "clips": {c.clip: self._scale_free(c.summary()) for c in self.clips},
             "units": {k: v.format(unit=self.length_unit) for k, v in METRIC_UNITS.items()},
             "timing": {
                 "clock": "wall clock, time.perf_counter",

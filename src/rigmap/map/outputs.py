@@ -30,7 +30,7 @@ SUMMARY_FORMAT = "rigmap.map_summary/1"
 def summary(result: MapResult, rig) -> dict:
     """The clip's headline numbers (units in the keys)."""
     error = result.frame_error_cm
-    height = _rig_height_cm(rig)
+    height = rig.rest_height()
     total = sum(v for k, v in result.seconds.items() if k.endswith("_s"))
     return json_ready({
         "format": SUMMARY_FORMAT,
@@ -90,9 +90,3 @@ def _keys(result: MapResult) -> dict:
             )
         ]
     return json_ready({"fps": result.fps, "frames": result.n_frames, "curves": curves})
-
-
-def _rig_height_cm(rig) -> float:
-    rest = rig.pose(rig.controls.defaults[None])
-    world = np.asarray(rest.positions)[0] + np.asarray(rest.cog)[0]
-    return float(np.ptp(world[:, 1]))

@@ -30,6 +30,7 @@ from rigmap.regression.kernels import (
 from rigmap.regression.learned_jacobian import LearnedJacobian
 from rigmap.regression.length_scale_search import length_scale_cv_errors
 from rigmap.regression.linear_solve import solve_regularized
+from rigmap.regression.mean import MeanRegressor
 from rigmap.regression.network import FeedForwardRegressor
 from rigmap.regression.subsampling import greedy_subsample
 
@@ -77,6 +78,7 @@ __all__ = [
     "Kernel",
     "LearnedJacobian",
     "LinearKernel",
+    "MeanRegressor",
     "ModelFileError",
     "ModelFingerprint",
     "ModelMismatchError",

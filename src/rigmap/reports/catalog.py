@@ -35,6 +35,7 @@ METHODS: tuple[Row, ...] = (
     Row("nn_computed_jacobian", "NN & Computed Jacobian"),
     Row("nn_learned_jacobian", "NN & Learned Jacobian", extra=True),
     Row("nn_autodiff_jacobian", "NN & Autodiff Jacobian", extra=True),
+    Row("mean", "Mean Predictor", extra=True),
 )
 
 SAMPLERS: tuple[Row, ...] = (

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from rigmap.error_measures import joint_rms
 from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import RESULT_FORMAT
 from rigmap.reports.settings import ReportSettings
@@ -49,6 +50,12 @@ class Numbers:
     total_time_s: float
     fps: float
     rig_evaluations: int = 0
+    joint_rms_percent_of_height: float | None = None  # None in files written before it
+
+    @property
+    def joint_rms(self) -> float:
+        """The joint error as a root mean squared joint distance (the rig's length unit)."""
+        return joint_rms(self.joint_error)
 
 
 @dataclass(frozen=True)
@@ -168,6 +175,7 @@ def _numbers(values, where: str) -> Numbers:
             f"in {numbers['total_time_s']} s"
         )
     evaluations = values.get("rig_evaluations", 0)
+    percent = values.get("joint_rms_percent_of_height")
     return Numbers(
         frames=int(numbers["frames"]),
         joint_error=float(numbers["joint_error"]),
@@ -175,7 +183,17 @@ def _numbers(values, where: str) -> Numbers:
         total_time_s=float(numbers["total_time_s"]),
         fps=float(numbers["fps"]),
         rig_evaluations=int(evaluations) if isinstance(evaluations, int | float) else 0,
+        joint_rms_percent_of_height=_optional_number(percent, where, "joint_rms_percent_of_height"),
     )
+
+
+def _optional_number(value, where: str, key: str) -> float | None:
+    """A number a newer metrics file has and an older one may lack (``None`` then)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ReportInputError(f"{where}: {key!r} must be a finite number, got {value!r}")
+    return float(value)
 
 
 def read_per_frame(path: str | Path, result: LoadedResult) -> pd.DataFrame:

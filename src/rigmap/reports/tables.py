@@ -34,6 +34,15 @@ GROUND_TRUTH_NOTE = (
     "divided by its standard deviation in the training corpus (rotations in radians); "
     "dimensionless."
 )
+SCALE_FREE_NOTE = (
+    "Joint RMS: the root mean squared joint distance, √(3 × Joint Error), in the rig's length "
+    "unit and as % of the character's rest height (the vertical extent of its joints at the "
+    "default controls), so rigs of any size compare. 'Joint Error ÷ Mean Predictor's' divides "
+    "by the error, on the same frames, of the mean predictor (the training corpus's mean "
+    "controls on every frame, placed like every regressor; the Mean Predictor row): 1 recovers "
+    "nothing of the pose, 0 all of it. The paper never states its unit, so its columns are "
+    "compared in shape, not in value."
+)
 TIME_NOTE = (
     "Total Time: wall-clock seconds for the clip (warm-up frames excluded); Frames per Sec = "
     "frames / Total Time; measured on the machine that ran the evaluate stage."
@@ -55,8 +64,12 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     others = [rig_label(rig) for rig in tree if not settings.methods_for(rig)]
     tree = {rig: metrics for rig, metrics in tree.items() if settings.methods_for(rig)}
     unit = _unit_label({r.length_unit for m in tree.values() for r in m.methods.values()})
+    distance = unit.removesuffix(SQUARE)
     value_labels = [
         f"Joint Error ({unit})",
+        f"Joint RMS ({distance})",
+        "Joint RMS (% of height)",
+        "Joint Error ÷ Mean Predictor's",
         "Ground Truth Error",
         "Total Time (s)",
         "Frames per Sec",
@@ -65,8 +78,11 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     columns += [Column(label, OURS, short_group="") for label in value_labels]
     columns += [
         Column(label, published.LABEL, short_group="published")
-        for label in ("Joint Error", *value_labels[1:])
-    ]
+        for label in (
+            "Joint Error (unit not stated)", "Ground Truth Error", "Total Time (s)",
+            "Frames per Sec",
+        )
+    ]  # fmt: skip
 
     rows, classes, records, budget_notes = [], [], [], []
     for rig, metrics in tree.items():
@@ -78,13 +94,13 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
             shown = motion if first is None else f"{motion} (first {first} frames)"
             for index, method in enumerate(methods):
                 result = metrics.methods[method]
-                numbers = result.average if motion == published.AVERAGE else result.clips[motion]
+                numbers = _motion_numbers(result, motion)
+                baseline = _mean_predictor(metrics, motion)
                 row_kind = find_row(METHODS, method, "method")
                 paper = published.table1_value(rig, motion, method)
                 label = f"{rig_label(rig)} — {shown}" if index == 0 else ""
-                rows.append(
-                    [label, row_kind.display, *_method_cells(numbers), *_paper_cells(paper)]
-                )
+                cells = [label, row_kind.display, *_method_cells(numbers, baseline)]
+                rows.append(cells + _paper_cells(paper))
                 css = ["group-start" if index == 0 else ""]
                 css += ["average" if motion == published.AVERAGE else "", "extra" * row_kind.extra]
                 classes.append(" ".join(c for c in css if c))
@@ -97,6 +113,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         "extra": row_kind.extra,
                         "sampler": result.sampler,
                         **_number_record(numbers),
+                        **_relative_record(numbers, baseline),
                         "length_unit": result.length_unit,
                         "frames_per_clip": first,
                         **_paper_record(paper),
@@ -119,6 +136,7 @@ def _methods_notes(settings: ReportSettings) -> list[str]:
     extras = [m.label for m in METHODS if m.extra and m.key in settings.methods]
     notes = [
         JOINT_ERROR_NOTE,
+        SCALE_FREE_NOTE,
         GROUND_TRUTH_NOTE,
         TIME_NOTE,
         f"GPR rows use the GPR fitted on the train corpus (multiquadric kernel unless the "
@@ -185,13 +203,49 @@ def _frame_budget_note(metrics: RigMetrics, methods: Sequence[str], first: int) 
     return note
 
 
-def _method_cells(numbers: Numbers) -> list[str]:
+MEAN_PREDICTOR = "mean"  # the method key of the yardstick row (conf/method/mean.yaml)
+
+
+def _motion_numbers(result: LoadedResult, motion: str) -> Numbers:
+    return result.average if motion == published.AVERAGE else result.clips[motion]
+
+
+def _mean_predictor(metrics: RigMetrics, motion: str) -> Numbers | None:
+    """The mean predictor's numbers on the same frames, if this run evaluated it."""
+    result = metrics.methods.get(MEAN_PREDICTOR)
+    return None if result is None else _motion_numbers(result, motion)
+
+
+def _ratio(value: float, baseline: float | None) -> float | None:
+    return None if baseline is None or baseline <= 0 else value / baseline
+
+
+def _method_cells(numbers: Numbers, baseline: Numbers | None) -> list[str]:
+    percent = numbers.joint_rms_percent_of_height
+    relative = _ratio(numbers.joint_error, baseline and baseline.joint_error)
     return [
         format_error(numbers.joint_error),
+        format_error(numbers.joint_rms),
+        MISSING if percent is None else format_seconds(percent),
+        MISSING if relative is None else format_error(relative),
         format_error(numbers.ground_truth_error),
         format_seconds(numbers.total_time_s),
         format_seconds(numbers.fps),
     ]
+
+
+def _relative_record(numbers: Numbers, baseline: Numbers | None) -> dict:
+    """The scale-free numbers: RMS distance, % of height, errors ÷ the mean predictor's."""
+    return {
+        "joint_rms": numbers.joint_rms,
+        "joint_rms_percent_of_height": numbers.joint_rms_percent_of_height,
+        "joint_error_relative_to_mean": _ratio(
+            numbers.joint_error, baseline and baseline.joint_error
+        ),
+        "ground_truth_error_relative_to_mean": _ratio(
+            numbers.ground_truth_error, baseline and baseline.ground_truth_error
+        ),
+    }
 
 
 def _paper_cells(paper: published.PublishedMethodRow | None) -> list[str]:

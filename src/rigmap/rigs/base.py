@@ -180,6 +180,13 @@ class Rig(ABC):
     def default_controls(self, n: int = 1) -> np.ndarray:
         return np.tile(self.controls.defaults, (n, 1))
 
+    def rest_height(self) -> float:
+        """The character's height at its default controls: the vertical (y) extent of its
+        joints in the world, in ``length_unit``. Errors divided by it compare across rigs."""
+        rest = self.pose(self.controls.defaults[None])
+        world = np.asarray(rest.positions)[0] + np.asarray(rest.cog)[0]
+        return float(np.ptp(world[:, 1]))
+
     def evaluate(self, Y):
         """Joint positions relative to the COG, ``(N, J, 3)``."""
         return self.pose(Y).positions
