@@ -24,12 +24,14 @@ from rigmap.evaluation import (
     get_method,
     run_method,
 )
+from rigmap.evaluation.novelty import Novelty
 from rigmap.refine import PredictedJacobian, jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
     GaussianKernel,
     GaussianProcessRegressor,
     LearnedJacobian,
+    MeanRegressor,
     MultiquadricKernel,
 )
 from rigmap.regression.features import inverse_features
@@ -85,6 +87,7 @@ def fit_tiny_models(rig, folder: Path, models_root: Path) -> dict[str, Path]:
             J = jacobian(rig, rig.expand_used(Y[support]))
             learned = LearnedJacobian(kernel=gpr.kernel_, search_length_scale=False)
             learned.fit(X[support], J, **names).save(out / f"gpr-none-{label}" / "learned_jacobian")
+    folders["mean-none-none"] = MeanRegressor().fit(X, Y, **names).save(out / "mean-none-none")
     for seed, sampler in enumerate(("pca_gaussian", "none")):
         network = FeedForwardRegressor(
             hidden=24, epochs=3, batch_size=32, seed=seed, progress=False
@@ -112,6 +115,7 @@ def face_setup(tmp_path_factory):
             models / "gpr-none-multiquadric" / "learned_jacobian", rig=rig
         ),
         "nn": FeedForwardRegressor.load(models / "nn-pca_gaussian-none", rig=rig),
+        "mean": MeanRegressor.load(models / "mean-none-none", rig=rig),
     }
 
 
@@ -300,6 +304,24 @@ def test_bad_setups_are_refused_with_what_was_expected(face_setup):
         test_set.first_frames(0)
 
 
+def test_every_regression_method_reports_its_per_frame_novelty(face_setup, face_runs):
+    s = face_setup
+    measure = Novelty.from_training(s["test_set"].train_poses, s["rig"].n_joints)
+    for name, run in face_runs.items():
+        frames = run.result.per_frame_table()
+        clip = s["test_set"].clips[0]
+        rows = inverse_features(
+            clip.positions, clip.cog, clip.cog_rotation, n_joints=s["rig"].n_joints, where="t"
+        )
+        # these tiny models have no placement: novelty is measured on the pose rows themselves
+        expected = measure.distances(rows)
+        np.testing.assert_allclose(frames["novelty"].to_numpy()[: len(clip)], expected)
+        assert (expected > 0).any(), name  # test frames are not training frames
+        confidence = run.result.to_dict()["confidence"]
+        assert confidence["per_frame_column"] == "novelty"
+        assert -1.0 <= confidence["novelty_error_spearman"] <= 1.0
+
+
 def test_evaluation_jobs_follow_the_contract_layout(tmp_path):
     methods = evaluation_jobs("methods", "biped", tmp_path)
     assert [j.metrics_path.relative_to(tmp_path).as_posix() for j in methods] == [
@@ -311,6 +333,7 @@ def test_evaluation_jobs_follow_the_contract_layout(tmp_path):
         "biped/methods/nn_computed_jacobian-pca_gaussian.json",
         "biped/methods/nn_learned_jacobian-pca_gaussian.json",
         "biped/methods/nn_autodiff_jacobian-pca_gaussian.json",
+        "biped/methods/mean-none.json",
     ]
     folders = {j.method.name: (j.model_id, j.jacobian_model_id) for j in methods}
     assert folders["script"] == (None, None)

@@ -32,6 +32,7 @@ from rigmap.evaluation.metrics import (
     joint_error,
     write_per_frame_csv,
 )
+from rigmap.evaluation.novelty import Novelty
 from rigmap.reports import ReportInputError, ReportSettings, build_report, load_metrics, published
 from rigmap.reports.figures import sweep_figure
 from rigmap.reports.rig_facts import RigFacts
@@ -71,10 +72,10 @@ def _rig_predictions(rig, data: Path):
                 "truth": ground_truth_error(Y_pred, Y_test, std, kinds).per_frame,
             }
         )
-    return table, X_test, fits
+    return table, X_test, fits, Novelty.from_training(X_train, rig.n_joints)
 
 
-def _method_result(rig, table, X_test, fit, method: str, sampler: str) -> MethodResult:
+def _method_result(rig, table, X_test, fit, method: str, sampler: str, novelty) -> MethodResult:
     clips = []
     flat = X_test.reshape(len(X_test), -1)
     for clip in dict.fromkeys(table["clip"]):
@@ -90,9 +91,13 @@ def _method_result(rig, table, X_test, fit, method: str, sampler: str) -> Method
                 total_time_s=seconds,
                 rig_evaluations=len(rows),
                 frame_numbers=table["frame"].to_numpy()[rows],
+                novelty_per_frame=novelty.distances(flat[rows]),
             )
         )
-    return MethodResult(rig=rig.name, method=method, sampler=sampler, clips=clips)
+    refine = "none" if "jacobian" not in method else "computed_jacobian"
+    return MethodResult(
+        rig=rig.name, method=method, sampler=sampler, clips=clips, extra={"refine": refine}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +108,7 @@ def project(tmp_path_factory):
     expected = {}
     for rig_name in RIGS:
         rig = load(rig_name)
-        table, X_test, fits = _rig_predictions(rig, data)
+        table, X_test, fits, novelty = _rig_predictions(rig, data)
         files = [
             ("methods", m, f"{m}-{SETTINGS.method_sampler(m)}", m, SETTINGS.method_sampler(m))
             for m in SETTINGS.methods_for(rig_name)
@@ -111,7 +116,8 @@ def project(tmp_path_factory):
         files += [("samplers", s, f"nn-{s}", "nn", s) for s in SETTINGS.samplers]
         files += [("kernels", k, f"gpr-{k}", "gpr", "none") for k in SETTINGS.kernels]
         for index, (folder, key, stem, method, sampler) in enumerate(files):
-            result = _method_result(rig, table, X_test, fits[index % len(RIDGES)], method, sampler)
+            fit = fits[index % len(RIDGES)]
+            result = _method_result(rig, table, X_test, fit, method, sampler, novelty)
             result.write_json(metrics / rig_name / folder / f"{stem}.json")
             write_per_frame_csv(result, metrics / rig_name / folder / f"{stem}.csv")
             expected[(rig_name, folder, key)] = result
@@ -206,6 +212,21 @@ def test_table1_scale_free_columns_divide_by_the_mean_predictor_row(project):
     assert rows["joint_rms_percent_of_height"].astype(str).isin(["", "nan"]).all()
     html_text = (project["root"] / "reports" / "tables" / "table1_methods.md").read_text()
     assert "Joint Error (unit not stated)" in html_text and "Mean Predictor" in html_text
+
+
+def test_confidence_figure_and_spearman_come_from_the_per_frame_novelty(project):
+    figure = project["root"] / "reports" / "figures" / "results" / "confidence.png"
+    assert figure in [f.path for f in project["files"].figures] and figure.stat().st_size > 5000
+    table = _csv(project, "table1_methods")
+    row = table[
+        (table["rig"] == "quadruped") & (table["motion"] == "Average") & (table["method"] == "gpr")
+    ].iloc[0]
+    result = project["expected"][("quadruped", "methods", "gpr")]
+    frames = result.per_frame_table()
+    from scipy.stats import spearmanr
+
+    expected = spearmanr(frames["novelty"], frames["joint_error"]).statistic
+    assert float(row["novelty_error_spearman"]) == pytest.approx(expected, rel=1e-12)
 
 
 def test_published_values_sit_beside_ours_and_are_labelled(project):

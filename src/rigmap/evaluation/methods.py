@@ -50,6 +50,7 @@ from rigmap.evaluation.metrics import (
     ground_truth_error,
     joint_error,
 )
+from rigmap.evaluation.novelty import Novelty
 from rigmap.evaluation.timing import CountingRig, run_timed
 from rigmap.store import Layout
 
@@ -285,6 +286,7 @@ class TestSet:
     control_kinds: list[str]
     train_std: np.ndarray  # (C_used,)
     character_height: float | None = None  # the rig's rest height; errors as % of it
+    train_poses: np.ndarray | None = None  # (N, 3J + 12) pose rows of the training corpus
 
     __test__ = False  # a data class, not a pytest test class
 
@@ -307,7 +309,7 @@ class TestSet:
         ]
         return TestSet(
             self.rig, clips, self.control_names, self.control_kinds, self.train_std,
-            self.character_height,
+            self.character_height, self.train_poses,
         )  # fmt: skip
 
     @classmethod
@@ -372,7 +374,21 @@ class TestSet:
             )
         kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
         std = control_std(train.table[used].to_numpy(dtype=np.float64))
-        return cls(rig.name, test_clips, used, kinds, std, rig.rest_height())
+        train_poses = _train_pose_rows(rig, layout)
+        return cls(rig.name, test_clips, used, kinds, std, rig.rest_height(), train_poses)
+
+
+def _train_pose_rows(rig: Any, layout: Layout) -> np.ndarray:
+    """The training corpus frames as pose rows: what the novelty of a test frame is against."""
+    from rigmap.animation.posing import PoseTable
+    from rigmap.regression.features import inverse_features
+
+    path = layout.poses(rig.name, "train")
+    poses = PoseTable.read(path, rig=rig.name, n_joints=rig.n_joints, split="train")
+    return inverse_features(
+        poses.positions(), poses.cog(), poses.cog_rotation(), n_joints=rig.n_joints,
+        where=str(path),
+    )  # fmt: skip
 
 
 def _layout_of(data: Layout | str | Path, rig: str) -> Layout:
@@ -425,12 +441,16 @@ def run_method(
     retarget = _Retargeter(
         counting, method, regressor, learned_jacobian, refine, test_set.train_std
     )
+    novelty = _novelty_of(regressor, test_set, rig.n_joints)
     clip_results, curves, initial, iterations, warmup = [], [], {}, {}, {}
     for clip in test_set.clips:
         (Y_used, refined), timing = run_timed(
             partial(retarget, clip), np.arange(len(clip)), warmup_frames=warmup_frames, rig=counting
         )
         result, truth = _score_clip(rig, clip, test_set, Y_used, timing)
+        if novelty is not None:  # after the clock: a diagnostic, not part of the method
+            rows = _pose_rows(rig, clip.name, clip.positions, clip.cog, clip.cog_rotation)
+            result.novelty_per_frame = novelty(rows)
         clip_results.append(result)
         warmup[clip.name] = {"seconds": timing.warmup_seconds, "frames": timing.warmup_frames}
         if refined is not None:
@@ -457,6 +477,26 @@ def run_method(
     )
     controls = pd.concat(curves, ignore_index=True)
     return MethodEvaluation(result, controls, initial)
+
+
+def _novelty_of(regressor: Any, test_set: TestSet, n_joints: int):
+    """``pose rows -> novelty per frame`` in the regressor's own inputs, or None (script)."""
+    if regressor is None or test_set.train_poses is None:
+        return None
+    placement = getattr(regressor, "placement", None)
+    inputs = placement.inputs if placement is not None else np.asarray  # a bare regressor
+    measure = Novelty.from_training(inputs(test_set.train_poses), n_joints)
+    return lambda rows: measure.distances(inputs(rows))
+
+
+def _pose_rows(rig, clip_name: str, positions, cog, rotation) -> np.ndarray:
+    """A test clip's frames as the pose rows a regressor takes."""
+    from rigmap.regression.features import inverse_features
+
+    return inverse_features(
+        positions, cog, rotation, n_joints=rig.n_joints,
+        where=f"test clip {clip_name!r} of rig {rig.name!r}",
+    )  # fmt: skip
 
 
 def _score_clip(rig, clip: TestClip, test_set: TestSet, Y_used: np.ndarray, timing):
@@ -581,15 +621,7 @@ class _Retargeter:
         return refined.Y_used, refined
 
     def _features(self, clip, positions, cog, rotation) -> np.ndarray:
-        from rigmap.regression.features import inverse_features
-
-        return inverse_features(
-            positions,
-            cog,
-            rotation,
-            n_joints=self.rig.n_joints,
-            where=f"test clip {clip.name!r} of rig {self.rig.name!r}",
-        )
+        return _pose_rows(self.rig, clip.name, positions, cog, rotation)
 
 
 def _check_inputs(rig, method, test_set, regressor, learned_jacobian, refine) -> None:

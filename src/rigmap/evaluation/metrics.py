@@ -32,6 +32,7 @@ from rigmap.error_measures import (  # noqa: F401  re-exported: evaluation code 
     joint_rms,
 )
 from rigmap.error_measures import finite_array as _finite_array
+from rigmap.evaluation.novelty import NOVELTY_MEASURE, rank_correlation
 from rigmap.store import json_ready, write_text_atomic
 
 RESULT_FORMAT = "rigmap.method_result/1"
@@ -46,6 +47,7 @@ METRIC_UNITS = {
     "rig_calls": "calls to the rig (each evaluates a batch of poses)",
     "joint_rms": "{unit}, root mean squared joint distance = sqrt(3 x joint_error)",
     "joint_rms_percent_of_height": "% of the character's rest height (scale-free)",
+    "novelty_error_spearman": "Spearman's rank correlation of per-frame novelty and joint error",
 }
 
 
@@ -66,9 +68,18 @@ class ClipResult:
     rig_evaluations: int = 0
     rig_calls: int = 0
     frame_numbers: np.ndarray | None = None
+    novelty_per_frame: np.ndarray | None = None  # rigmap.evaluation.novelty; None: not measured
 
     def __post_init__(self) -> None:
         where = f"clip {self.clip!r}"
+        if self.novelty_per_frame is not None:
+            novelty = _finite_array(self.novelty_per_frame, f"{where}: novelty_per_frame")
+            if novelty.shape != np.shape(self.joint_error_per_frame) or (novelty < 0).any():
+                raise MetricInputError(
+                    f"{where}: expected one novelty >= 0 per frame "
+                    f"({np.shape(self.joint_error_per_frame)}), got shape {novelty.shape}"
+                )
+            self.novelty_per_frame = novelty
         self.joint_error_per_frame = _finite_array(
             self.joint_error_per_frame, f"{where}: joint_error_per_frame"
         )
@@ -125,7 +136,7 @@ class ClipResult:
         return self.frames / self.total_time_s
 
     def summary(self) -> dict[str, float | int]:
-        return _summary(self)
+        return _with_confidence(_summary(self), [self])
 
 
 @dataclass
@@ -194,7 +205,7 @@ class MethodResult:
         return sum(c.rig_calls for c in self.clips)
 
     def average(self) -> dict[str, float | int]:
-        return self._scale_free(_summary(self))
+        return _with_confidence(self._scale_free(_summary(self)), self.clips)
 
     def _scale_free(self, numbers: dict[str, float | int]) -> dict[str, float | int]:
         """``numbers`` plus the joint error as an RMS distance, and as % of the height."""
@@ -216,6 +227,7 @@ class MethodResult:
             "character_height": self.character_height,
             "average": self.average(),
             "clips": {c.clip: self._scale_free(c.summary()) for c in self.clips},
+            "confidence": _confidence_record(self.clips),
             "units": {k: v.format(unit=self.length_unit) for k, v in METRIC_UNITS.items()},
             "timing": {
                 "clock": "wall clock, time.perf_counter",
@@ -238,17 +250,19 @@ class MethodResult:
         return write_text_atomic(path, self.to_json())
 
     def per_frame_table(self) -> pd.DataFrame:
-        """One row per test frame: ``clip``, ``frame``, ``joint_error``, ``ground_truth_error``."""
-        return pd.DataFrame(
-            {
-                "clip": np.concatenate([[c.clip] * c.frames for c in self.clips]),
-                "frame": np.concatenate([c.frame_numbers for c in self.clips]),
-                "joint_error": np.concatenate([c.joint_error_per_frame for c in self.clips]),
-                "ground_truth_error": np.concatenate(
-                    [c.ground_truth_error_per_frame for c in self.clips]
-                ),
-            }
-        )
+        """One row per test frame: ``clip``, ``frame``, ``joint_error``, ``ground_truth_error``
+        and, when measured, ``novelty`` (the per-frame confidence)."""
+        columns = {
+            "clip": np.concatenate([[c.clip] * c.frames for c in self.clips]),
+            "frame": np.concatenate([c.frame_numbers for c in self.clips]),
+            "joint_error": np.concatenate([c.joint_error_per_frame for c in self.clips]),
+            "ground_truth_error": np.concatenate(
+                [c.ground_truth_error_per_frame for c in self.clips]
+            ),
+        }
+        if _has_novelty(self.clips):
+            columns["novelty"] = np.concatenate([c.novelty_per_frame for c in self.clips])
+        return pd.DataFrame(columns)
 
 
 SUMMARY_FIELDS = (
@@ -260,6 +274,37 @@ SUMMARY_FIELDS = (
 def _summary(result) -> dict[str, float | int]:
     """A clip's or a method's numbers, in the metrics files' order."""
     return {name: getattr(result, name) for name in SUMMARY_FIELDS}
+
+
+def _has_novelty(clips) -> bool:
+    return all(c.novelty_per_frame is not None for c in clips)
+
+
+def _novelty_correlation(clips) -> float | None:
+    """Spearman's ρ of novelty and joint error over the clips' frames (None: not measured)."""
+    if not _has_novelty(clips):
+        return None
+    return rank_correlation(
+        np.concatenate([c.novelty_per_frame for c in clips]),
+        np.concatenate([c.joint_error_per_frame for c in clips]),
+    )
+
+
+def _with_confidence(numbers: dict[str, float | int], clips) -> dict[str, float | int]:
+    """``numbers`` plus the novelty/error rank correlation, when it was measured."""
+    rho = _novelty_correlation(clips)
+    return numbers if rho is None else {**numbers, "novelty_error_spearman": rho}
+
+
+def _confidence_record(clips) -> dict[str, Any] | None:
+    """What the per-frame ``novelty`` column of the CSV is, and how well it ranks the errors."""
+    if not _has_novelty(clips):
+        return None
+    return {
+        "per_frame_column": "novelty",
+        "measure": NOVELTY_MEASURE,
+        "novelty_error_spearman": _novelty_correlation(clips),
+    }
 
 
 def write_per_frame_csv(result: MethodResult, path: str | os.PathLike) -> Path:

@@ -17,7 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rigmap.reports.catalog import rig_label
-from rigmap.reports.figures import FigureFile, per_frame_figure, sweep_figure, time_figure
+from rigmap.reports.figures import (
+    FigureFile,
+    confidence_figure,
+    per_frame_figure,
+    sweep_figure,
+    time_figure,
+)
 from rigmap.reports.index_page import sample_grid_figures, write_index
 from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
 from rigmap.reports.rig_facts import rig_facts
@@ -84,6 +90,9 @@ def build_report(
         for rig in settings.method_rigs
     ]
     figures.append(time_figure(method_tree, settings, figures_folder / "time_per_method.png"))
+    confidence = confidence_figure(tree, settings, figures_folder / "confidence.png")
+    if confidence is not None:
+        figures.append(confidence)
     notes = []
     sweep = sweep_figure(tree, figures_folder / "joint_error_vs_supersamples.png")
     if sweep is None:

@@ -173,6 +173,53 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
                      caption)  # fmt: skip
 
 
+def confidence_figure(
+    tree: Mapping[str, RigMetrics], settings: ReportSettings, out: str | Path
+) -> FigureFile | None:
+    """Per-frame joint error against novelty (the per-frame confidence), one panel per rig and
+    unrefined regression method, Spearman's ρ in each title; None if no file has novelty."""
+    panels = [
+        (rig, method, table)
+        for rig in settings.method_rigs
+        for method in settings.methods_for(rig)
+        if tree[rig].methods[method].extra.get("refine") == "none"
+        and "novelty" in (table := tree[rig].methods[method].per_frame())
+    ]
+    if not panels:
+        return None
+    rigs = list(dict.fromkeys(rig for rig, _, _ in panels))
+    columns = max(sum(1 for r, _, _ in panels if r == rig) for rig in rigs)
+    fig = Figure(figsize=(3.6 * columns, 3.2 * len(rigs) + 0.6), dpi=DPI, layout="constrained")
+    axes = fig.subplots(len(rigs), columns, squeeze=False)
+    used = set()
+    for rig, method, table in panels:
+        row = rigs.index(rig)
+        column = sum(1 for r, _ in used if r == rig)
+        used.add((rig, method))
+        ax = axes[row][column]
+        novelty, error = table["novelty"].to_numpy(float), table["joint_error"].to_numpy(float)
+        rho = tree[rig].methods[method].novelty_spearman
+        ax.scatter(np.maximum(novelty, _positive_floor(novelty)),
+                   np.maximum(error, _positive_floor(error)), s=6, alpha=0.6)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        label = find_row(METHODS, method, "method").label
+        shown = "n/a" if rho is None else f"{rho:.2f}"
+        ax.set_title(f"{rig_label(rig)} — {label} (Spearman ρ {shown})", fontsize=9)
+        ax.set_xlabel(f"novelty ({tree[rig].length_unit}, RMS to nearest training frame)")
+        ax.set_ylabel(f"joint error ({tree[rig].length_unit}²)")
+        ax.grid(True, which="major", alpha=0.3)
+    for row, rig in enumerate(rigs):
+        for column in range(sum(1 for r, _ in used if r == rig), columns):
+            axes[row][column].set_visible(False)
+    caption = (
+        "Per-frame confidence: each test frame's joint error against its novelty, the RMS "
+        "joint distance of its input to the nearest training-corpus frame (higher = less "
+        "confident); frames far from the corpus are the ones to check."
+    )
+    return _finished(fig, out, "Joint error against novelty, per test frame", caption)
+
+
 def _finished(fig, out: str | Path, title: str, caption: str) -> FigureFile:
     """Title the figure, save it atomically, and pair it with its caption."""
     fig.suptitle(title, fontsize=11)

@@ -71,9 +71,17 @@ class LoadedResult:
     clips: dict[str, Numbers]
     extra: dict
 
+    confidence: dict | None = None  # the metrics JSON's "confidence" record, if measured
+
     @property
     def csv_path(self) -> Path:
         return self.path.with_suffix(".csv")
+
+    @property
+    def novelty_spearman(self) -> float | None:
+        """Spearman's ρ of per-frame novelty and joint error, as the evaluation measured it."""
+        value = (self.confidence or {}).get("novelty_error_spearman")
+        return None if value is None else float(value)
 
     def per_frame(self) -> pd.DataFrame:
         """The per-frame CSV beside the JSON, checked against it."""
@@ -155,7 +163,8 @@ def read_result(
     if not isinstance(unit, str) or not unit:
         raise ReportInputError(f"{path}: expected a 'length_unit' string, got {unit!r}")
     extra = data.get("extra") if isinstance(data.get("extra"), dict) else {}
-    return LoadedResult(path, rig, method, sampler, unit, average, per_clip, extra)
+    confidence = data.get("confidence") if isinstance(data.get("confidence"), dict) else None
+    return LoadedResult(path, rig, method, sampler, unit, average, per_clip, extra, confidence)
 
 
 def _numbers(values, where: str) -> Numbers:

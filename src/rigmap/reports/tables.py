@@ -114,6 +114,9 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         "sampler": result.sampler,
                         **_number_record(numbers),
                         **_relative_record(numbers, baseline),
+                        "novelty_error_spearman": result.novelty_spearman
+                        if motion == published.AVERAGE
+                        else None,
                         "length_unit": result.length_unit,
                         "frames_per_clip": first,
                         **_paper_record(paper),
