@@ -137,7 +137,9 @@ def test_the_three_sets_write_their_metrics_files(face):
         "face/nn-none-none"
     )
     per_frame = pd.read_csv(metrics / "methods" / "gpr-none.csv")
-    assert list(per_frame.columns) == ["clip", "frame", "joint_error", "ground_truth_error"]
+    assert list(per_frame.columns) == [
+        "clip", "frame", "joint_error", "ground_truth_error", "novelty"
+    ]  # fmt: skip
     assert len(per_frame) == 2 * FRAMES
     assert per_frame["joint_error"].mean() == pytest.approx(gpr["average"]["joint_error"])
 
