@@ -4,15 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import signal
-import socket
-import subprocess
-import sys
 import time
-import urllib.error
-import urllib.request
-from pathlib import Path
 
 import mlflow
 import numpy as np
@@ -28,8 +20,6 @@ from test_map_partial import EFFECTORS, gpr, random_poses
 
 SETTINGS = MapSettings(refine_iterations=1, feet=("foot_l", "foot_r"), key_tolerance_cm=0.5)
 FRAMES = 6
-SERVE_START_TIMEOUT_S = 180  # a loaded 2-core machine needs 10-60 s to import mlflow and start
-SERVE_REQUEST_TIMEOUT_S = 300
 
 
 @pytest.fixture(scope="module")
@@ -164,94 +154,29 @@ def test_logged_model_is_registered_and_loads_by_name(biped, fitted, tmp_path):
 
 
 # --------------------------------------------------------------------------- mlflow models serve
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _post(url: str, body: dict) -> tuple[int, dict]:
-    request = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
-                                     headers={"Content-Type": "application/json"})  # fmt: skip
-    try:
-        with urllib.request.urlopen(request, timeout=SERVE_REQUEST_TIMEOUT_S) as response:
-            return response.status, json.loads(response.read())
-    except urllib.error.HTTPError as error:
-        return error.code, json.loads(error.read())
-
-
-def _stop(server: subprocess.Popen) -> None:
-    """SIGTERM the server's process group (uvicorn and its worker), then SIGKILL what lingers."""
-    for sig, wait_s in ((signal.SIGTERM, 15.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(server.pid, sig)
-        except ProcessLookupError:
-            return
-        deadline = time.monotonic() + wait_s
-        while time.monotonic() < deadline:
-            server.poll()
-            try:
-                os.killpg(server.pid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.1)
-
-
-def _wait_for_ping(server: subprocess.Popen, url: str, log: Path) -> None:
-    deadline = time.monotonic() + SERVE_START_TIMEOUT_S
-    while True:
-        if server.poll() is not None:
-            raise RuntimeError(f"mlflow models serve exited with {server.returncode}: "
-                               f"{log.read_text()[-3000:]}")  # fmt: skip
-        try:
-            with urllib.request.urlopen(f"{url}/ping", timeout=5) as response:
-                if response.status == 200:
-                    return
-        except OSError:
-            pass
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"mlflow models serve not up in {SERVE_START_TIMEOUT_S} s: "
-                               f"{log.read_text()[-3000:]}")  # fmt: skip
-        time.sleep(0.5)
-
-
 @pytest.mark.slow
-def test_served_model_answers_over_rest(fitted, loaded, tmp_path):
-    port, log_path = _free_port(), tmp_path / "serve.log"
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
-    # the server execs `uvicorn` by name: this interpreter's own, even from an unactivated venv
-    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
-    command = [sys.executable, "-m", "mlflow", "models", "serve", "-m", str(fitted["folder"]),
-               "--env-manager", "local", "-h", "127.0.0.1", "-p", str(port), "-w", "1",
-               "-t", str(SERVE_REQUEST_TIMEOUT_S)]  # fmt: skip
-    url = f"http://127.0.0.1:{port}"
-    with open(log_path, "w") as log:
-        server = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                  cwd=tmp_path, start_new_session=True)  # fmt: skip
-        try:
-            _wait_for_ping(server, url, log_path)
-            request = fitted["request"]
-            split = {"columns": list(request.columns), "data": request.to_numpy().tolist()}
-            started = time.perf_counter()
-            status, answer = _post(f"{url}/invocations", {"dataframe_split": split})
-            served_s = time.perf_counter() - started
-            assert status == 200, answer
-            served = pd.DataFrame(answer["predictions"])
-            # JSON carries every float's shortest repr, so the server sees the very same targets
-            assert list(served.columns) == list(loaded.metadata.get_output_schema().input_names())
-            np.testing.assert_allclose(served.to_numpy(), fitted["expected"].controls, rtol=0,
-                                       atol=1e-9)  # fmt: skip
-            print(f"served map of {len(request)} frames in {served_s:.2f} s")
+def test_served_model_answers_over_rest(fitted, loaded):
+    from rigmap.map.model_server import post_json, served_model
 
-            missing = {
-                "columns": split["columns"][:7] + split["columns"][8:],
-                "data": [row[:7] + row[8:] for row in split["data"]],
-            }
-            status, answer = _post(f"{url}/invocations", {"dataframe_split": missing})
-            assert status == 400 and "missing inputs ['head.y']" in answer["message"]
-            nan = {"columns": split["columns"], "data": [list(row) for row in split["data"]]}
-            nan["data"][3][split["columns"].index("hand_l.z")] = None
-            status, answer = _post(f"{url}/invocations", {"dataframe_split": nan})
-            assert status == 400 and "joint 'hand_l' z is nan at frame 3" in answer["message"]
-        finally:
-            _stop(server)
+    request = fitted["request"]
+    split = {"columns": list(request.columns), "data": request.to_numpy().tolist()}
+    with served_model(fitted["folder"]) as url:
+        started = time.perf_counter()
+        status, answer = post_json(f"{url}/invocations", {"dataframe_split": split})
+        served_s = time.perf_counter() - started
+        assert status == 200, answer
+        served = pd.DataFrame(answer["predictions"])
+        # JSON carries every float's shortest repr, so the server sees the very same targets
+        assert list(served.columns) == loaded.metadata.get_output_schema().input_names()
+        difference = np.abs(served.to_numpy() - fitted["expected"].controls).max()
+        assert difference <= 1e-9
+        print(f"served map of {len(request)} frames in {served_s:.2f} s, differs by {difference}")
+
+        missing = {"columns": split["columns"][:7] + split["columns"][8:],
+                   "data": [row[:7] + row[8:] for row in split["data"]]}  # fmt: skip
+        status, answer = post_json(f"{url}/invocations", {"dataframe_split": missing})
+        assert status == 400 and "missing inputs ['head.y']" in answer["message"]
+        nan = {"columns": split["columns"], "data": [list(row) for row in split["data"]]}
+        nan["data"][3][split["columns"].index("hand_l.z")] = None
+        status, answer = post_json(f"{url}/invocations", {"dataframe_split": nan})
+        assert status == 400 and "joint 'hand_l' z is nan at frame 3" in answer["message"]
