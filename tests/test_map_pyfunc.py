@@ -93,6 +93,10 @@ def test_bad_requests_get_clear_errors(fitted, loaded):
         loaded.predict(nan)
     with pytest.raises(MapModelInputError, match=r"the clip is empty \(0 frames\)"):
         loaded.predict(request.iloc[:0])
+    with pytest.raises(MapModelInputError, match="refine_iterations -1 must be an integer >= 0"):
+        loaded.predict(request, params={"refine_iterations": -1})
+    with pytest.raises(MapModelInputError, match="fps is -24.0, expected a positive number"):
+        loaded.predict(request, params={"fps": -24.0})
     inner = loaded.unwrap_python_model()  # without MLflow's schema check, the model's own
     with pytest.raises(MapModelInputError, match=r"lacks 2 of the 21 joint columns .*'head.y'"):
         inner.predict(None, request.drop(columns=["head.y", "foot_r.x"]))

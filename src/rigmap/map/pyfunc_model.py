@@ -43,7 +43,7 @@ from rigmap.errors import RigmapError
 from rigmap.map.clip import MapSettings, map_clip
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.retarget_map import MappedTargets
-from rigmap.map.tracks import JointTracks
+from rigmap.map.tracks import JointTracks, TracksError
 from rigmap.store import write_folder_atomic, write_json_atomic
 from rigmap.tracking.pyfunc_model import (
     UntrustedModelError,
@@ -57,9 +57,8 @@ ENTRY_FILE = Path(__file__).with_name("pyfunc_entry.py")
 MAPPING_ARTIFACT = "subset_mapping"
 SPEC_ARTIFACT = "map_model"
 SPEC_FORMAT = "rigmap.map_pyfunc/1"
-DEFAULT_FPS = (
-    30.0  # ours: the rate a request is taken at unless it says (only foot contacts use it)
-)
+REQUEST = "map model request"  # what error messages call the input
+DEFAULT_FPS = 30.0  # ours: a request's frame rate unless it says (only foot contacts use it)
 
 
 class MapModelError(RigmapError, ValueError):
@@ -110,16 +109,20 @@ class MapClipModel(PythonModel):
     def predict(self, context: Any, model_input: pd.DataFrame, params: Any = None) -> Any:
         params = dict(params or {})
         fps = self._fps if params.get("fps") is None else float(params["fps"])
-        settings = self._settings
-        if params.get("refine_iterations") is not None:
-            settings = dataclasses.replace(
-                settings, refine_iterations=int(params["refine_iterations"])
-            )
         joints = self._mapping.subset.joints
-        targets = MappedTargets(self._rig.name, joints, request_positions(model_input, joints, fps),
-                                fps, "map model request", 1.0, (), ())  # fmt: skip
-        result = map_clip(self._rig, targets, self._mapping, settings, control_std=self._std,
-                          hold_values=self._hold)  # fmt: skip
+        try:
+            settings = self._settings
+            if params.get("refine_iterations") is not None:
+                iterations = int(params["refine_iterations"])
+                settings = dataclasses.replace(settings, refine_iterations=iterations)
+            positions = request_positions(model_input, joints, fps)
+            targets = MappedTargets(self._rig.name, joints, positions, fps, REQUEST, 1.0, (), ())
+            result = map_clip(self._rig, targets, self._mapping, settings,
+                              control_std=self._std, hold_values=self._hold)  # fmt: skip
+        except MlflowException:
+            raise
+        except RigmapError as error:  # bad settings, frames without a heading ...: the request's
+            raise MapModelInputError(f"map model: {error}") from None
         return pd.DataFrame(result.controls, columns=self._rig.control_names,
                             index=model_input.index)  # fmt: skip
 
@@ -128,23 +131,28 @@ def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarr
     """``(F, K, 3)`` from a request's ``<joint>.x/.y/.z`` columns; a clear error if not."""
     if not isinstance(table, pd.DataFrame):
         raise MapModelInputError(
-            "map model: expected joint targets as a pandas DataFrame with one row per frame "
+            f"{REQUEST}: expected joint targets as a pandas DataFrame with one row per frame "
             f"and columns '<joint>.x/.y/.z', got {type(table).__name__}"
         )
     columns = joint_columns(joints)
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise MapModelInputError(
-            f"map model: the request lacks {len(missing)} of the {len(columns)} joint columns "
+            f"{REQUEST}: lacks {len(missing)} of the {len(columns)} joint columns "
             f"it needs: {missing[:9]}{' ...' if len(missing) > 9 else ''} (joints "
             f"{list(joints)}, world cm, rig axes)"
         )
     try:
         values = table[columns].to_numpy(dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise MapModelInputError(
+            f"{REQUEST}: joint columns are not all numbers ({error})"
+        ) from None
+    try:  # JointTracks names the joint, axis and row of a NaN or inf, or an empty clip
         tracks = JointTracks(tuple(joints), values.reshape(len(table), len(joints), 3), fps,
-                             "cm", "map model request")  # fmt: skip
-    except (TypeError, ValueError) as error:  # TracksError is a ValueError
-        raise MapModelInputError(f"map model: {error}") from None
+                             "cm", REQUEST)  # fmt: skip
+    except TracksError as error:
+        raise MapModelInputError(str(error)) from None
     return tracks.positions
 
 
