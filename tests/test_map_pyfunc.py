@@ -95,14 +95,14 @@ def test_bad_requests_get_clear_errors(fitted, loaded):
         loaded.predict(request.iloc[:0])
     with pytest.raises(MapModelInputError, match="refine_iterations -1 must be an integer >= 0"):
         loaded.predict(request, params={"refine_iterations": -1})
-    with pytest.raises(MapModelInputError, match="fps is -24.0, expected a positive number"):
+    with pytest.raises(MapModelInputError, match=r"fps is -24\.0, expected a positive number"):
         loaded.predict(request, params={"fps": -24.0})
     inner = loaded.unwrap_python_model()  # without MLflow's schema check, the model's own
     with pytest.raises(MapModelInputError, match=r"lacks 2 of the 21 joint columns .*'head.y'"):
         inner.predict(None, request.drop(columns=["head.y", "foot_r.x"]))
 
 
-def test_a_model_for_another_rig_is_refused(fitted, tmp_path):
+def test_a_tampered_model_is_refused(fitted, tmp_path):
     import shutil
 
     copy = shutil.copytree(fitted["folder"], tmp_path / "model")
@@ -113,6 +113,12 @@ def test_a_model_for_another_rig_is_refused(fitted, tmp_path):
         mlflow.pyfunc.load_model(str(copy))
     spec_file.write_text(json.dumps({**spec, "rig": {"name": "biped", "path": "/tmp/x.py"}}))
     with pytest.raises(UntrustedModelError, match="rig must be a registered rig name"):
+        mlflow.pyfunc.load_model(str(copy))
+    spec_file.write_text(json.dumps(spec))
+    outside = shutil.copytree(copy / "artifacts" / "subset_mapping", tmp_path / "elsewhere")
+    shutil.rmtree(copy / "artifacts" / "subset_mapping")
+    (copy / "artifacts" / "subset_mapping").symlink_to(outside)
+    with pytest.raises(UntrustedModelError, match="outside the model folder"):
         mlflow.pyfunc.load_model(str(copy))
 
 

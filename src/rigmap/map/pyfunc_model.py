@@ -69,7 +69,7 @@ class MapModelInputError(RigmapError, MlflowException):
     """A request the map model cannot answer (missing joint columns, NaN, no frames).
 
     An ``MlflowException`` with ``INVALID_PARAMETER_VALUE``, so ``mlflow models serve``
-    answers HTTP 400 with this message instead of a generic 500.
+    answers HTTP 400 with this message, not its generic "unexpected error" one.
     """
 
     def __init__(self, message: str):
