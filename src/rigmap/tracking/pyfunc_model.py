@@ -115,7 +115,7 @@ def inside_folder(path: str | os.PathLike, folder: str | os.PathLike, what: str)
     return resolved
 
 
-def _check_payload(folder: Path, root: Path) -> None:
+def check_payload(folder: Path, root: Path) -> None:
     """Every file under the mapping folder stays inside the model folder (no escaping links)."""
     inside_folder(folder, root, "mapping artifact")
     if folder.is_dir():
@@ -158,7 +158,7 @@ class InverseMappingModel(PythonModel):
         }
         root = self._model_root or _model_root(paths[INTERFACE_ARTIFACT])
         interface_file = inside_folder(paths[INTERFACE_ARTIFACT], root, "interface artifact")
-        _check_payload(paths[MAPPING_ARTIFACT], root)
+        check_payload(paths[MAPPING_ARTIFACT], root)
         interface = _read_interface(interface_file)
         mapping_class = trusted_mapping_class(interface["mapping_class"], str(interface_file))
         self._mapping = mapping_class.load(paths[MAPPING_ARTIFACT])
@@ -301,7 +301,7 @@ def log_inverse_mapping(
                 code_paths=[str(p) for p in code_paths] if code_paths else None,
                 signature=signature,
                 input_example=input_example,
-                pip_requirements=list(pip_requirements or _requirements(mapping_class)),
+                pip_requirements=list(pip_requirements or pinned_requirements(mapping_class)),
                 registered_model_name=registered,
                 await_registration_for=60,
             )
@@ -343,7 +343,7 @@ def _check_round_trip(
         )
 
 
-def _requirements(mapping_class: type) -> list[str]:
+def pinned_requirements(mapping_class: type) -> list[str]:
     """Pinned versions of what loading needs: mlflow, numpy, pandas, rigmap, the mapping's package.
 
     rigmap is always needed (the pyfunc wrapper lives in it); a package that is
