@@ -76,6 +76,8 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn": 6 * len(rigs) + 1,
         "fit_gpr": 4 * len(rigs) + 1,
         "fit_mean": len(params["pipeline"]["table1_rigs"]) + 1,
+        "heldout": len(params["pipeline"]["table1_rigs"]),
+        "evaluate_splits": 2 * len(params["pipeline"]["table1_rigs"]),
         "sample_figures": len(rigs),
         "evaluate": 3,
         "evaluate_samplers": len(rigs),
@@ -83,7 +85,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "sample_sweep": 2,
         "report": 1,
     }
-    assert len(stages) == 99 and len(blender) == 1
+    assert len(stages) == 105 and len(blender) == 1
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):

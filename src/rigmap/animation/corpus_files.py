@@ -83,3 +83,41 @@ def pose_corpora(
         frames = len(poses.table)
         log(f"{rig.name} {split}: {frames} frames, {poses.n_joints} joints -> {written[-1]}")
     return written
+
+
+def write_heldout(
+    rig,
+    layout: Layout,
+    *,
+    seed: int,
+    fps: int,
+    variation: float,
+    batch_size: int,
+    log: Log = print,
+) -> list[Path]:
+    """New takes of the training motions and their poses, written together into
+    ``data/<rig>/heldout/`` (the in-distribution test set; same seed, same bytes)."""
+    from rigmap.animation.library import Variation, build_corpus
+    from rigmap.animation.posing import pose_corpus
+    from rigmap.store import write_folder_atomic
+    from rigmap.store.layout import HELDOUT
+
+    require_motion_library(rig.name)
+    scaled = Variation().scaled(float(variation))
+    corpus = build_corpus(rig, HELDOUT, seed=int(seed), fps=int(fps), variation=scaled)
+    corpus_path, poses_path = layout.corpus(rig.name, HELDOUT), layout.poses(rig.name, HELDOUT)
+    poses = pose_corpus(
+        rig, corpus, batch_size=int(batch_size), progress=True, source=corpus_path.as_posix()
+    )
+
+    def fill(staging: Path) -> None:
+        corpus.write(staging / corpus_path.name)
+        poses.write(staging / poses_path.name)
+
+    write_folder_atomic(layout.heldout_folder(rig.name), fill)
+    meta = corpus.metadata
+    log(
+        f"{rig.name} {HELDOUT}: {len(meta['clips'])} clips, {meta['frame_count']} frames (the "
+        f"training motions at seed {int(seed)} + offset) -> {corpus_path}, {poses_path}"
+    )
+    return [corpus_path, poses_path]

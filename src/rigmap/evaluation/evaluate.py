@@ -28,6 +28,7 @@ class EvaluationSettings:
     """What one evaluation runs and how (the ``evaluate`` config group, conf/evaluate/)."""
 
     set: str = "methods"
+    test_split: str = "test"  # test | heldout | train (rigmap.evaluation.jobs.TEST_SPLITS)
     methods: tuple[str, ...] = ()
     samplers: tuple[str, ...] = ()
     kernels: tuple[str, ...] = ()
@@ -87,15 +88,16 @@ def evaluate(
         nn_sampler=nn_sampler,
         gpr_kernel=gpr_kernel,
         catalog={name: configured.method for name, configured in catalog.items()},
+        test_split=settings.test_split,
     )
     models = FittedModels(layout, rig)
     models.check(jobs)  # every folder exists before minutes of work start
-    test_set = TestSet.load(rig, layout.rig_data(rig.name), clips=settings.clips)
+    test_set = TestSet.load(rig, layout, clips=settings.clips, split=settings.test_split)
     test_set = test_set.first_frames(settings.frames_per_clip)
     print(
-        f"evaluate {rig.name} ({settings.set}): {len(jobs)} runs on {len(test_set.clips)} test "
-        f"clips, {test_set.frames} frames; warm-up {settings.warmup_frames} frame(s) per clip "
-        "(untimed)",
+        f"evaluate {rig.name} ({settings.set}): {len(jobs)} runs on {len(test_set.clips)} "
+        f"{settings.test_split} clips, {test_set.frames} frames; warm-up "
+        f"{settings.warmup_frames} frame(s) per clip (untimed)",
         flush=True,
     )
     written = []

@@ -16,6 +16,9 @@ from rigmap.evaluation.methods import METHODS, EvaluationSetupError, Method
 from rigmap.store import Layout, ModelId
 
 EVALUATION_SETS = ("methods", "samplers", "kernels")
+#: what a set is scored on: the library's (extreme) test clips, new takes of the training
+#: motions (in-distribution, issue #15), or the training frames themselves (training error)
+TEST_SPLITS = ("test", "heldout", "train")
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,7 @@ def evaluation_jobs(
     nn_sampler: str = "pca_gaussian",
     gpr_kernel: str = "multiquadric",
     catalog: Mapping[str, Method] = METHODS,
+    test_split: str = "test",
 ) -> list[EvaluationJob]:
     """The runs of one evaluate stage; ``catalog`` holds the methods by name.
 
@@ -68,7 +72,8 @@ def evaluation_jobs(
         raise EvaluationSetupError(
             f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
         )
-    root = Layout(metrics=Path(metrics_folder)).metrics_folder(rig, set_name)
+    folder = set_folder(set_name, test_split)
+    root = Layout(metrics=Path(metrics_folder)).metrics_folder(rig, folder)
     jobs = []
     if set_name == "methods":
         for name in methods:
@@ -93,6 +98,16 @@ def evaluation_jobs(
     if repeated:
         raise EvaluationSetupError(f"evaluate.set={set_name}: runs repeated: {repeated}")
     return jobs
+
+
+def set_folder(set_name: str, test_split: str) -> str:
+    """The metrics folder of a set scored on a split: ``methods`` on the test clips,
+    ``methods_heldout`` on the held-out takes, ``methods_train`` on the training frames."""
+    if test_split not in TEST_SPLITS:
+        raise EvaluationSetupError(
+            f"evaluate.test_split: expected one of {TEST_SPLITS}, got {test_split!r}"
+        )
+    return set_name if test_split == "test" else f"{set_name}_{test_split}"
 
 
 def _method(catalog: Mapping[str, Method], name: str) -> Method:

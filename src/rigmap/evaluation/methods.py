@@ -314,26 +314,30 @@ class TestSet:
 
     @classmethod
     def load(
-        cls, rig: Any, data: Layout | str | Path, *, clips: Sequence[str] | None = None
+        cls,
+        rig: Any,
+        data: Layout | str | Path,
+        *,
+        clips: Sequence[str] | None = None,
+        split: str = "test",
     ) -> TestSet:
-        """Read the rig's test poses and its test and training corpus.
+        """Read the rig's poses and corpus of ``split`` and its training corpus.
 
         ``data`` is a :class:`rigmap.store.Layout` or the rig's data folder
-        (``data/<rig>``); ``clips`` picks test clips by name (default: all, in file order).
+        (``data/<rig>``); ``clips`` picks clips by name (default: all, in file order);
+        ``split`` is ``test`` (the library's test clips), ``heldout`` (new takes of the
+        training motions) or ``train`` (the training frames: the training error).
         """
         from rigmap.animation.corpus import Corpus
         from rigmap.animation.posing import PoseTable
 
         layout = _layout_of(data, rig.name)
-        folder = layout.rig_data(rig.name)
         used = list(rig.used_controls)
-        poses_file = layout.poses(rig.name, "test")
-        poses = PoseTable.read(poses_file, rig=rig.name, n_joints=rig.n_joints, split="test")
+        poses_file, corpus_file = layout.poses(rig.name, split), layout.corpus(rig.name, split)
+        poses = PoseTable.read(poses_file, rig=rig.name, n_joints=rig.n_joints, split=split)
         if poses.joint_names != list(rig.joint_names):
             raise EvaluationSetupError(f"{poses_file}: joint names differ from rig {rig.name!r}'s")
-        test = Corpus.read(
-            layout.corpus(rig.name, "test"), rig=rig.name, control_names=used, split="test"
-        )
+        test = Corpus.read(corpus_file, rig=rig.name, control_names=used, split=split)
         train = Corpus.read(
             layout.corpus(rig.name, "train"), rig=rig.name, control_names=used, split="train"
         )
@@ -342,17 +346,16 @@ class TestSet:
         corpus_keys = test.table[keys].reset_index(drop=True)
         if not pose_keys.equals(corpus_keys):
             raise EvaluationSetupError(
-                f"{folder}: poses/test.parquet and corpus/test.parquet list different "
-                f"(clip, frame) rows ({len(pose_keys)} and {len(corpus_keys)} rows); re-run "
-                "the pose stage"
+                f"{poses_file} and {corpus_file} list different (clip, frame) rows "
+                f"({len(pose_keys)} and {len(corpus_keys)} rows); re-run the stage that wrote them"
             )
         names = list(dict.fromkeys(poses.table["clip"]))
         if clips is not None:
             unknown = [c for c in clips if c not in names]
             if unknown or not clips:
                 raise EvaluationSetupError(
-                    f"test clips {unknown or '[]'} not found for rig {rig.name!r}; "
-                    f"its test clips are {names}"
+                    f"{split} clips {unknown or '[]'} not found for rig {rig.name!r}; "
+                    f"its {split} clips are {names}"
                 )
             names = list(clips)
         positions, cog, rotation = poses.positions(), poses.cog(), poses.cog_rotation()

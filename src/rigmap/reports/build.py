@@ -29,7 +29,13 @@ from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
 from rigmap.reports.rig_facts import rig_facts
 from rigmap.reports.settings import ReportSettings
 from rigmap.reports.table import Table, write_table
-from rigmap.reports.tables import kernels_table, methods_table, rigs_table, sampling_table
+from rigmap.reports.tables import (
+    kernels_table,
+    methods_table,
+    rigs_table,
+    sampling_table,
+    splits_table,
+)
 
 TABLES_FOLDER = "tables"
 RESULT_FIGURES_FOLDER = Path("figures") / "results"
@@ -81,6 +87,9 @@ def build_report(
         rigs_table(facts),
         kernels_table(tree, settings),
     ]
+    splits = splits_table(tree, settings)
+    if splits is not None:  # only when the evaluate_splits stage ran
+        tables.append(splits)
     written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
 
     figures_folder = reports_root / RESULT_FIGURES_FOLDER

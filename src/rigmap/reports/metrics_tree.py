@@ -98,6 +98,8 @@ class RigMetrics:
     samplers: dict[str, LoadedResult] = field(default_factory=dict)
     kernels: dict[str, LoadedResult] = field(default_factory=dict)
     sweep: dict[str, dict[int, LoadedResult]] = field(default_factory=dict)
+    #: Table 1's rows scored on other splits (``heldout``, ``train``): split -> method -> result
+    splits: dict[str, dict[str, LoadedResult]] = field(default_factory=dict)
 
     @property
     def length_unit(self) -> str:
@@ -309,8 +311,25 @@ def load_metrics(
             result = read_result(path, rig=rig, method=method, sampler=sampler, clips=clips)
             getattr(metrics, table)[key] = result
         metrics.sweep = _read_sweep(Path(metrics_root) / rig / SWEEP_FOLDER, rig, clips)
+        metrics.splits = _read_splits(Path(metrics_root) / rig, rig)
         tree[rig] = metrics
     return tree
+
+
+def _read_splits(rig_folder: Path, rig: str) -> dict[str, dict[str, LoadedResult]]:
+    """Optional ``methods_<split>/<method>-<sampler>.json``: Table 1 rows on another split."""
+    found: dict[str, dict[str, LoadedResult]] = {}
+    for split in ("heldout", "train"):
+        folder = rig_folder / f"methods_{split}"
+        for path in sorted(folder.glob("*.json")) if folder.is_dir() else ():
+            method, _, sampler = path.stem.partition("-")
+            if not sampler:
+                raise ReportInputError(
+                    f"{path}: unexpected file in {folder}; expected names <method>-<sampler>.json"
+                )
+            result = read_result(path, rig=rig, method=method, sampler=sampler)
+            found.setdefault(split, {})[method] = result
+    return found
 
 
 def _read_sweep(folder: Path, rig: str, clips) -> dict[str, dict[int, LoadedResult]]:

@@ -13,7 +13,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-SPLITS = ("train", "test")
+SPLITS = ("train", "test")  # what the animate and pose stages write
+#: new takes of the training motions (other seeds): the in-distribution test set (issue #15)
+HELDOUT = "heldout"
 _NAME = re.compile(r"^[a-z0-9_]+$")
 
 
@@ -83,14 +85,24 @@ class Layout:
         return self.data / rig
 
     def corpus(self, rig: str, split: str) -> Path:
-        """The animator clips of one split: ``data/<rig>/corpus/<split>.parquet``."""
+        """The animator clips of one split: ``data/<rig>/corpus/<split>.parquet``
+        (the held-out takes: ``data/<rig>/heldout/corpus.parquet``, their own stage's)."""
+        if split == HELDOUT:
+            return self.heldout_folder(rig) / "corpus.parquet"
         return self.rig_data(rig) / "corpus" / f"{_split(split)}.parquet"
+
+    def heldout_folder(self, rig: str) -> Path:
+        """The held-out takes and their poses: ``data/<rig>/heldout/``."""
+        return self.rig_data(rig) / HELDOUT
 
     def corpus_folder(self, rig: str) -> Path:
         return self.rig_data(rig) / "corpus"
 
     def poses(self, rig: str, split: str) -> Path:
-        """The rig evaluated on a split's frames: ``data/<rig>/poses/<split>.parquet``."""
+        """The rig evaluated on a split's frames: ``data/<rig>/poses/<split>.parquet``
+        (held-out takes: ``data/<rig>/heldout/poses.parquet``)."""
+        if split == HELDOUT:
+            return self.heldout_folder(rig) / "poses.parquet"
         return self.rig_data(rig) / "poses" / f"{_split(split)}.parquet"
 
     def poses_folder(self, rig: str) -> Path:
@@ -122,5 +134,5 @@ class Layout:
 
 def _split(split: str) -> str:
     if split not in SPLITS:
-        raise ValueError(f"split {split!r} is not one of {', '.join(SPLITS)}")
+        raise ValueError(f"split {split!r} is not one of {', '.join((*SPLITS, HELDOUT))}")
     return split

@@ -31,6 +31,7 @@ from rigmap.animation.library.clip_builder import (
     Variation,
 )
 from rigmap.rigs.manifest import all_manifests
+from rigmap.store.layout import HELDOUT
 
 SPLITS: tuple[str, str] = ("train", "test")
 
@@ -154,6 +155,11 @@ def build_clips(
     ]
 
 
+#: added to the seed for the held-out takes, so they are new draws of the training
+#: motions' seeded variation, never a training take (ours)
+HELDOUT_SEED_OFFSET = 1_000_000
+
+
 def build_corpus(
     rig,
     split: str,
@@ -162,8 +168,18 @@ def build_corpus(
     fps: int = AUTHORED_FPS,
     variation: Variation = DEFAULT_VARIATION,
 ) -> Corpus:
-    """Play a split of the rig's library on its used controls (unkeyed ones at default)."""
-    clips = build_clips(rig.name, split, seed=seed, fps=fps, variation=variation)
+    """Play a split of the rig's library on its used controls (unkeyed ones at default).
+
+    Split ``heldout`` is the training motions played again with the seed moved by
+    ``HELDOUT_SEED_OFFSET``: other takes of what the mapping learned from, the
+    in-distribution test set beside the library's extreme test clips (issue #15).
+    """
+    if split == HELDOUT:
+        clips = build_clips(
+            rig.name, "train", seed=seed + HELDOUT_SEED_OFFSET, fps=fps, variation=variation
+        )
+    else:
+        clips = build_clips(rig.name, split, seed=seed, fps=fps, variation=variation)
     used = rig.controls.used_indices
     return Corpus.from_clips(
         clips,

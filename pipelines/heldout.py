@@ -1,0 +1,34 @@
+"""DVC stage ``heldout``: new takes of the training motions, posed — the in-distribution test set.
+
+The library's test clips are extreme on purpose (issue #15: most of their frames lie far
+outside the corpus); this set asks the other question, how well a mapping does on motion
+like its training motion. Writes ``<paths.data>/<rig>/heldout/{corpus,poses}.parquet``:
+the train split's motions played with another seed (``HELDOUT_SEED_OFFSET``).
+
+    python pipelines/heldout.py rig=quadruped seed=0
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import DictConfig
+
+from rigmap.animation.corpus_files import write_heldout
+from rigmap.stage import run_stage
+from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config
+
+
+def run(cfg: DictConfig) -> list[Path]:
+    return write_heldout(
+        rig_from_config(cfg.rig),
+        layout_of(cfg),
+        seed=int(cfg.seed),
+        fps=corpus_fps(cfg.rig),
+        variation=float(cfg.corpus.variation),
+        batch_size=int(cfg.pose.batch_size),
+    )
+
+
+if __name__ == "__main__":
+    run_stage(run)
