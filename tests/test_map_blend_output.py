@@ -6,16 +6,14 @@ which lists every F-curve and its keys: the test compares them with the mapped v
 
 from __future__ import annotations
 
-import json
-import subprocess
 import textwrap
 
 import numpy as np
 import pytest
 
+from blender_script import run_bpy
 from rigmap.map.blend_output import mapped_controls_table, write_mapped_blend
 from rigmap.rigs import load
-from rigmap.rigs.blender.environment import WORKER_SCRIPT, find_blender
 
 pytestmark = [pytest.mark.blender]
 
@@ -52,17 +50,9 @@ def human():
     return load("rigify_human")
 
 
-def read_fcurves(blend, tmp_path) -> dict:
+def read_fcurves(blend, folder) -> dict:
     """Every F-curve of the file's rig, as a Blender process started here reads it."""
-    script, out = tmp_path / "read_fcurves.py", tmp_path / "fcurves.json"
-    script.write_text(READ_FCURVES)
-    blender = find_blender()
-    argv = [str(blender.executable), str(script)]
-    if blender.kind == "blender":
-        argv = [str(blender.executable), "-b", "--factory-startup", "--python", str(script), "--"]
-    subprocess.run([*argv, str(blend), str(out)], check=True, capture_output=True, timeout=300,
-                   cwd=WORKER_SCRIPT.parent)  # fmt: skip
-    return json.loads(out.read_text())
+    return run_bpy(READ_FCURVES, str(blend), folder=folder)
 
 
 def mapped_clip(rig, n_frames: int, seed: int = 0) -> np.ndarray:

@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
+from blender_script import run_bpy
 from rigmap.animation.library import build_clip, build_corpus, clip_rng, motion_library
 from rigmap.animation.library import rigify_human as rigify_library
 from rigmap.animation.library.clip_builder import ClipBuilder
@@ -163,3 +164,39 @@ def test_euler_angles_round_trip_without_flips():
         angles = rigify_library.matrices_to_euler(R, mode)
         np.testing.assert_allclose(rigify_library.euler_matrices(angles, mode), R, atol=1e-9)
         assert np.abs(np.diff(angles, axis=0)).max() < 1.5  # rad: no ±π jumps between rows
+
+
+READ_BONES = """
+import json, sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[-3])
+rig = bpy.data.objects[sys.argv[-2]]
+out = {}
+for bone in rig.data.bones:
+    m = bone.matrix_local.to_3x3()
+    # rigmap axes: X = Blender X, Y = Blender Z, Z = -Blender Y
+    frame = [[m[0][j] for j in range(3)], [m[2][j] for j in range(3)], [-m[1][j] for j in range(3)]]
+    head = bone.head_local * 100.0
+    out[bone.name] = {"frame": frame, "head": [head[0], head[2], -head[1]],
+                      "mode": rig.pose.bones[bone.name].rotation_mode}
+with open(sys.argv[-1], "w") as stream:
+    json.dump(out, stream)
+"""
+
+
+def test_rest_frames_and_rotation_modes_are_the_generated_rigs(human, tmp_path):
+    """The conventions the re-keying hard-codes, read back from the rig's .blend by bpy."""
+    bones = run_bpy(READ_BONES, str(human.path), "rig", folder=tmp_path)
+    turned = {(turn.target, turn.side) for turn in rigify_library.TURNS}
+    for bone in rigify_library.REST_FRAMES_LEFT:
+        for side in ("L", "R") if f"{bone}.L" in bones else (None,):
+            read = bones[bone if side is None else f"{bone}.{side}"]
+            expected = rigify_library.rest_frame(bone, side)
+            # 5e-3: the generated right foot is 0.1° off the left one's mirror
+            np.testing.assert_allclose(read["frame"], expected, atol=5e-3, err_msg=(bone, side))
+            if (bone, side) in turned:
+                mode = "XYZ" if read["mode"] == "QUATERNION" else read["mode"]  # the session's
+                assert mode == rigify_library.ROTATION_MODES.get(bone, "XYZ"), (bone, side)
+    for name, position in (("upper_arm_fk.L", rigify_library.RIGIFY_SHOULDER),
+                           ("hand_ik.L", rigify_library.RIGIFY_WRIST)):  # fmt: skip
+        np.testing.assert_allclose(bones[name]["head"], position, atol=0.01)
