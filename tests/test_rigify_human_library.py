@@ -15,6 +15,7 @@ from blender_script import run_bpy
 from rigmap.animation.library import build_clip, build_corpus, clip_rng, motion_library
 from rigmap.animation.library import rigify_human as rigify_library
 from rigmap.animation.library.clip_builder import ClipBuilder
+from rigmap.animation.library.rekey import rest_value
 from rigmap.rigs import load
 
 pytestmark = [pytest.mark.blender]
@@ -84,17 +85,17 @@ def test_rest_values_the_mapping_assumes_are_the_rigs(human):
     biped = load("biped")
     for channel in rigify_library.CHANNELS:
         assert human.controls[channel.target].default == pytest.approx(
-            rigify_library._default(channel.target, rigify_library.RIGIFY_DEFAULTS)
+            rest_value(channel.target, rigify_library.RIGIFY_DEFAULTS)
         ), channel.target
         for term in channel.terms:
             assert biped.controls[term.source].default == pytest.approx(
-                rigify_library._default(term.source, rigify_library.BIPED_DEFAULTS)
+                rest_value(term.source, rigify_library.BIPED_DEFAULTS)
             ), term.source
     for channel in rigify_library.SETTLE_CHANNELS:
         control = human.controls[channel.target]
         assert control.lower <= channel.centre <= control.upper
         assert control.default == pytest.approx(
-            rigify_library._default(channel.target, rigify_library.RIGIFY_DEFAULTS)
+            rest_value(channel.target, rigify_library.RIGIFY_DEFAULTS)
         ), channel.target
 
 

@@ -4,7 +4,8 @@ Rigify's human (``rigify_human``, evaluated by Blender) is the built-in biped's
 kind of character, a little taller, so it gets the biped's motions (:mod:`.biped`,
 keyed by its :class:`~.biped.Human` helpers) on a stand-in builder, and
 :class:`BipedToRigifyHuman` writes those curves onto Rigify's used controls — what
-a TD does to move animation between two rigs. Train and test clips are the biped's
+a TD does to move animation between two rigs (:mod:`.rekey`, shared with the wolf's
+library). Train and test clips are the biped's
 (the test clips carry the paper's Table 1 names); the seed, and so every take, is
 the Rigify human's own.
 
@@ -42,17 +43,22 @@ tests check them against the rig. The shares and settle spreads are ours.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from rigmap.animation.keyframes import FCurve
 from rigmap.animation.library import Motion, MotionLibrary
 from rigmap.animation.library import biped as human
 from rigmap.animation.library.clip_builder import ClipBuilder
+from rigmap.animation.library.rekey import (
+    CurveRekeyer,
+    SettleChannel,
+    Term,
+    key_through_stand_in,
+    rest_value,
+)
 
 #: Rigify cm per biped cm: hip-to-ankle 98.7 / 86 cm
 LENGTH_SCALE = 1.15
@@ -100,10 +106,6 @@ KNEE_TWIST_PER_CM = -0.04  # rad of thigh_ik.ry per biped cm of knee pole tx (me
 BIPED_DEFAULTS = {"ik_fk": 1.0, "follow": 1.0}
 #: Rigify controls whose rest value is not 0 (checked against the rig by the tests)
 RIGIFY_DEFAULTS = {"IK_Stretch": 1.0, "neck_follow": 0.5, "sy": 1.0}
-
-
-def _default(name: str, table: Mapping[str, float]) -> float:
-    return table.get(name.rsplit(".", 1)[1], 0.0)
 
 
 def rest_frame(bone: str, side: str | None = None) -> np.ndarray:
@@ -181,30 +183,11 @@ class BoneTurn:
 
 
 @dataclass(frozen=True)
-class Term:
-    """``weight`` × (biped control − its rest value)."""
-
-    source: str
-    weight: float
-
-
-@dataclass(frozen=True)
 class Channel:
     """One Rigify control: its rest value plus weighted biped channels."""
 
     target: str
     terms: tuple[Term, ...]
-
-
-@dataclass(frozen=True)
-class SettleChannel:
-    """A Rigify control the biped has no counterpart for: seeded values around ``centre``."""
-
-    target: str
-    centre: float
-    spread: float
-    lower: float = -math.inf
-    upper: float = math.inf
 
 
 def _channel(target: str, *terms: tuple[str, float]) -> Channel:
@@ -300,11 +283,10 @@ def rigify_controls() -> list[str]:
 
 
 # --- re-keying --------------------------------------------------------------------------------
-class BipedToRigifyHuman:
+class BipedToRigifyHuman(CurveRekeyer):
     """Writes a biped motion's nominal curves onto a Rigify human clip builder."""
 
-    def __init__(self, curves: Mapping[str, FCurve]):
-        self.curves = dict(curves)
+    source_defaults = BIPED_DEFAULTS
 
     def key_onto(self, b: ClipBuilder) -> None:
         for turn in TURNS:
@@ -314,36 +296,7 @@ class BipedToRigifyHuman:
         self._hand_targets(b)
         for channel in CHANNELS:
             self._channel(b, channel)
-        self._settle(b)
-
-    # --- evaluation of the biped's curves ---------------------------------------------------
-    def _frames(self, sources: Iterable[str]) -> np.ndarray:
-        present = [self.curves[s].frames for s in sources if s in self.curves]
-        return np.unique(np.concatenate(present)) if present else np.zeros(0)
-
-    def _value(self, source: str, frames: np.ndarray) -> np.ndarray:
-        """The biped control's offset from its rest value at ``frames``."""
-        curve = self.curves.get(source)
-        if curve is None:
-            return np.zeros(len(frames))
-        return np.asarray(curve.evaluate(frames), dtype=np.float64) - _default(
-            source, BIPED_DEFAULTS
-        )
-
-    def _interpolation(self, sources: Iterable[str], frame: float) -> str:
-        """The interpolation the biped keys on this frame share; Bézier when they differ."""
-        kinds = {
-            key.interpolation
-            for s in sources
-            if s in self.curves
-            for key in self.curves[s].keys
-            if key.frame == frame
-        }
-        return kinds.pop() if len(kinds) == 1 else "bezier"
-
-    def _write(self, b: ClipBuilder, target: str, sources, frames, values) -> None:
-        for frame, value in zip(frames, values, strict=True):
-            b.key(target, float(frame), float(value), self._interpolation(sources, frame))
+        self._settle(b, SETTLE_CHANNELS)
 
     # --- channels ---------------------------------------------------------------------------
     def _turn(self, b: ClipBuilder, turn: BoneTurn) -> None:
@@ -396,29 +349,15 @@ class BipedToRigifyHuman:
         frames = self._frames(sources)
         if frames.size == 0:
             return
-        values = np.full(len(frames), _default(channel.target, RIGIFY_DEFAULTS))
+        values = np.full(len(frames), rest_value(channel.target, RIGIFY_DEFAULTS))
         for term in channel.terms:
             values += term.weight * self._value(term.source, frames)
         self._write(b, channel.target, sources, frames, values)
 
-    def _settle(self, b: ClipBuilder) -> None:
-        frames = b.nominal_frames
-        picks = sorted({frames[0], frames[len(frames) // 2], frames[-1]})
-        for channel in SETTLE_CHANNELS:
-            for frame in picks:
-                value = b.vary(channel.centre, channel.spread)
-                b.key(channel.target, float(frame), min(max(value, channel.lower), channel.upper))
-
-
-def key_on_rigify_human(design: Callable[[ClipBuilder], None], b: ClipBuilder) -> None:
-    """Key the biped motion ``design`` on a stand-in biped builder, then re-key it onto Rigify."""
-    stand_in = ClipBuilder(b.name, b.rng, variation=b.variation, description=b.description)
-    design(stand_in)
-    BipedToRigifyHuman(stand_in.nominal_curves()).key_onto(b)
-
 
 def _on_rigify_human(motion: Motion) -> Motion:
-    return Motion(motion.name, partial(key_on_rigify_human, motion.keyframe), motion.description)
+    keyframe = partial(key_through_stand_in, motion.keyframe, BipedToRigifyHuman)
+    return Motion(motion.name, keyframe, motion.description)
 
 
 LIBRARY = MotionLibrary(
