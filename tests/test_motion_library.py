@@ -29,6 +29,7 @@ MIN_TRAIN_FRAMES = {
     "face": 300,
     "squirrel": 500,
     "rigify_wolf": 750,  # the dog's motions on Rigify's wolf
+    "rigify_human": 750,  # the biped's motions on Rigify's human
 }
 ABOUT_200_KEYFRAMES = {"quadruped", "biped"}
 DOG_TEST_CLIPS = {"Jumping & Playing", "Turning & Galloping", "Begging Excitedly"}
@@ -36,6 +37,7 @@ PAPER_TEST_CLIPS = {
     "quadruped": DOG_TEST_CLIPS,
     "biped": {"Range of Motion", "Swing Dance", "Tai Chi"},
     "rigify_wolf": DOG_TEST_CLIPS,
+    "rigify_human": {"Range of Motion", "Swing Dance", "Tai Chi"},
 }
 # Blender rigs need the worker environment even to list their controls
 BLENDER_MARKS = [

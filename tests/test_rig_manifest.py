@@ -124,7 +124,7 @@ def test_builtin_manifests_keep_the_catalogue_and_lookups_of_before():
         "rigify_wolf",
         "squirrel",
     ]
-    assert libraries() == ["biped", "face", "quadruped", "rigify_wolf", "squirrel"]
+    assert libraries() == ["biped", "face", "quadruped", "rigify_human", "rigify_wolf", "squirrel"]
     assert scripted_rigs() == ["biped", "quadruped"]
     assert {name: m.view for name, m in all_manifests().items() if m.view != "side"} == {
         "face": "front"

@@ -11,6 +11,7 @@ import pytest
 
 from rigmap.animation.library import build_clip, build_clips, build_corpus, motion_library
 from rigmap.animation.library import wolf as wolf_library
+from rigmap.animation.library.rekey import rest_value
 from rigmap.rigs import load
 
 pytestmark = [
@@ -79,11 +80,11 @@ def test_rest_values_the_mapping_assumes_are_the_rigs(wolf):
     dog = load("quadruped")
     for channel in wolf_library.CHANNELS:
         assert wolf.controls[channel.target].default == pytest.approx(
-            wolf_library._default(channel.target, wolf_library.WOLF_DEFAULTS)
+            rest_value(channel.target, wolf_library.WOLF_DEFAULTS)
         ), channel.target
         for term in channel.terms:
             assert dog.controls[term.source].default == pytest.approx(
-                wolf_library._default(term.source, wolf_library.DOG_DEFAULTS)
+                rest_value(term.source, wolf_library.DOG_DEFAULTS)
             ), term.source
     for channel in wolf_library.SETTLE_CHANNELS:
         control = wolf.controls[channel.target]

@@ -38,16 +38,22 @@ Conventions were measured on the generated rig by moving one control at a time
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
-from rigmap.animation.keyframes import FCurve
 from rigmap.animation.library import Motion, MotionLibrary
 from rigmap.animation.library import quadruped as dog
 from rigmap.animation.library.clip_builder import ClipBuilder
+from rigmap.animation.library.rekey import (
+    CurveRekeyer,
+    SettleChannel,
+    Term,
+    key_through_stand_in,
+    rest_value,
+)
 
 #: wolf cm per dog cm: COG heights 79.3 / 60 cm, paw spans 66 / 55 cm
 LENGTH_SCALE = 1.3
@@ -86,18 +92,6 @@ DOG_DEFAULTS = {"ik_fk": 1.0, "follow": 1.0}
 WOLF_DEFAULTS = {"IK_Stretch": 1.0, "neck_follow": 0.5}
 
 
-def _default(name: str, table: Mapping[str, float]) -> float:
-    return table.get(name.rsplit(".", 1)[1], 0.0)
-
-
-@dataclass(frozen=True)
-class Term:
-    """``weight`` × (dog control − its rest value)."""
-
-    source: str
-    weight: float
-
-
 @dataclass(frozen=True)
 class WolfChannel:
     """One wolf control: its rest value plus weighted dog channels (plus the tail wave)."""
@@ -105,17 +99,6 @@ class WolfChannel:
     target: str
     terms: tuple[Term, ...]
     wave_joints: tuple[int, ...] = ()  # dog tail joints (0-based) whose wave adds here
-
-
-@dataclass(frozen=True)
-class SettleChannel:
-    """A wolf control the dog has no counterpart for: seeded values around ``centre``."""
-
-    target: str
-    centre: float
-    spread: float
-    lower: float = -math.inf
-    upper: float = math.inf
 
 
 def _channel(target: str, *terms: tuple[str, float], wave: Iterable[int] = ()) -> WolfChannel:
@@ -293,46 +276,16 @@ def wolf_controls() -> list[str]:
 
 
 # --- re-keying --------------------------------------------------------------------------------
-class DogToWolf:
+class DogToWolf(CurveRekeyer):
     """Writes a dog motion's nominal curves onto a wolf clip builder."""
 
-    def __init__(self, curves: Mapping[str, FCurve]):
-        self.curves = dict(curves)
+    source_defaults = DOG_DEFAULTS
 
     def key_onto(self, b: ClipBuilder) -> None:
         self._torso(b)
         for channel in CHANNELS:
             self._channel(b, channel)
-        self._settle(b)
-
-    # --- evaluation of the dog's curves -----------------------------------------------------
-    def _frames(self, sources: Iterable[str]) -> np.ndarray:
-        present = [self.curves[s].frames for s in sources if s in self.curves]
-        if not present:
-            return np.zeros(0)
-        return np.unique(np.concatenate(present))
-
-    def _value(self, source: str, frames: np.ndarray) -> np.ndarray:
-        """The dog control's offset from its rest value at ``frames``."""
-        curve = self.curves.get(source)
-        if curve is None:
-            return np.zeros(len(frames))
-        return np.asarray(curve.evaluate(frames), dtype=np.float64) - _default(source, DOG_DEFAULTS)
-
-    def _interpolation(self, sources: Iterable[str], frame: float) -> str:
-        """The interpolation the dog keys on this frame share; Bézier when they differ."""
-        kinds = {
-            key.interpolation
-            for s in sources
-            if s in self.curves
-            for key in self.curves[s].keys
-            if key.frame == frame
-        }
-        return kinds.pop() if len(kinds) == 1 else "bezier"
-
-    def _write(self, b: ClipBuilder, target: str, sources, frames, values) -> None:
-        for frame, value in zip(frames, values, strict=True):
-            b.key(target, float(frame), float(value), self._interpolation(sources, frame))
+        self._settle(b, SETTLE_CHANNELS)
 
     # --- channels ---------------------------------------------------------------------------
     def _channel(self, b: ClipBuilder, channel: WolfChannel) -> None:
@@ -344,7 +297,7 @@ class DogToWolf:
         if waving:  # a sine is not a curve through its keys: sample it (Bézier between)
             dense = np.arange(frames[0], frames[-1], WAVE_STEP)
             frames = np.unique(np.concatenate([frames, dense]))
-        values = np.full(len(frames), _default(channel.target, WOLF_DEFAULTS))
+        values = np.full(len(frames), rest_value(channel.target, WOLF_DEFAULTS))
         for term in channel.terms:
             values += term.weight * self._value(term.source, frames)
         if waving:
@@ -373,14 +326,6 @@ class DogToWolf:
             values = local[axis] if axis.startswith("t") else rotation[axis]
             self._write(b, name, DOG_COG, frames, values)
 
-    def _settle(self, b: ClipBuilder) -> None:
-        frames = b.nominal_frames
-        picks = sorted({frames[0], frames[len(frames) // 2], frames[-1]})
-        for channel in SETTLE_CHANNELS:
-            for frame in picks:
-                value = b.vary(channel.centre, channel.spread)
-                b.key(channel.target, float(frame), min(max(value, channel.lower), channel.upper))
-
 
 def torso_rotation(rx, ry, rz) -> np.ndarray:
     """``(N, 3, 3)`` rotations in rigmap axes of the torso's Euler XYZ angles (radians).
@@ -398,15 +343,9 @@ def torso_rotation(rx, ry, rz) -> np.ndarray:
     return axes @ Rz @ Ry @ Rx @ axes.T
 
 
-def key_on_wolf(design: Callable[[ClipBuilder], None], b: ClipBuilder) -> None:
-    """Key the dog motion ``design`` on a stand-in dog builder, then re-key it onto the wolf."""
-    stand_in = ClipBuilder(b.name, b.rng, variation=b.variation, description=b.description)
-    design(stand_in)
-    DogToWolf(stand_in.nominal_curves()).key_onto(b)
-
-
 def _on_wolf(motion: Motion) -> Motion:
-    return Motion(motion.name, partial(key_on_wolf, motion.keyframe), motion.description)
+    keyframe = partial(key_through_stand_in, motion.keyframe, DogToWolf)
+    return Motion(motion.name, keyframe, motion.description)
 
 
 LIBRARY = MotionLibrary(

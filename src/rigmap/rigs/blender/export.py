@@ -9,6 +9,7 @@ produce, frame by frame — the round trip that proves the file is right.
 
 from __future__ import annotations
 
+from numbers import Real
 from pathlib import Path
 
 import numpy as np
@@ -85,18 +86,28 @@ def clip_rows(controls, clip: str | None = None):
     return rows.drop(columns=[CLIP_COLUMN]).reset_index(drop=True)
 
 
-def export_blend(rig_config_or_rig, controls, out_path, *, action_name: str | None = None) -> Path:
+def export_blend(
+    rig_config_or_rig,
+    controls,
+    out_path,
+    *,
+    action_name: str | None = None,
+    fps: float | None = None,
+) -> Path:
     """Write ``controls`` as keyframes on the rig into a new .blend at ``out_path``.
 
     Translations are in the rig's length unit (cm), rotations in radians, as
     everywhere in rigmap; they are converted to Blender's metres when keyed.
-    Controls without a column keep their rest values and get no keys.
+    Controls without a column keep their rest values and get no keys. ``fps``
+    sets the scene's frame rate (``None`` keeps the rig file's).
     """
     rig = blender_rig(rig_config_or_rig)
     frames, values, names = _control_table(rig, controls)
     out_path = Path(out_path).expanduser().resolve()
     if out_path.suffix != ".blend":
         raise ValueError(f"out_path must end in .blend, got {out_path.name!r}")
+    if fps is not None and not (isinstance(fps, Real) and np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a positive number of frames per second, got {fps!r}")
     options = {**rig.session_options, "prune": False, "keep_animation": False}
     with rig.make_pool(options, workers=1) as pool:
         pool.call(
@@ -105,6 +116,7 @@ def export_blend(rig_config_or_rig, controls, out_path, *, action_name: str | No
                 "out_path": str(out_path),
                 "names": names,
                 "action": action_name or f"{rig.name}_rigmap",
+                "fps": None if fps is None else float(fps),
             },
             {"frames": frames, "values": values},
         )

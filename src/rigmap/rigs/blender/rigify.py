@@ -51,10 +51,21 @@ _FACE_DEFORM = [
 RIGIFY_HUMAN: dict = {
     "armature": "rig",
     "cog_bone": "torso",
+    # the corpus walks the root across the room, crouches the torso and reaches with the IK
+    # hands (the biped's motions: rigmap.animation.library.rigify_human)
+    "soft_ranges": {
+        "root.t[xy]": [-400.0, 400.0],
+        "torso.t[xyz]": [-80.0, 80.0],
+        "hand_ik.[LR].t[xyz]": [-60.0, 60.0],
+        "foot_ik.[LR].t[xyz]": [-45.0, 45.0],
+    },
     "joints": {"include": ["DEF-*"], "exclude": _FACE_DEFORM},
     "used": {
         "include": [
-            "root.[tr][xyz]",
+            # the root places the body on the ground (Blender's X and Y, the heading about
+            # Blender's Z); lifting and tilting are the torso's
+            "root.t[xy]",
+            "root.rz",
             "torso.[tr][xyz]",
             "hips.[tr][xyz]",
             "chest.[tr][xyz]",

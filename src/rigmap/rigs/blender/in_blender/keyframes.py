@@ -23,9 +23,17 @@ def data_path(control: dict) -> tuple[str, int]:
 
 
 def write_keyframes(
-    session: RigSession, frames: np.ndarray, values: np.ndarray, names: list[str], action: str
+    session: RigSession,
+    frames: np.ndarray,
+    values: np.ndarray,
+    names: list[str],
+    action: str,
+    fps: float | None = None,
 ) -> dict:
-    """Key ``values[:, k]`` on control ``names[k]`` at ``frames`` (control units)."""
+    """Key ``values[:, k]`` on control ``names[k]`` at ``frames`` (control units).
+
+    ``fps`` (frames per second) sets the scene's playback rate; ``None`` keeps the file's.
+    """
     by_name = {c["name"]: c for c in session.controls}
     unknown = [n for n in names if n not in by_name]
     if unknown:
@@ -52,6 +60,9 @@ def write_keyframes(
                 point.interpolation = "CONSTANT"
         fcurve.update()
     scene = bpy.context.scene
+    if fps is not None:  # Blender's rate is an integer over a base: 29.97 = 30 / 1.001
+        scene.render.fps = max(1, round(fps))
+        scene.render.fps_base = scene.render.fps / fps
     scene.frame_start = int(np.floor(frames.min()))
     scene.frame_end = int(np.ceil(frames.max()))
     scene.frame_set(scene.frame_start)

@@ -135,7 +135,12 @@ class Worker:
         from keyframes import save_blend, write_keyframes
 
         info = write_keyframes(
-            self._session(), arrays["frames"], arrays["values"], args["names"], args["action"]
+            self._session(),
+            arrays["frames"],
+            arrays["values"],
+            args["names"],
+            args["action"],
+            args.get("fps"),
         )
         save_blend(args["out_path"])
         return info, {}
