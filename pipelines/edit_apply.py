@@ -1,7 +1,7 @@
 """DVC stage ``edit_apply``: edit propagation (002), :func:`rigmap.edits.runs.run_apply`.
 
-python pipelines/edit_apply.py +edits=default edits.subject=biped     # rig mode
-python pipelines/edit_apply.py +edits=default edits.subject=cmu_131   # skeleton mode
+python pipelines/edit_apply.py +edits=default                      # both subjects
+python pipelines/edit_apply.py +edits=default 'edits.run=[cmu_131]'  # skeleton mode only
 """
 
 from __future__ import annotations

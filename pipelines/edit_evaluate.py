@@ -1,7 +1,7 @@
 """DVC stage ``edit_evaluate``: edit propagation (002), :func:`rigmap.edits.runs.run_evaluate`.
 
-python pipelines/edit_evaluate.py +edits=default edits.subject=biped     # rig mode
-python pipelines/edit_evaluate.py +edits=default edits.subject=cmu_131   # skeleton mode
+python pipelines/edit_evaluate.py +edits=default                      # both subjects
+python pipelines/edit_evaluate.py +edits=default 'edits.run=[cmu_131]'  # skeleton mode only
 """
 
 from __future__ import annotations

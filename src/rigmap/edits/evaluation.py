@@ -38,13 +38,13 @@ def evaluate_edit(
         tally = score_clip(source.track, truth, result, data.scale, data.subject.relative_cm)
         clips[source.track.source] = tally.summary()
         total.merge(tally)
-    rows = {}
-    for name, weights in ablation.items():
-        tally = Tally()
-        for source, truth in zip(data.heldout, truths, strict=True):
-            solved = model.apply(source, weights=weights_from(weights))
-            tally.merge(score_clip(source.track, truth, solved, data.scale, None))
-        rows[name] = tally.summary()
+    tallies = {name: Tally() for name in ablation}
+    for source, truth in zip(data.heldout, truths, strict=True):
+        predictions = model.predict(source)
+        for name, weights in ablation.items():
+            solved = model.apply(source, weights_from(weights), predictions=predictions)
+            tallies[name].merge(score_clip(source.track, truth, solved, data.scale, None))
+    rows = {name: tally.summary() for name, tally in tallies.items()}
     return {
         "edit": edit.name,
         "description": edit.description,

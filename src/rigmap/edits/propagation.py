@@ -128,10 +128,15 @@ class EditModel:
         return k, a
 
     def apply(
-        self, source: SourceClip, weights: Weights | None = None, masked: np.ndarray | None = None
+        self,
+        source: SourceClip,
+        weights: Weights | None = None,
+        masked: np.ndarray | None = None,
+        predictions: tuple[Prediction, Prediction] | None = None,
     ) -> TargetTrack:
-        """The edited track of a new source clip: Eq. 12's banded solve per channel."""
-        k, a = self.predict(source)
+        """The edited track of a new source clip: Eq. 12's banded solve per channel
+        (``predictions`` from :meth:`predict`, to solve one clip with several weights)."""
+        k, a = predictions or self.predict(source)
         scaled = self.scale.scaled(source.track)
         solution = combine(
             scaled, k.mean, k.variance, a.mean, a.variance, weights or self.weights, masked=masked

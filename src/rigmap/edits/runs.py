@@ -1,5 +1,8 @@
 """What the three edit stages do, from a plain config dict and a :class:`rigmap.store.Layout`.
 
+Each runs over the subjects ``edits.run`` names, in one process (each stage's start-up,
+torch and the rigs, costs more than the edits of a subject).
+
 - :func:`run_fit`: every edit's model on the subject's examples →
   ``models/<subject>/edits/<edit>.npz`` and ``fit.json`` (hyper-parameters, iterations, s);
 - :func:`run_apply`: each model on the held-out clips → ``data/<subject>/edits/<edit>.npz``
@@ -39,10 +42,18 @@ TABLE_COLUMNS = (
 ABLATION_COLUMNS = ("edit_error_std", "transfer", "jerk_ratio", "drift_std", "leak_std")
 
 
-def _setup(config: dict):
-    subject = config["subject"]
-    if subject not in config["subjects"]:
-        raise TargetError(f"edits.subject {subject!r} is not one of {sorted(config['subjects'])}")
+def _subjects(config: dict) -> list[str]:
+    """The subjects a run covers (``edits.run``), checked before any work."""
+    names = list(config["run"])
+    unknown = [name for name in names if name not in config["subjects"]]
+    if unknown or not names:
+        raise TargetError(
+            f"edits.run {names} must name subjects among {sorted(config['subjects'])}"
+        )
+    return names
+
+
+def _setup(config: dict, subject: str):
     data = load_study(subject, config["subjects"][subject])
     edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode)
     for edit in edits.values():
@@ -50,8 +61,20 @@ def _setup(config: dict):
     return subject, data, edits
 
 
-def run_fit(config: dict, layout: Layout) -> Path:
-    subject, data, edits = _setup(config)
+def run_fit(config: dict, layout: Layout) -> list[Path]:
+    return [_fit(config, subject, layout) for subject in _subjects(config)]
+
+
+def run_apply(config: dict, layout: Layout) -> list[Path]:
+    return [_apply(config, subject, layout) for subject in _subjects(config)]
+
+
+def run_evaluate(config: dict, layout: Layout) -> list[Path]:
+    return [_evaluate(config, subject, layout) for subject in _subjects(config)]
+
+
+def _fit(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
     folder = layout.rig_models(subject) / EDITS
     infos = {}
     for name, edit in edits.items():
@@ -60,8 +83,8 @@ def run_fit(config: dict, layout: Layout) -> Path:
     return write_json_atomic(folder / "fit.json", json_ready(infos))
 
 
-def run_apply(config: dict, layout: Layout) -> Path:
-    subject, data, edits = _setup(config)
+def _apply(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
     models = layout.rig_models(subject) / EDITS
     out = layout.rig_data(subject) / EDITS
     for name in edits:
@@ -77,8 +100,8 @@ def run_apply(config: dict, layout: Layout) -> Path:
     return out
 
 
-def run_evaluate(config: dict, layout: Layout) -> Path:
-    subject, data, edits = _setup(config)
+def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
     models = layout.rig_models(subject) / EDITS
     applied = layout.rig_data(subject) / EDITS
     folder = layout.metrics_folder(subject, EDITS)
