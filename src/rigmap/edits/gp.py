@@ -134,6 +134,7 @@ class SharedGP:
         """Plain arrays that rebuild the fitted GP (:meth:`from_state`); no pickle."""
         names = ("X_", "Y_", "x_mean_", "x_std_", "y_mean_")
         arrays = {name: getattr(self, name) for name in names}
+        arrays["factor"], arrays["alpha"] = self._factor[0], self._alpha
         arrays["hyper"] = np.array([self.length_scale_, self.signal_, self.noise_,
                                     self.log_marginal_likelihood_, self.iterations_])  # fmt: skip
         return arrays
@@ -146,9 +147,9 @@ class SharedGP:
         hyper = np.asarray(arrays["hyper"], dtype=np.float64)
         gp.length_scale_, gp.signal_, gp.noise_, gp.log_marginal_likelihood_ = map(float, hyper[:4])
         gp.iterations_ = int(hyper[4])
-        gp._sq = _squared_distances(gp.X_, gp.X_)
-        gp._factor = cho_factor(gp._gram(np.log(hyper[:3])), lower=True)
-        gp._alpha = cho_solve(gp._factor, gp.Y_)
+        # the factor itself, not a refactorisation: a near-noiseless K is ill-conditioned
+        gp._factor = (np.asarray(arrays["factor"], dtype=np.float64), True)
+        gp._alpha = np.asarray(arrays["alpha"], dtype=np.float64)
         return gp
 
     # --- predicting --------------------------------------------------------------------

@@ -7,8 +7,8 @@ torch and the rigs, costs more than the edits of a subject).
   ``models/<subject>/edits/<edit>.npz`` and ``fit.json`` (hyper-parameters, iterations, s);
 - :func:`run_apply`: each model on the held-out clips → ``data/<subject>/edits/<edit>.npz``
   (the propagated tracks' values, one array per clip);
-- :func:`run_evaluate`: the scores → ``metrics/<subject>/edits/<edit>.json``,
-  ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``.
+- :func:`run_evaluate`: the scores → ``metrics/<subject>/edits/detail/<edit>.json`` (per
+  clip, too), ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``.
 """
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
         report = evaluate_edit(data, edit, model, results, dict(config["ablation"]))
         frames = sum(s.track.n_frames for s in data.heldout)
         report["apply_frames_per_s"] = frames / apply_s if apply_s > 0 else None
-        write_json_atomic(folder / f"{name}.json", json_ready(report))
+        write_json_atomic(folder / "detail" / f"{name}.json", json_ready(report))
         summary[name] = {
             **report["heldout"],
             "moving_fraction": report["context"]["moving_fraction"],
