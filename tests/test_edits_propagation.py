@@ -143,5 +143,5 @@ def test_bad_input_is_named(biped):
         TargetTrack(walk.channels, values, walk.fps, walk.start)
     text = WALK.read_text().replace("LeftElbow", "LeftElbo", 1)
     other = Skeleton.of(parse_bvh(text, source="renamed.bvh"))
-    with pytest.raises(TargetError, match="renamed.bvh: a different skeleton"):
+    with pytest.raises(TargetError, match=r"renamed\.bvh: a different skeleton"):
         Skeleton.of(read_bvh(WALK)).check_same(other, "renamed.bvh")
