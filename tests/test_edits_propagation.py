@@ -145,3 +145,21 @@ def test_bad_input_is_named(biped):
     other = Skeleton.of(parse_bvh(text, source="renamed.bvh"))
     with pytest.raises(TargetError, match=r"renamed\.bvh: a different skeleton"):
         Skeleton.of(read_bvh(WALK)).check_same(other, "renamed.bvh")
+
+
+def test_the_cli_fits_applies_and_scores_an_edit(tmp_path, capsys):
+    from rigmap.cli import main
+
+    paths = [f"paths.{k}={tmp_path / k}" for k in ("models", "data", "metrics")]
+    chosen = ["edits.run=[biped]", "edits.names=[arms_forward_walking]", *paths]
+    config = ["--config-dir", str(ROOT / "conf")]
+    for verb in ("fit", "apply", "evaluate"):
+        assert main(["edits", verb, *config, *chosen]) == 0
+    summary = yaml.safe_load((tmp_path / "metrics/biped/edits/summary.json").read_text())
+    scores = summary["arms_forward_walking"]
+    assert scores["transfer"] == pytest.approx(1.0, abs=0.05)
+    assert scores["joint_rmse_cm"] < 0.2 * scores["source_joint_rmse_cm"]
+    assert set(scores["ablation"]) == {"kinematic_only", "acceleration_only_anchored",
+                                       "both_without_regularisers", "full"}  # fmt: skip
+    assert (tmp_path / "models/biped/edits/arms_forward_walking.npz").is_file()
+    assert "metrics/biped/edits/summary.json" in capsys.readouterr().out
