@@ -7,7 +7,10 @@
 - context dependence (Fig 6): the fraction of the full-strength edit carried, per root
   speed band, predicted against the ground truth's; for the half-steps edit (Fig 7) the
   same fraction on moving frames (root speed at least the walking gate's lower speed) is
-  the averaging ratio (0.4–0.6 expected).
+  the averaging ratio (0.4–0.6 expected);
+- out-of-distribution input (Fig 4): on clips unlike the examples, the distance of the
+  result from the source and how well the kinematic variance separates their frames from
+  the held-out ones (AUROC; 1 = perfectly).
 
 Speed bands (cm/s) are ours.
 """
@@ -17,6 +20,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from sklearn.metrics import roc_auc_score
 
 from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel
@@ -54,6 +58,7 @@ def evaluate_edit(
         "clips": clips,
         "ablation": rows,
         "context": context_dependence(data, edit, truths, results),
+        "out_of_distribution": out_of_distribution(data, model),
     }
 
 
@@ -88,6 +93,31 @@ def context_dependence(data: StudyData, edit: Edit, truths, results) -> dict:
         "bands": bands,
         "moving_fraction": _mean(p[moving]),
         "correlation_with_truth": correlation,
+    }
+
+
+def out_of_distribution(data: StudyData, model: EditModel) -> dict | None:
+    """Fig 4: on clips unlike the examples the result should stay near the source, and the
+    kinematic GP's variance should tell their frames from the held-out ones (AUROC)."""
+    if not data.unlike:
+        return None
+    distance, variance = {}, {}
+    for group, clips in (("heldout", data.heldout), ("unlike", data.unlike)):
+        moved, spread = [], []
+        for source in clips:
+            predictions = model.predict(source)
+            result = model.apply(source, predictions=predictions)
+            moved.append(data.scale.scaled(result) - data.scale.scaled(source.track))
+            spread.append(predictions[0].variance)
+        distance[group] = float(np.sqrt(np.mean(np.concatenate(moved) ** 2)))
+        variance[group] = np.concatenate(spread)
+    labels = np.r_[np.zeros(len(variance["heldout"])), np.ones(len(variance["unlike"]))]
+    scores = np.r_[variance["heldout"], variance["unlike"]]
+    return {
+        "rms_distance_to_source_std": distance,
+        "mean_kinematic_variance": {k: float(v.mean()) for k, v in variance.items()},
+        "variance_auroc": float(roc_auc_score(labels, scores)),
+        "clips": [s.track.source for s in data.unlike],
     }
 
 

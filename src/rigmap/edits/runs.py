@@ -125,6 +125,7 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
         }
         summary[name]["ablation"] = report["ablation"]
         summary[name]["context"] = report["context"]
+        summary[name]["out_of_distribution"] = report["out_of_distribution"]
     _write_tables(folder, summary)
     return write_json_atomic(folder / "summary.json", json_ready(summary))
 

@@ -12,7 +12,7 @@ from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import rigmap.rigs
@@ -33,12 +33,14 @@ from rigmap.edits.subjects import (
 
 @dataclass(frozen=True, eq=False)
 class StudyData:
-    """A subject with its channel scale, example clips and held-out clips."""
+    """A subject with its channel scale, example clips, held-out clips and out-of-distribution
+    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4)."""
 
     subject: Subject
     scale: ChannelScale
     train: list[SourceClip]
     heldout: list[SourceClip]
+    unlike: list[SourceClip] = field(default_factory=list)
 
 
 def load_study(name: str, spec: dict) -> StudyData:
@@ -63,7 +65,11 @@ def _rig_study(spec: dict) -> StudyData:
     ]
     heldout_seed = int(spec["heldout_seed"])
     heldout = [subject.source(rig_clip(rig, subject.channels, n, heldout_seed)) for n in names]
-    return StudyData(subject, scale, train, heldout)
+    unlike = [
+        subject.source(rig_clip(rig, subject.channels, m.name, heldout_seed))
+        for m in motion_library(rig.name).test
+    ]
+    return StudyData(subject, scale, train, heldout, unlike)
 
 
 def _skeleton_study(name: str, spec: dict) -> StudyData:
