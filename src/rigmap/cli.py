@@ -37,7 +37,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Learning inverse rig mappings: joint positions -> animation-rig controls.",
     )
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
-    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_reproduce):
+    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_edits,
+                _add_reproduce):  # fmt: skip
         add(commands)
     return parser
 
@@ -156,6 +157,44 @@ def _add_evaluate(commands) -> None:
         "tracking.uri=, paths.*=",
         run=_evaluate,
     )
+
+
+def _add_edits(commands) -> None:
+    """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process."""
+    edits = commands.add_parser(
+        "edits", help="learn procedural artist edits and propagate them to held-out motion"
+    )
+    verbs = edits.add_subparsers(title="edit commands", metavar="EDIT_COMMAND")
+    for verb, what in (
+        ("fit", "fit each edit's GPs into models/<subject>/edits/"),
+        ("apply", "propagate each edit to the held-out clips into data/<subject>/edits/"),
+        ("evaluate", "score the propagated edits into metrics/<subject>/edits/"),
+    ):
+        _add_stage_command(
+            verbs,
+            verb,
+            help=what,
+            description=f"Runs the edit_{verb} stage (pipelines/edit_{verb}.py) on "
+            "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
+            f"{verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. Paths are relative to the "
+            "working directory.",
+            overrides="edits.run=, edits.names=, edits.residual=, edits.weights.*=, paths.*=",
+            run=lambda args, verb=verb: _edits(verb, args),
+        )
+
+
+def _edits(verb: str, args) -> int:
+    from omegaconf import OmegaConf
+
+    from rigmap.edits import runs
+    from rigmap.store import Layout
+
+    cfg = compose_config(["+edits=default", *args.overrides], args.config_dir)
+    config = OmegaConf.to_container(cfg.edits, resolve=True)
+    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
+    for path in getattr(runs, f"run_{verb}")(config, layout):
+        print(path)
+    return 0
 
 
 def _add_stage_command(commands, name, *, help, description, overrides, run) -> None:

@@ -1,0 +1,77 @@
+"""Edit propagation speed (002 §7.3): refit time at 2 × 550 frames and prediction frames/s; JSON.
+
+The paper: "Estimating the parameters for the Gaussian processes consumes around 30
+seconds, and producing frame estimations … proceeds at 2–3 frames per second", with the
+training data mirrored (550 frames → 1 100). Here: the skeleton-mode CMU walks, two
+550-frame walking stretches (one of each clip, 1 100 frames, 837 kinematic features) and
+the ``arms_forward_walking`` edit; the refit is both GPs (≤ 100 L-BFGS-B iterations
+each), prediction is both GPs plus the banded solve on the whole second clip (1 247
+frames at 120 fps). The machine may be shared: the 1-minute load average is printed, and
+CPU seconds of this process beside the wall-clock ones.
+
+    PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits.py [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import yaml
+
+import rigmap.rigs
+from rigmap.edits.procedural import Edit
+from rigmap.edits.propagation import EditModel
+from rigmap.edits.representation import ChannelScale
+from rigmap.edits.subjects import leg_length_cm_per_unit, skeleton_clip, skeleton_subject
+
+ROOT = Path(__file__).resolve().parents[1]
+MOCAP = ROOT.parent / "shared" / "mocap"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    first, second = MOCAP / "cmu_131_01_walk.bvh", MOCAP / "cmu_131_02_walk.bvh"
+    cm = leg_length_cm_per_unit(rigmap.rigs.load("biped"), first)
+    subject = skeleton_subject(first, cm, "cmu_131")
+    clips = [skeleton_clip(subject, first), skeleton_clip(subject, second)]
+    config = yaml.safe_load((ROOT / "conf/edit/arms_forward_walking.yaml").read_text())
+    edit = Edit.from_config("arms_forward_walking", config, "skeleton")
+    segments = [clips[0].frames(280, 830), clips[1].frames(500, 1050)]
+    pairs = [(subject.source(s), edit.apply(s, cm)) for s in segments]
+    scale = ChannelScale.fit(clips)
+    heldout = subject.source(clips[1])
+    fits, fit_cpu, rates, rate_cpu = [], [], [], []
+    for _ in range(args.repeats):
+        start, cpu = time.perf_counter(), time.process_time()
+        model = EditModel(subject.joints, residual=True).fit(pairs, scale)
+        fits.append(time.perf_counter() - start)
+        fit_cpu.append(time.process_time() - cpu)
+        start, cpu = time.perf_counter(), time.process_time()
+        model.apply(heldout)
+        rates.append(heldout.track.n_frames / (time.perf_counter() - start))
+        rate_cpu.append(heldout.track.n_frames / (time.process_time() - cpu))
+    print(json.dumps({
+        "training_frames": sum(s.n_frames for s in segments),
+        "kinematic_features": int(heldout.features(subject.joints)[0].shape[1]),
+        "channels": len(scale.channels),
+        "refit_s": {"min": min(fits), "all": fits},
+        "refit_cpu_s": {"min": min(fit_cpu), "all": fit_cpu},
+        "iterations": {"kinematic": model.kinematic_gp_.iterations_,
+                       "acceleration": model.acceleration_gp_.iterations_},
+        "predict_frames_per_s": {"max": max(rates), "all": rates},
+        "predict_frames_per_cpu_s": {"max": max(rate_cpu), "all": rate_cpu},
+        "predicted_frames": heldout.track.n_frames,
+        "real_time_fps": heldout.track.fps,
+        "load_average_1min": os.getloadavg()[0],
+        "cpus": os.cpu_count(),
+    }, indent=2))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,163 @@
+"""What the three edit stages do, from a plain config dict and a :class:`rigmap.store.Layout`.
+
+Each runs over the subjects ``edits.run`` names, in one process (each stage's start-up,
+torch and the rigs, costs more than the edits of a subject).
+
+- :func:`run_fit`: every edit's model on the subject's examples →
+  ``models/<subject>/edits/<edit>.npz`` and ``fit.json`` (hyper-parameters, iterations, s);
+- :func:`run_apply`: each model on the held-out clips → ``data/<subject>/edits/<edit>.npz``
+  (the propagated tracks' values, one array per clip);
+- :func:`run_evaluate`: the scores → ``metrics/<subject>/edits/detail/<edit>.json`` (per
+  clip, too), ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rigmap.edits.evaluation import evaluate_edit
+from rigmap.edits.propagation import load_model, save_model
+from rigmap.edits.representation import TargetError
+from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study
+from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
+
+EDITS = "edits"
+TABLE_COLUMNS = (
+    "edit_error_std",
+    "source_error_std",
+    "joint_rmse_cm",
+    "source_joint_rmse_cm",
+    "transfer",
+    "leak_std",
+    "leak_cm",
+    "jerk_ratio",
+    "drift_std",
+    "root_drift_cm",
+)
+ABLATION_COLUMNS = ("edit_error_std", "transfer", "jerk_ratio", "drift_std", "leak_std")
+
+
+def _subjects(config: dict) -> list[str]:
+    """The subjects a run covers (``edits.run``), checked before any work."""
+    names = list(config["run"])
+    unknown = [name for name in names if name not in config["subjects"]]
+    if unknown or not names:
+        raise TargetError(
+            f"edits.run {names} must name subjects among {sorted(config['subjects'])}"
+        )
+    return names
+
+
+def _setup(config: dict, subject: str):
+    data = load_study(subject, config["subjects"][subject])
+    edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode)
+    for edit in edits.values():
+        edit.check(data.train[0].track)
+    return subject, data, edits
+
+
+def run_fit(config: dict, layout: Layout) -> list[Path]:
+    return [_fit(config, subject, layout) for subject in _subjects(config)]
+
+
+def run_apply(config: dict, layout: Layout) -> list[Path]:
+    return [_apply(config, subject, layout) for subject in _subjects(config)]
+
+
+def run_evaluate(config: dict, layout: Layout) -> list[Path]:
+    return [_evaluate(config, subject, layout) for subject in _subjects(config)]
+
+
+def _fit(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
+    folder = layout.rig_models(subject) / EDITS
+    infos = {}
+    for name, edit in edits.items():
+        model, infos[name] = fit_edit(data, edit, config)
+        save_model(model, folder / f"{name}.npz")
+    return write_json_atomic(folder / "fit.json", json_ready(infos))
+
+
+def _apply(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
+    models = layout.rig_models(subject) / EDITS
+    out = layout.rig_data(subject) / EDITS
+    for name in edits:
+        model = load_model(models / f"{name}.npz")
+        start = time.perf_counter()
+        results = apply_edit(data, model)
+        seconds = time.perf_counter() - start
+        arrays = {f"clip_{k}": r.values for k, r in enumerate(results)}
+        arrays["sources"] = np.array([s.track.source for s in data.heldout])
+        arrays["apply_s"] = np.array(seconds)
+        with atomic_file(out / f"{name}.npz", suffix=".npz") as temporary:
+            np.savez(temporary, **arrays)
+    return out
+
+
+def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
+    models = layout.rig_models(subject) / EDITS
+    applied = layout.rig_data(subject) / EDITS
+    folder = layout.metrics_folder(subject, EDITS)
+    summary = {}
+    for name, edit in edits.items():
+        model = load_model(models / f"{name}.npz")
+        with np.load(applied / f"{name}.npz", allow_pickle=False) as stored:
+            results = [
+                s.track.with_values(stored[f"clip_{k}"], source=f"{s.track.source} (propagated)")
+                for k, s in enumerate(data.heldout)
+            ]
+            apply_s = float(stored["apply_s"])
+        report = evaluate_edit(data, edit, model, results, dict(config["ablation"]))
+        frames = sum(s.track.n_frames for s in data.heldout)
+        report["apply_frames_per_s"] = frames / apply_s if apply_s > 0 else None
+        write_json_atomic(folder / "detail" / f"{name}.json", json_ready(report))
+        summary[name] = {
+            **report["heldout"],
+            "moving_fraction": report["context"]["moving_fraction"],
+            "apply_frames_per_s": report["apply_frames_per_s"],
+        }
+        summary[name]["ablation"] = report["ablation"]
+        summary[name]["context"] = report["context"]
+        summary[name]["out_of_distribution"] = report["out_of_distribution"]
+    _write_tables(folder, summary)
+    return write_json_atomic(folder / "summary.json", json_ready(summary))
+
+
+def _write_tables(folder: Path, summary: dict) -> None:
+    rows = [{"edit": n, **{c: s[c] for c in TABLE_COLUMNS}} for n, s in summary.items()]
+    write_text_atomic(folder / "edits.csv", _csv(rows))
+    rows = [
+        {"edit": n, "solve": solve, **{c: r[c] for c in ABLATION_COLUMNS}}
+        for n, s in summary.items()
+        for solve, r in s["ablation"].items()
+    ]
+    write_text_atomic(folder / "ablation.csv", _csv(rows))
+    rows = [
+        {
+            "edit": n,
+            "speed_low_cm_s": b["speed_cm_s"][0],
+            "speed_high_cm_s": b["speed_cm_s"][1],
+            "frames": b["frames"],
+            "predicted_fraction": b["predicted_fraction"],
+            "true_fraction": b["true_fraction"],
+        }
+        for n, s in summary.items()
+        for b in s["context"]["bands"]
+    ]
+    write_text_atomic(folder / "context.csv", _csv(rows))
+
+
+def _csv(rows: list[dict]) -> str:
+    stream = io.StringIO()
+    writer = csv.DictWriter(stream, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    return stream.getvalue()

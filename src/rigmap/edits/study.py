@@ -1,0 +1,131 @@
+"""The edit-propagation study behind the ``edit_fit``/``edit_apply``/``edit_evaluate`` stages.
+
+A subject (the biped in rig mode, or the CMU walks in skeleton mode) gives example clips
+(about three walk cycles plus a stand, the paper's 550 + 74 frames) and held-out clips;
+each procedural edit (``conf/edit/``) is applied to both, the model is fitted on the
+examples, propagated to the held-out clips and scored against the edit applied to them
+(:mod:`rigmap.edits.scoring`). All functions take plain dicts and objects; paths come
+from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
+``data/<subject>/edits/``, ``metrics/<subject>/edits/``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import rigmap.rigs
+from rigmap.animation.library import motion_library
+from rigmap.edits.combine import Weights
+from rigmap.edits.procedural import Edit
+from rigmap.edits.propagation import EditModel, SourceClip
+from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
+from rigmap.edits.subjects import (
+    Subject,
+    leg_length_cm_per_unit,
+    rig_clip,
+    rig_subject,
+    skeleton_clip,
+    skeleton_subject,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class StudyData:
+    """A subject with its channel scale, example clips, held-out clips and out-of-distribution
+    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4)."""
+
+    subject: Subject
+    scale: ChannelScale
+    train: list[SourceClip]
+    heldout: list[SourceClip]
+    unlike: list[SourceClip] = field(default_factory=list)
+
+
+def load_study(name: str, spec: dict) -> StudyData:
+    """The subject ``name`` of the ``edits.subjects`` config (see conf/edits/default.yaml)."""
+    mode = spec.get("mode")
+    if mode == "rig":
+        return _rig_study(spec)
+    if mode == "skeleton":
+        return _skeleton_study(name, spec)
+    raise TargetError(f"edits subject {name!r}: mode must be 'rig' or 'skeleton', got {mode!r}")
+
+
+def _rig_study(spec: dict) -> StudyData:
+    rig = rigmap.rigs.load(spec["rig"])
+    subject = rig_subject(rig, tuple(spec["root_channels"]), tuple(spec["heading_joints"]))
+    names = [m.name for m in motion_library(rig.name).train]
+    scale_tracks = [rig_clip(rig, subject.channels, n, int(spec["scale_seed"])) for n in names]
+    scale = ChannelScale.fit(scale_tracks)
+    train = [
+        subject.source(rig_clip(rig, subject.channels, c["clip"], int(c["seed"])))
+        for c in spec["train"]
+    ]
+    heldout_seed = int(spec["heldout_seed"])
+    heldout = [subject.source(rig_clip(rig, subject.channels, n, heldout_seed)) for n in names]
+    unlike = [
+        subject.source(rig_clip(rig, subject.channels, m.name, heldout_seed))
+        for m in motion_library(rig.name).test
+    ]
+    return StudyData(subject, scale, train, heldout, unlike)
+
+
+def _skeleton_study(name: str, spec: dict) -> StudyData:
+    reference = Path(spec["reference"])
+    cm_per_unit = leg_length_cm_per_unit(rigmap.rigs.load(spec["cm_per_unit_from_rig"]), reference)
+    subject = skeleton_subject(reference, cm_per_unit, name, tuple(spec["heading_joints"]))
+    whole = {}
+    for item in [*spec["train"], *({"file": f} for f in spec["heldout"])]:
+        whole.setdefault(item["file"], skeleton_clip(subject, item["file"]))
+    scale = ChannelScale.fit([whole[item["file"]] for item in spec["train"]])
+    train = [subject.source(whole[c["file"]].frames(*c["frames"])) for c in spec["train"]]
+    heldout = [subject.source(whole[f]) for f in spec["heldout"]]
+    return StudyData(subject, scale, train, heldout)
+
+
+def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
+    """The named edits of the catalogue (``conf/edit/*.yaml``) for one mode."""
+    unknown = sorted(set(names) - set(catalogue))
+    if unknown:
+        raise TargetError(f"edits {unknown} are not in conf/edit/ (known: {sorted(catalogue)})")
+    return {name: Edit.from_config(name, catalogue[name], mode) for name in names}
+
+
+def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, dict]:
+    """Fit one edit's model on the examples; returns it and what the fit found."""
+    cm = data.subject.cm_per_unit
+    pairs = [(source, edit.apply(source.track, cm)) for source in data.train]
+    model = EditModel(
+        data.subject.joints,
+        weights_from(settings["weights"]),
+        residual=bool(settings["residual"]),
+        max_iterations=int(settings["max_iterations"]),
+    )
+    start = time.perf_counter()
+    model.fit(pairs, data.scale)
+    seconds = time.perf_counter() - start
+    info = {"fit_s": seconds, "training_frames": int(sum(s.track.n_frames for s in data.train))}
+    for which in ("kinematic", "acceleration"):
+        gp = getattr(model, f"{which}_gp_")
+        info[which] = {
+            "length_scale": gp.length_scale_,
+            "signal": gp.signal_,
+            "noise": gp.noise_,
+            "iterations": gp.iterations_,
+            "log_marginal_likelihood": gp.log_marginal_likelihood_,
+        }
+    return model, info
+
+
+def weights_from(values) -> Weights:
+    """Weights from a mapping (Weights' field names) or a list of four."""
+    if isinstance(values, dict):
+        return Weights(**{k: float(v) for k, v in values.items()})
+    return Weights(*(float(v) for v in values))
+
+
+def apply_edit(data: StudyData, model: EditModel) -> list[TargetTrack]:
+    """The propagated edit on every held-out clip."""
+    return [model.apply(source) for source in data.heldout]

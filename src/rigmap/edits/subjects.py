@@ -1,0 +1,146 @@
+"""The characters edits are learned on: a built-in rig (rig mode) or a BVH skeleton.
+
+A :class:`Subject` turns its clips into :class:`~rigmap.edits.propagation.SourceClip`
+objects (world joint positions for the features, a target track for the GPs) and turns
+any track back into joint positions in cm, for the joint errors:
+
+- :func:`rig_subject` — a built-in rig's motion library (:mod:`rigmap.animation.library`),
+  played on its used controls; positions from ``rig.pose`` (COG-relative + the COG).
+- :func:`skeleton_subject` — BVH clips (the CMU walks of ``../shared/mocap/``); their
+  length unit becomes cm by the ratio of the biped's leg (hip → ankle, cm) to the
+  skeleton's (ours: the CMU conversion has no stated unit).
+
+Joint errors compare positions relative to the root (COG or root joint), world-oriented;
+where the root goes is reported apart, as root drift.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from rigmap.animation import read_bvh
+from rigmap.animation.library import build_clip, motion_library
+from rigmap.edits.propagation import FeatureJoints, SourceClip
+from rigmap.edits.representation import TargetError, TargetTrack
+from rigmap.edits.rig_mode import RigChannels, full_controls, rig_controls, rig_targets
+from rigmap.edits.skeleton_mode import Skeleton, skeleton_positions, skeleton_targets
+
+# joints of the biped the features leave out: fingers, eyes and jaw (the body's motion is
+# what the edits depend on; ours)
+_DETAIL: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Subject:
+    """A character: its mode, feature joints, cm per length unit, and ``positions(track)``
+    (``(F, J, 3)`` world joint positions in cm)."""
+
+    name: str
+    mode: str
+    joints: FeatureJoints
+    cm_per_unit: float
+    positions: Callable[[TargetTrack], np.ndarray]
+    channels: RigChannels | None = None  # rig mode
+    skeleton: Skeleton | None = None  # skeleton mode
+
+    def relative_cm(self, track: TargetTrack) -> np.ndarray:
+        """Joint positions relative to the root, world-oriented, cm."""
+        p = self.positions(track)
+        return p - p[:, self.joints.root : self.joints.root + 1]
+
+    def source(self, track: TargetTrack) -> SourceClip:
+        return SourceClip(self.positions(track) / self.cm_per_unit, track)
+
+
+def rig_subject(
+    rig,
+    root_channels=("root.tx", "root.tz", "root.ry"),
+    heading_joints=("pelvis", "thigh_l", "thigh_r"),
+) -> Subject:
+    """Rig mode on a built-in rig (see the module docstring)."""
+    channels = RigChannels(tuple(rig.used_controls), tuple(root_channels))
+    used = rig.controls.used_indices
+    defaults = rig.controls.defaults
+
+    def positions(track: TargetTrack) -> np.ndarray:
+        # one thread: the rig's many small tensor ops lose more to thread hand-offs than they
+        # gain (measured: 87 frames of the biped 0.40 s on two threads, 0.06 s on one)
+        with threadpool_limits(limits=1):
+            pose = rig.pose(full_controls(rig_controls(track, channels), used, defaults))
+        return np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
+
+    names = list(rig.joint_names)
+    joints = _feature_joints(
+        names, [n for n in names if not any(d in n for d in _DETAIL)], heading_joints
+    )
+    return Subject(rig.name, "rig", joints, 1.0, positions, channels=channels)
+
+
+def rig_clip(rig, channels: RigChannels, clip_name: str, seed: int) -> TargetTrack:
+    """One clip of the rig's motion library (seeded variation) as a target track."""
+    _, motion = motion_library(rig.name).find(clip_name)
+    clip = build_clip(rig.name, motion, seed=seed)
+    controls = clip.evaluate(rig.control_names, rig.controls.defaults)
+    return rig_targets(
+        controls[:, rig.controls.used_indices],
+        channels,
+        clip.fps,
+        source=f"{clip_name} (seed {seed})",
+    )
+
+
+def skeleton_subject(
+    reference_bvh: str | Path,
+    cm_per_unit: float,
+    name: str,
+    heading_joints=("Hips", "LeftHip", "RightHip"),
+) -> Subject:
+    """Skeleton mode on a BVH skeleton; every later clip must have the same skeleton."""
+    skeleton = Skeleton.of(read_bvh(reference_bvh))
+    names = list(skeleton.joint_names)
+    moving = [n for j, n in enumerate(names) if j == 0 or np.linalg.norm(skeleton.offsets[j]) > 0]
+    joints = _feature_joints(names, moving, heading_joints)
+
+    def positions(track: TargetTrack) -> np.ndarray:
+        return skeleton_positions(track, skeleton) * cm_per_unit
+
+    return Subject(name, "skeleton", joints, cm_per_unit, positions, skeleton=skeleton)
+
+
+def skeleton_clip(subject: Subject, path: str | Path) -> TargetTrack:
+    """A BVH clip as a target track, checked against the subject's skeleton."""
+    motion = read_bvh(path)
+    subject.skeleton.check_same(Skeleton.of(motion), str(path))
+    return skeleton_targets(motion)
+
+
+def leg_length_cm_per_unit(
+    rig,
+    bvh_path: str | Path,
+    rig_leg=("thigh_l", "shin_l", "foot_l"),
+    bvh_leg=("LeftKnee", "LeftAnkle"),
+) -> float:
+    """cm per BVH unit: the rig's rest hip → knee → ankle length over the skeleton's."""
+    rest = np.asarray(rig.evaluate(rig.default_controls(1)))[0]
+    names = list(rig.joint_names)
+    rig_length = sum(
+        np.linalg.norm(rest[names.index(a)] - rest[names.index(b)])
+        for a, b in itertools.pairwise(rig_leg)
+    )
+    motion = read_bvh(bvh_path)
+    bvh_length = sum(np.linalg.norm(motion.offsets[motion.joint_index(j)]) for j in bvh_leg)
+    return float(rig_length / bvh_length)
+
+
+def _feature_joints(names: list[str], chosen: Sequence[str], heading_joints) -> FeatureJoints:
+    missing = [n for n in heading_joints if n not in names]
+    if missing:
+        raise TargetError(f"heading joints {missing} are not among the joints {names[:8]}…")
+    root, left, right = (names.index(n) for n in heading_joints)
+    return FeatureJoints(tuple(names.index(n) for n in chosen), root, left, right)

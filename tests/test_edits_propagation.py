@@ -1,0 +1,165 @@
+"""Edit propagation (002) on real data: representations, procedural edits, the model, bad input."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import rigmap.rigs
+from rigmap.animation import parse_bvh, read_bvh
+from rigmap.edits.procedural import Edit, EditConfigError
+from rigmap.edits.propagation import EditModel, SourceClip, load_model, save_model
+from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
+from rigmap.edits.rig_mode import rig_controls
+from rigmap.edits.scoring import score_clip
+from rigmap.edits.skeleton_mode import (
+    Skeleton,
+    local_rotations,
+    skeleton_positions,
+    skeleton_targets,
+)
+from rigmap.edits.subjects import rig_clip, rig_subject
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT.parent / "shared/mocap/cmu_131_02_walk.bvh"
+EDITS = ROOT / "conf/edit"
+
+
+def edit(name: str, mode: str) -> Edit:
+    return Edit.from_config(name, yaml.safe_load((EDITS / f"{name}.yaml").read_text()), mode)
+
+
+@pytest.fixture(scope="module")
+def biped():
+    rig = rigmap.rigs.load("biped")
+    subject = rig_subject(rig)
+    clips = {(name, seed): rig_clip(rig, subject.channels, name, seed)
+             for name in ("Walk", "Idle", "Wave") for seed in (0, 1)}  # fmt: skip
+    return rig, subject, clips
+
+
+def test_skeleton_mode_round_trips_the_bvh_and_its_exp_maps_are_continuous():
+    motion = read_bvh(WALK)
+    track = skeleton_targets(motion)
+    assert track.n_frames == 1247 and len(track.channels) == 4 + 4 + 3 * 30
+    positions = skeleton_positions(track, Skeleton.of(motion))
+    np.testing.assert_allclose(positions, motion.global_positions(), atol=1e-9)
+    # no 2π jumps: a channel jumps only where the rotation itself does (the CMU file's right
+    # thumb flips back and forth by about 3 rad, 26 times)
+    jumps = np.abs(np.diff(track.values[:, 8:], axis=0)).reshape(-1, 30, 3).max(axis=2) > 0.5
+    rotations = local_rotations(motion)[:, 1:]
+    turn = np.einsum("fjba,fjbc->fjac", rotations[:-1], rotations[1:])
+    angle = np.arccos(np.clip((np.trace(turn, axis1=2, axis2=3) - 1) / 2, -1, 1))
+    assert jumps.sum() == 26 and (angle[jumps] > 2.5).all()
+    assert set(np.flatnonzero(jumps.any(axis=0))) == {motion.joint_index("RThumb") - 1}
+    np.testing.assert_allclose(track.values[:, 0], 1.0 / motion.fps)
+
+
+def test_rig_mode_round_trips_the_controls_with_the_root_as_steps(biped):
+    rig, subject, clips = biped
+    walk = clips[("Walk", 0)]
+    controls = rig_controls(walk, subject.channels)
+    again = rig_clip(rig, subject.channels, "Walk", 0)
+    np.testing.assert_allclose(rig_controls(again, subject.channels), controls, atol=1e-9)
+    root = walk.root()
+    # the walk travels ~3 m forward at a constant heading: steps forward, none sideways
+    assert np.hypot(root.x[-1] - root.x[0], root.z[-1] - root.z[0]) > 250.0
+    assert np.abs(walk.values[:, walk.column("root.step_lateral")]).max() < 1e-9
+    assert walk.values[:, walk.column("root.step_forward")].mean() > 3.0  # cm per frame
+
+
+def test_procedural_edits_follow_their_context(biped):
+    clips = biped[2]
+    forward = edit("arms_forward_walking", "rig")
+    walk, idle = clips[("Walk", 0)], clips[("Idle", 0)]
+    column = walk.column("upper_arm_l_fk.ry")
+    moved = forward.apply(walk).values[:, column] - walk.values[:, column]
+    assert np.median(moved) == pytest.approx(-0.6, abs=0.01)  # walking: arms forward
+    assert np.abs(forward.apply(idle).values - idle.values).max() < 1e-12  # standing: none
+    swing = edit("arm_swing", "rig").apply(walk).values[:, column]
+    assert np.std(swing) > 1.5 * np.std(walk.values[:, column])
+    half = edit("half_steps_arms_forward", "rig")
+    changed = np.abs(half.apply(walk).values[:, column] - walk.values[:, column])
+    assert changed[:30].min() == pytest.approx(0.6) and changed[-30:].max() == 0.0
+
+
+def test_a_zero_edit_propagates_as_the_source(biped):
+    _, subject, clips = biped
+    scale = ChannelScale.fit(list(clips.values()))
+    train = [subject.source(clips[("Walk", 0)]), subject.source(clips[("Idle", 0)])]
+    model = EditModel(subject.joints, residual=True).fit([(s, s.track) for s in train], scale)
+    wave = clips[("Wave", 1)]
+    np.testing.assert_allclose(model.apply(subject.source(wave)).values, wave.values, atol=1e-9)
+
+
+def test_arms_forward_carries_to_a_held_out_walk_and_leaves_a_stand_alone(biped, tmp_path):
+    _, subject, clips = biped
+    scale = ChannelScale.fit(list(clips.values()))
+    forward = edit("arms_forward_walking", "rig")
+    train = [subject.source(clips[(name, 0)]) for name in ("Walk", "Idle")]
+    model = EditModel(subject.joints, residual=True).fit(
+        [(s, forward.apply(s.track)) for s in train], scale
+    )
+    walk, idle = clips[("Walk", 1)], clips[("Idle", 1)]
+    walked = score_clip(walk, forward.apply(walk), model.apply(subject.source(walk)), scale,
+                        subject.relative_cm).summary()  # fmt: skip
+    assert walked["transfer"] == pytest.approx(1.0, abs=0.05)
+    assert walked["joint_rmse_cm"] < 0.25 * walked["source_joint_rmse_cm"]
+    stood = score_clip(idle, forward.apply(idle), model.apply(subject.source(idle)), scale,
+                       subject.relative_cm).summary()  # fmt: skip
+    assert stood["leak_frames"] == idle.n_frames and stood["leak_std"] < 0.01
+    save_model(model, tmp_path / "model.npz")
+    again = load_model(tmp_path / "model.npz").apply(subject.source(walk))
+    np.testing.assert_allclose(again.values, model.apply(subject.source(walk)).values, atol=1e-9)
+
+
+def test_bad_input_is_named(biped):
+    _, subject, clips = biped
+    walk, idle = clips[("Walk", 0)], clips[("Idle", 0)]
+    scale = ChannelScale.fit([walk, idle])
+    model = EditModel(subject.joints)
+    with pytest.raises(TargetError, match="the edited clip has 90 frames, the source 87"):
+        model.fit([(subject.source(walk), idle)], scale)
+    typo = {"operations": {"rig": [{"kind": "offset", "targets": ["upper_arm_l.ry"]}]}}
+    with pytest.raises(EditConfigError, match=r"control 'upper_arm_l\.ry'.*did you mean"):
+        Edit.from_config("typo", typo, "rig").apply(walk)
+    with pytest.raises(EditConfigError, match="joint 'LeftArm'"):
+        Edit.from_config("typo", {"operations": {"skeleton": [
+            {"kind": "amplify", "targets": ["LeftArm"]}]}}, "skeleton").apply(
+            skeleton_targets(read_bvh(WALK)))  # fmt: skip
+    positions = subject.positions(walk).copy()
+    positions[5, 3] = np.nan
+    with pytest.raises(TargetError, match="joint 3 is not finite at frame 5"):
+        SourceClip(positions, walk)
+    values = walk.values.copy()
+    values[7, 10] = np.inf
+    with pytest.raises(
+        TargetError, match=f"channel '{re.escape(walk.channels[10])}' is not finite at frame 7"
+    ):
+        TargetTrack(walk.channels, values, walk.fps, walk.start)
+    text = WALK.read_text().replace("LeftElbow", "LeftElbo", 1)
+    other = Skeleton.of(parse_bvh(text, source="renamed.bvh"))
+    with pytest.raises(TargetError, match=r"renamed\.bvh: a different skeleton"):
+        Skeleton.of(read_bvh(WALK)).check_same(other, "renamed.bvh")
+
+
+def test_the_cli_fits_applies_and_scores_an_edit(tmp_path, capsys):
+    from rigmap.cli import main
+
+    paths = [f"paths.{k}={tmp_path / k}" for k in ("models", "data", "metrics")]
+    chosen = ["edits.run=[biped]", "edits.names=[arms_forward_walking]", *paths]
+    config = ["--config-dir", str(ROOT / "conf")]
+    for verb in ("fit", "apply", "evaluate"):
+        assert main(["edits", verb, *config, *chosen]) == 0
+    summary = yaml.safe_load((tmp_path / "metrics/biped/edits/summary.json").read_text())
+    scores = summary["arms_forward_walking"]
+    assert scores["transfer"] == pytest.approx(1.0, abs=0.05)
+    assert scores["joint_rmse_cm"] < 0.2 * scores["source_joint_rmse_cm"]
+    assert set(scores["ablation"]) == {"kinematic_only", "acceleration_only_anchored",
+                                       "both_without_regularisers", "full"}  # fmt: skip
+    assert (tmp_path / "models/biped/edits/arms_forward_walking.npz").is_file()
+    assert "metrics/biped/edits/summary.json" in capsys.readouterr().out
