@@ -1,8 +1,8 @@
 """DVC stage ``map_mocap``: the CMU walks of ``../shared/mocap/`` mapped onto a rig (§6.3, Fig. 8).
 
 Reads the clips named in ``map.mocap_stage`` and the rig's train corpus and poses; fits
-(or reuses) the map model ``<paths.models>/<rig>/map-<retarget map>/`` and writes, per
-clip, ``<paths.data>/<rig>/map/<clip>/`` (controls, keys, BVH, previews) and
+the map model into ``<paths.data>/<rig>/map/model/`` and writes, per clip,
+``<paths.data>/<rig>/map/<clip>/`` (controls, keys, BVH, previews) and
 ``<paths.metrics>/<rig>/map/<clip>.{json,csv}``. The work is :mod:`rigmap.map.mocap_stage`.
 
     python pipelines/map_mocap.py rig=biped

@@ -236,7 +236,7 @@ def test_an_unknown_subset_and_a_missing_input_are_named(tmp_path):
     with pytest.raises(MapConfigError, match=r"no joint subset 'hands'.*has \['effectors'"):
         map_from_config(map_config(tmp_path, f"input={WALK}", "map.subset=hands"),
                         config_dir=CONF)  # fmt: skip
-    with pytest.raises(FileNotFoundError, match="nope.bvh does not exist"):
+    with pytest.raises(FileNotFoundError, match=r"nope\.bvh does not exist"):
         map_from_config(map_config(tmp_path, "input=nope.bvh"), config_dir=CONF)
 
 

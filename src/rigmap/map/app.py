@@ -14,9 +14,9 @@ preview, and for a Blender rig a ``.blend`` with keys on its controls.
 FaceIK from landmarks, Fig. 10) and draws the pose.
 
 The config (``conf/map.yaml`` composed by Hydra, resolved to plain containers) holds
-``rig``, ``paths``, ``regressor``, ``input``, ``targets``, ``out``, ``model`` and the
-``map`` group (``conf/map/default.yaml``); ``config_dir`` is the Hydra ``conf/`` folder,
-where retarget maps are found by name (``conf/retarget/<name>.yaml``).
+``rig``, ``paths``, ``regressor``, ``input``, ``targets``, ``out``, ``model``,
+``model_cache`` and the ``map`` group (``conf/map/default.yaml``); ``config_dir`` is the
+Hydra ``conf/`` folder, where retarget maps are found by name (``conf/retarget/<name>.yaml``).
 """
 
 from __future__ import annotations
@@ -200,8 +200,8 @@ def _read_clip(path: Path, retarget: RetargetMap, rig, options: Mapping) -> Mapp
 
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     layout = Layout.from_paths(config.get("paths"))
-    return obtain_subset_model(rig, subset, layout, config["regressor"],
-                               folder=config.get("model"), log=log)  # fmt: skip
+    return obtain_subset_model(rig, subset, layout, config["regressor"], folder=config.get("model"),
+                               cache=config.get("model_cache"), log=log)  # fmt: skip
 
 
 def _rig_options(config: Mapping) -> dict:

@@ -6,6 +6,8 @@ the mapped joints after scaling: joint error (cm RMS and % of the rig's height),
 largest frame-to-frame jump of any used control (training standard deviations), foot
 skate on planted frames (cm per frame, source and result), keys after reduction against
 frames × keyed controls, and frames per second; plus a per-frame CSV for DVC plots.
+The map model it fits lives in ``data/<rig>/map/model/``, inside the stage's own
+output, so the stages that read ``models/<rig>/`` do not wait for this one.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic
 
 METRICS_SET = "map"
 METRICS_FORMAT = "rigmap.map_metrics/1"
+MODEL_FOLDER = "model"  # the stage's map model, inside its own output (refitted each run)
 
 
 def map_mocap(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
@@ -35,8 +38,9 @@ def map_mocap(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
         settings = {**config["map"], "first_frame": stage["first_frame"],
                     "frames": stage["frames"]}  # fmt: skip
         source = Path(stage["folder"]) / f"{clip}.bvh"
-        clip_config = {**config, "map": settings, "input": str(source),
-                       "out": str(layout.rig_data(rig_name) / METRICS_SET)}  # fmt: skip
+        out = layout.rig_data(rig_name) / METRICS_SET
+        clip_config = {**config, "map": settings, "input": str(source), "out": str(out),
+                       "model_cache": str(out / MODEL_FOLDER)}  # fmt: skip
         (mapped,) = map_from_config(clip_config, config_dir=config_dir, log=log)
         written.append(write_clip_metrics(layout.metrics_folder(rig_name, METRICS_SET), mapped))
     return written

@@ -97,10 +97,11 @@ def obtain_subset_model(
     regressor_config: Mapping[str, Any],
     *,
     folder: str | os.PathLike | None = None,
+    cache: str | os.PathLike | None = None,
     log: Callable[[str], None] = print,
 ) -> SubsetModel:
     """The mapping for ``subset`` on ``rig``: ``folder`` as it is (checked), else the cache
-    in ``models/<rig>/map-<subset>/``, refitted when it is missing or stale."""
+    (``cache``, default ``models/<rig>/map-<subset>/``), refitted when missing or stale."""
     expected = _record(rig, subset, layout, regressor_config)
     data = load_training_data(rig, layout.data, TRAIN_SAMPLER)
     std, median = _statistics(data)
@@ -108,7 +109,7 @@ def obtain_subset_model(
         folder = Path(folder)
         mapping = _load_checked(folder, rig, expected, explicit=True)
         return SubsetModel(mapping, std, median, folder, refitted=False)
-    cache = model_folder(layout, rig.name, subset)
+    cache = Path(cache) if cache is not None else model_folder(layout, rig.name, subset)
     stale = _stale_reason(cache, expected)
     if stale is None:
         return SubsetModel(_load_checked(cache, rig, expected, explicit=False), std, median, cache,
