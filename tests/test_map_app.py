@@ -247,3 +247,24 @@ def test_the_cli_prints_a_bad_input_as_one_message(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("rigmap: error: ") and str(path) in err and "Traceback" not in err
+
+
+def test_the_map_mocap_stage_scores_both_cmu_walks(project, tmp_path):
+    from rigmap.map.mocap_stage import map_mocap
+
+    config = map_config(project, f"paths.metrics={tmp_path / 'metrics'}",
+                        "map.mocap_stage.frames=3", "map.settings.refine_iterations=0",
+                        "map.preview=false")  # fmt: skip
+    written = map_mocap(config, config_dir=CONF, log=lambda _: None)
+    assert [p.name for p in written] == ["cmu_131_01_walk.json", "cmu_131_02_walk.json"]
+    for path in written:
+        metrics = json.loads(path.read_text())
+        summary = json.loads((Path(metrics["outputs"]) / "summary.json").read_text())
+        assert metrics["frames"] == 3 and metrics["rig"] == "biped"
+        assert metrics["joint_error_rms_cm"] == summary["joint_error_rms_cm"] > 0
+        assert metrics["keys"] <= metrics["frames_times_keyed_controls"]
+        per_frame = pd.read_csv(path.with_suffix(".csv"))
+        assert list(per_frame.columns) == ["frame", "joint_error_cm", "confidence"]
+        assert len(per_frame) == 3
+    model = project / "data/biped/map/model"  # the stage's own model, not models/biped/
+    assert json.loads((model / RECORD_FILE).read_text())["subset"]["name"] == "cmu_biped"
