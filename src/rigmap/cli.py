@@ -176,8 +176,9 @@ def _add_map(commands) -> None:
         "input=../shared/mocap/cmu_131_01_walk.bvh rig=biped; rigmap map input=mocap_folder "
         "rig=biped out=mapped; rigmap map input=tracks.parquet map.unit=m map.source_fps=30 "
         "map.retarget=my_skeleton.yaml rig=biped.",
-        overrides="input=, rig=, out=, model=, map.fps=, map.frames=, map.first_frame=, "
-        "map.settings.*=, map.preview=, budget.*=, paths.*=",
+        overrides="input=, rig=, out=, model=, model_cache=, map.fps=, map.frames=, "
+        "map.first_frame=, map.unit=, map.source_fps=, map.retarget=, map.settings.*=, "
+        "map.preview=, budget.*=, paths.*=",
         run=_map,
         config_name="map",
     )
