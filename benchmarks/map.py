@@ -70,13 +70,14 @@ def bench_map(rig, args) -> dict:
         settings = dataclasses.replace(map_settings(config["map"], rig.name),
                                        refine_iterations=iterations)  # fmt: skip
         load = os.getloadavg()[0]
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         result = map_clip(rig, targets, model.mapping, settings, control_std=model.control_std,
                           hold_values=model.hold_values)  # fmt: skip
-        seconds = time.perf_counter() - started
+        seconds, cpu = time.perf_counter() - started, time.process_time() - cpu_started
         error = result.frame_error_cm
         out[label] = {"refine_iterations": iterations, "seconds": seconds,
                       "frames_per_second": len(error) / seconds,
+                      "frames_per_cpu_second": len(error) / cpu,
                       "frames_per_second_without_key_reduction":
                           len(error) / (seconds - result.seconds["keys_s"]),
                       "parts_s": result.seconds,
