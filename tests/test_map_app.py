@@ -268,3 +268,21 @@ def test_the_map_mocap_stage_scores_both_cmu_walks(project, tmp_path):
         assert len(per_frame) == 3
     model = project / "data/biped/map/model"  # the stage's own model, not models/biped/
     assert json.loads((model / RECORD_FILE).read_text())["subset"]["name"] == "cmu_biped"
+
+
+def test_the_stage_without_a_corpus_exits_with_one_message(tmp_path):
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[1] / "pipelines" / "map_mocap.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "rig=biped", f"paths.data={tmp_path / 'data'}",
+         f"paths.metrics={tmp_path / 'metrics'}", f"paths.models={tmp_path / 'models'}"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("error: map_mocap: ") and "Traceback" not in done.stderr
+    assert "corpus/train.parquet" in done.stderr
+    assert (
+        not (tmp_path / "metrics").exists() and not (tmp_path / "data" / "biped" / "map").exists()
+    )
