@@ -286,3 +286,40 @@ def test_the_stage_without_a_corpus_exits_with_one_message(tmp_path):
     assert (
         not (tmp_path / "metrics").exists() and not (tmp_path / "data" / "biped" / "map").exists()
     )
+
+
+def test_face_ik_from_the_six_landmarks(tmp_path):
+    """Fig. 10: the face posed from its landmarks, the mouth corners raised 0.8 cm."""
+    from rigmap.animation.corpus_files import pose_corpora, write_corpora
+    from rigmap.rigs import load
+    from rigmap.store import Layout
+
+    face = load("face")
+    layout = Layout(data=tmp_path / "data", models=tmp_path / "models")
+    write_corpora(face, layout, seed=0, fps=30, variation=1.0)
+    pose_corpora(face, layout, batch_size=512, progress=False)
+    rest = face.pose(face.controls.defaults[None])
+    world = (np.asarray(rest.positions) + np.asarray(rest.cog)[:, None, :])[0]
+    targets = {name: world[k].tolist() for k, name in enumerate(face.joint_names)}
+    for corner in ("mouth_corner_l", "mouth_corner_r"):
+        targets[corner][1] += 0.8
+    path = tmp_path / "smile.json"
+    path.write_text(json.dumps({"rig": "face", "targets": targets}))
+    config = map_config(tmp_path, "rig=face", f"targets={path}", f"out={tmp_path / 'pose'}")
+    out = pose_from_config(config, log=lambda _: None)
+    written = json.loads((out / "controls.json").read_text())
+    assert written["effectors"] == list(face.joint_names)
+    assert written["poses"][0]["target_distance_rms_cm"] < 0.5  # of a 0.8 cm smile
+    assert (out / "pose_0.png").stat().st_size > 0
+
+
+def test_the_hydra_app_names_a_missing_input(tmp_path):
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[1] / "pipelines" / "map.py"
+    done = subprocess.run([sys.executable, str(script), "rig=biped", "input=nope.bvh",
+                           f"out={tmp_path / 'out'}"], capture_output=True, text=True,
+                          timeout=600)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("error: map: input nope.bvh does not exist")
