@@ -1,4 +1,4 @@
-"""``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate and reproduce.
+"""``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate, map, pose, reproduce.
 
 Subcommands take plain flags (argparse); experiment commands pass Hydra
 overrides (``key=value``) straight to the pipeline apps.
@@ -37,7 +37,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Learning inverse rig mappings: joint positions -> animation-rig controls.",
     )
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
-    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_edits,
+    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_map,
+                _add_edits,
                 _add_reproduce):  # fmt: skip
         add(commands)
     return parser
@@ -197,14 +198,56 @@ def _edits(verb: str, args) -> int:
     return 0
 
 
-def _add_stage_command(commands, name, *, help, description, overrides, run) -> None:
+def _add_map(commands) -> None:
+    """``rigmap map`` and ``rigmap pose`` (rigmap.map.app, config conf/map.yaml)."""
+    _add_stage_command(
+        commands,
+        "map",
+        help="map motion (a BVH, a folder of BVHs, joint tracks) onto a rig's controls",
+        description="Maps each input clip onto the rig (rigmap.map.app): the retarget map "
+        "(map.retarget, default conf/retarget/cmu_<rig>.yaml) gives the rig joints it drives; "
+        "a GPR on those joints, fitted on data/<rig>/corpus and poses and cached in "
+        "models/<rig>/map-<subset>/ (refitted when the rig, subset, settings or data change), "
+        "gives the controls; refinement and key reduction follow. Writes <out>/<clip>/ "
+        "(default out: outputs/map/<rig>/): controls.parquet, frames.parquet (joint error cm, "
+        "confidence), keys.json, result.bvh, summary.json, preview.png and preview.gif, and "
+        "result.blend for a Blender rig. Examples: rigmap map "
+        "input=../shared/mocap/cmu_131_01_walk.bvh rig=biped; rigmap map input=mocap_folder "
+        "rig=biped out=mapped; rigmap map input=tracks.parquet map.unit=m map.source_fps=30 "
+        "map.retarget=my_skeleton.yaml rig=biped.",
+        overrides="input=, rig=, out=, model=, model_cache=, map.fps=, map.frames=, "
+        "map.first_frame=, map.unit=, map.source_fps=, map.retarget=, map.settings.*=, "
+        "map.preview=, budget.*=, paths.*=",
+        run=_map,
+        config_name="map",
+    )
+    _add_stage_command(
+        commands,
+        "pose",
+        help="pose a rig's whole body from a few effector targets and draw it (full-body IK)",
+        description='Poses the rig from targets=<file.json> ({"targets": {joint: [x, y, z]}} '
+        'or {"frames": [...]}, world cm, Y up, facing +Z) with a GPR on the rig\'s pose '
+        "subset (map.rigs.<rig>.pose_subset: biped and quadruped 'effectors' (7 joints), face "
+        "'landmarks'), refined by damped least squares, and writes <out>/ (default "
+        "outputs/pose/<rig>/<targets name>/): controls.json and pose_<k>.png. Example: "
+        "rigmap pose rig=biped targets=effectors.json.",
+        overrides="targets=, rig=, out=, model=, map.pose_subset=, map.settings.*=, budget.*=, "
+        "paths.*=",
+        run=_pose,
+        config_name="map",
+    )
+
+
+def _add_stage_command(
+    commands, name, *, help, description, overrides, run, config_name="config"
+) -> None:
     """A verb that runs a pipeline stage in this process with Hydra overrides."""
     command = commands.add_parser(name, help=help, description=description)
     command.add_argument(
         "overrides",
         nargs="*",
         metavar="KEY=VALUE",
-        help=f"Hydra overrides of conf/config.yaml ({overrides})",
+        help=f"Hydra overrides of conf/{config_name}.yaml ({overrides})",
     )
     _folder_option(
         command, "--config-dir",
@@ -275,9 +318,13 @@ def find_config_dir(explicit: Path | None = None) -> Path:
 
 
 def compose_config(
-    overrides: list[str], config_dir: Path | None = None, *, with_hydra: bool = False
+    overrides: list[str],
+    config_dir: Path | None = None,
+    *,
+    with_hydra: bool = False,
+    config_name: str = "config",
 ):
-    """``conf/config.yaml`` with Hydra ``overrides``, as the pipeline apps would see it.
+    """``conf/<config_name>.yaml`` with Hydra ``overrides``, as the pipeline apps would see it.
 
     ``with_hydra`` keeps the ``hydra`` node (its ``runtime.choices`` name the groups chosen).
     """
@@ -289,11 +336,11 @@ def compose_config(
     try:
         with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
             cfg = compose(
-                config_name="config", overrides=list(overrides), return_hydra_config=with_hydra
+                config_name=config_name, overrides=list(overrides), return_hydra_config=with_hydra
             )
     except (HydraException, OmegaConfBaseException) as error:
         raise ValueError(
-            f"config {folder}/config.yaml with overrides {overrides}: {error}"
+            f"config {folder}/{config_name}.yaml with overrides {overrides}: {error}"
         ) from None
     return cfg
 
@@ -320,6 +367,29 @@ def _evaluate(args) -> int:
     experiment = cfg.hydra.runtime.choices.get("experiment")
     stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
     evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+    return 0
+
+
+def _map_config(args) -> dict:
+    from omegaconf import OmegaConf
+
+    from rigmap.stage.runner import stage_config
+
+    cfg = stage_config(compose_config(args.overrides, args.config_dir, config_name="map"))
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def _map(args) -> int:
+    from rigmap.map.app import map_from_config
+
+    map_from_config(_map_config(args), config_dir=find_config_dir(args.config_dir))
+    return 0
+
+
+def _pose(args) -> int:
+    from rigmap.map.app import pose_from_config
+
+    pose_from_config(_map_config(args))
     return 0
 
 

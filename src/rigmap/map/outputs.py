@@ -2,8 +2,9 @@
 
 - ``controls.parquet``: ``frame`` and every control of the rig (unused ones at their
   defaults), the values of the reduced keys on every frame;
-- ``frames.parquet``: per frame, the RMS joint error over the mapped joints (cm) and,
-  when feet were given, whether each foot was planted;
+- ``frames.parquet``: per frame, the RMS joint error over the mapped joints (cm), the
+  mapping's confidence (:mod:`rigmap.map.confidence`, when given) and, when feet were
+  given, whether each foot was planted;
 - ``keys.json``: per used control, its keys (frame, value, Bézier handles): the sparse
   curves an animator edits;
 - ``result.bvh``: the rig's joints at the mapped controls (world cm, Y up);
@@ -15,6 +16,7 @@ The folder appears whole or not at all (:func:`rigmap.store.write_folder_atomic`
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -55,8 +57,19 @@ def summary(result: MapResult, rig) -> dict:
     })  # fmt: skip
 
 
-def write_map_outputs(folder: str | os.PathLike, result: MapResult, rig) -> Path:
-    """Write the clip's folder (see the module docstring); returns its path."""
+def write_map_outputs(
+    folder: str | os.PathLike,
+    result: MapResult,
+    rig,
+    *,
+    confidence: np.ndarray | None = None,
+    extra: Callable[[Path], None] | None = None,
+) -> Path:
+    """Write the clip's folder (see the module docstring); returns its path.
+
+    ``confidence`` (per frame) becomes a column of ``frames.parquet``; ``extra(staging)``
+    writes more files (previews, a ``.blend``) into the folder before it appears.
+    """
 
     def fill(staging: Path) -> None:
         frames = np.arange(result.n_frames)
@@ -64,6 +77,8 @@ def write_map_outputs(folder: str | os.PathLike, result: MapResult, rig) -> Path
         controls.insert(0, "frame", frames)
         controls.to_parquet(staging / "controls.parquet", index=False)
         per_frame = pd.DataFrame({"frame": frames, "joint_error_cm": result.frame_error_cm})
+        if confidence is not None:
+            per_frame["confidence"] = np.asarray(confidence, dtype=np.float64)
         if result.contacts is not None:
             for k, foot in enumerate(result.contacts.feet):
                 per_frame[f"planted.{foot}"] = result.contacts.planted[:, k]
@@ -76,6 +91,8 @@ def write_map_outputs(folder: str | os.PathLike, result: MapResult, rig) -> Path
         write_joint_bvh(staging / "result.bvh", rig.joint_names, rig.parents, world, rest,
                         result.fps)  # fmt: skip
         write_json_atomic(staging / "summary.json", summary(result, rig))
+        if extra is not None:
+            extra(staging)
 
     return write_folder_atomic(folder, fill)
 

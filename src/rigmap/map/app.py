@@ -1,0 +1,283 @@
+"""``rigmap map`` and ``rigmap pose`` from a plain config mapping (the library under the verbs).
+
+:func:`map_from_config` maps one input onto a rig: a BVH file, a folder of BVH files (a
+batch, with a progress bar), or a joint-tracks file (parquet, CSV or npz in the stated
+unit). Every input is read and retargeted before anything is fitted, so a bad file
+stops the run in its first seconds; then the partial-input mapping for the retarget
+map's joints is obtained (:mod:`rigmap.map.subset_model`: cached in
+``models/<rig>/map-<subset>/``, refitted when stale) and each clip is mapped
+(:func:`rigmap.map.clip.map_clip`) into ``<out>/<clip>/``, written whole or not at all:
+controls, per-frame error and confidence, keys, a BVH of the result, a summary, a
+preview, and for a Blender rig a ``.blend`` with keys on its controls.
+
+:func:`pose_from_config` poses the whole body from a few effector targets (paper Fig. 5;
+FaceIK from landmarks, Fig. 10) and draws the pose.
+
+The config (``conf/map.yaml`` composed by Hydra, resolved to plain containers) holds
+``rig``, ``paths``, ``regressor``, ``input``, ``targets``, ``out``, ``model``,
+``model_cache`` and the ``map`` group (``conf/map/default.yaml``); ``config_dir`` is the
+Hydra ``conf/`` folder, where retarget maps are found by name (``conf/retarget/<name>.yaml``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rigmap.errors import RigmapError
+from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.confidence import frame_confidence
+from rigmap.map.outputs import write_map_outputs
+from rigmap.map.partial import JointSubset
+from rigmap.map.retarget_map import MappedTargets, RetargetMap
+from rigmap.map.subset_model import SubsetModel, obtain_subset_model
+from rigmap.map.tracks import read_tracks
+from rigmap.store import Layout, json_ready, write_folder_atomic, write_json_atomic
+
+TRACK_SUFFIXES = (".parquet", ".csv", ".npz")
+RETARGET_JOINTS = "retarget"  # a subset whose joints are the retarget map's
+Log = Callable[[str], None]
+
+
+class MapConfigError(RigmapError, ValueError):
+    """A map or pose config that names no input, an unknown subset, or an unusable value."""
+
+
+@dataclass(frozen=True)
+class MappedClip:
+    """One clip's output folder and its headline numbers (``summary.json``)."""
+
+    folder: Path
+    summary: dict
+
+
+# --------------------------------------------------------------------------- map
+def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
+                    log: Log = print) -> list[MappedClip]:  # fmt: skip
+    """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip."""
+    from rigmap.rigs import load
+
+    options = config["map"]
+    sources = input_files(config.get("input"))
+    with load(_rig_options(config)) as rig:
+        retarget = retarget_map(options, rig.name, config_dir)
+        clips = [_read_clip(path, retarget, rig, options) for path in sources]
+        subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
+        model = _model(config, rig, subset, log)
+        settings = map_settings(options, rig.name)
+        out = Path(config.get("out") or Path("outputs") / "map" / rig.name)
+        done = []
+        for targets in _progress(clips, len(clips) > 1, "map"):
+            done.append(map_one(rig, targets, model, settings, out / _stem(targets.source),
+                                preview=bool(options.get("preview", True))))  # fmt: skip
+            log(f"{done[-1].folder}: {_headline(done[-1].summary)}")
+        return done
+
+
+def map_one(rig, targets: MappedTargets, model: SubsetModel, settings: MapSettings,
+            folder: Path, *, preview: bool = True) -> MappedClip:  # fmt: skip
+    """Map one clip's targets and write its folder (atomically)."""
+    result = map_clip(rig, targets, model.mapping, settings, control_std=model.control_std,
+                      hold_values=model.hold_values)  # fmt: skip
+    world = result.targets
+    confidence = frame_confidence(model.mapping, world)
+
+    def extra(staging: Path) -> None:
+        if preview:
+            from rigmap.map.preview import write_preview
+
+            write_preview(staging, rig, result)
+        if is_blender_rig(rig):
+            write_blend(rig, result.controls, result.fps, staging / "result.blend")
+
+    written = write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
+    import json
+
+    return MappedClip(written, json.loads((written / "summary.json").read_text()))
+
+
+def is_blender_rig(rig) -> bool:
+    """A rig evaluated by Blender workers (its animators work in a ``.blend``)."""
+    from rigmap.rigs.blender.rig import BlenderRig
+
+    return isinstance(rig, BlenderRig)
+
+
+def write_blend(rig, controls: np.ndarray, fps: float, path: Path) -> None:
+    """The one call site of the ``.blend`` writer: keys on the rig's control bones."""
+    from rigmap.map.blend_output import write_mapped_blend  # the rigifymap branch's module
+
+    write_mapped_blend(rig, controls, fps, path)
+
+
+def input_files(value) -> list[Path]:
+    """The files an ``input`` names: one BVH or tracks file, or every ``*.bvh`` of a folder."""
+    if value in (None, ""):
+        raise MapConfigError("no input: pass input=<a .bvh file, a folder of them, or a joint "
+                             "tracks .parquet/.csv/.npz file>")  # fmt: skip
+    path = Path(value)
+    if path.is_dir():
+        files = sorted(path.glob("*.bvh"))
+        if not files:
+            raise MapConfigError(f"input folder {path} holds no .bvh files")
+        return files
+    if not path.is_file():
+        raise FileNotFoundError(f"input {path} does not exist")
+    if path.suffix.lower() not in (".bvh", *TRACK_SUFFIXES):
+        raise MapConfigError(f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
+                             "of .bvh files, .parquet, .csv or .npz")  # fmt: skip
+    return [path]
+
+
+def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
+    """``map.retarget`` (a path, or a name in ``conf/retarget/``), else the rig's default."""
+    name = options.get("retarget") or _rig_section(options, rig_name).get("retarget")
+    if not name:
+        raise MapConfigError(f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
+                             f"name in {Path(config_dir) / 'retarget'}>")  # fmt: skip
+    path = Path(name)
+    if path.suffix.lower() not in (".yaml", ".yml", ".json"):
+        path = Path(config_dir) / "retarget" / f"{name}.yaml"
+    retarget = RetargetMap.from_yaml(path)
+    if retarget.rig != rig_name:
+        raise MapConfigError(f"{path}: retarget map for rig {retarget.rig!r}, not {rig_name!r}")
+    return retarget
+
+
+def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -> JointSubset:
+    """The joint subset ``map.rigs.<rig>.subsets.<name>`` (``joints: retarget`` takes the
+    retarget map's joints, and the map's name)."""
+    subsets = _rig_section(options, rig.name).get("subsets") or {}
+    if name not in subsets:
+        raise MapConfigError(f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
+                             f"{rig.name}.subsets (has {sorted(subsets)})")  # fmt: skip
+    spec = dict(subsets[name])
+    if spec.get("joints") == RETARGET_JOINTS:
+        if retarget is None:
+            raise MapConfigError(f"joint subset {name!r} takes its joints from a retarget map")
+        spec["joints"] = [j for j in rig.joint_names if j in retarget.joints]
+        name = retarget.name
+    return JointSubset.from_mapping(spec, name=name, rig=rig)
+
+
+def map_settings(options: Mapping, rig_name: str) -> MapSettings:
+    """:class:`MapSettings` from ``map.settings`` and the rig's ``feet``."""
+    settings = dict(options.get("settings") or {})
+    if "hold" in settings:
+        settings["hold"] = tuple(settings["hold"])
+    feet = tuple(_rig_section(options, rig_name).get("feet") or ())
+    try:
+        return MapSettings(feet=feet, **settings)
+    except TypeError as error:
+        raise MapConfigError(f"map.settings: {error}") from None
+
+
+def _read_clip(path: Path, retarget: RetargetMap, rig, options: Mapping) -> MappedTargets:
+    """One input file as the rig's mapped joints, resampled and cut as ``map`` says."""
+    tracks = read_tracks(path, unit=options.get("unit", "cm"), fps=options.get("source_fps"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # unused source joints: summarised below instead
+        targets = retarget.apply(rig, tracks)
+    step = 1
+    if options.get("fps"):
+        step = max(1, round(targets.fps / float(options["fps"])))
+    first = int(options.get("first_frame") or 0)
+    count = options.get("frames")
+    stop = None if count is None else first + int(count) * step
+    positions = targets.positions[first:stop:step]
+    if len(positions) == 0:
+        raise MapConfigError(f"{path}: no frames left to map (the clip has {len(targets.positions)}"
+                             f" frames; map.first_frame={first}, map.frames={count})")  # fmt: skip
+    return dataclasses.replace(targets, positions=positions, fps=targets.fps / step)
+
+
+def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
+    layout = Layout.from_paths(config.get("paths"))
+    return obtain_subset_model(rig, subset, layout, config["regressor"], folder=config.get("model"),
+                               cache=config.get("model_cache"), log=log)  # fmt: skip
+
+
+def _rig_options(config: Mapping) -> dict:
+    return {k: v for k, v in dict(config["rig"]).items() if k != "corpus"}
+
+
+def _rig_section(options: Mapping, rig_name: str) -> Mapping:
+    return (options.get("rigs") or {}).get(rig_name) or {}
+
+
+def _stem(source: str) -> str:
+    return Path(source).stem
+
+
+def _headline(summary: dict) -> str:
+    return (f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
+            f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
+            f"{summary['keys']} keys")  # fmt: skip
+
+
+def _progress(items, show: bool, what: str):
+    from tqdm.auto import tqdm
+
+    return tqdm(items, desc=what, unit="clip", disable=not show)
+
+
+# --------------------------------------------------------------------------- pose
+def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
+    """Pose ``config["rig"]`` from the effector targets file ``config["targets"]``; writes
+    ``<out>/`` with ``controls.json`` (used controls per pose, and the distance to the
+    targets) and ``pose_<k>.png`` per pose (the targets drawn over the pose)."""
+    from rigmap.map.effectors import pose_from_effectors, read_effector_targets
+    from rigmap.rigs import load
+
+    options = config["map"]
+    targets_file = config.get("targets")
+    if not targets_file:
+        raise MapConfigError("no targets: pass targets=<effector targets .json>")
+    with load(_rig_options(config)) as rig:
+        name = options.get("pose_subset") or _rig_section(options, rig.name).get("pose_subset")
+        subset = subset_for(options, rig, None, name or "effectors")
+        targets = read_effector_targets(targets_file, subset.joints)
+        model = _model(config, rig, subset, log)
+        settings = map_settings(options, rig.name)
+        controls, error, seconds = pose_from_effectors(
+            rig, model.mapping, targets, dataclasses.replace(settings, feet=()),
+            control_std=model.control_std, hold_values=model.hold_values,
+        )  # fmt: skip
+        out = Path(
+            config.get("out") or Path("outputs") / "pose" / rig.name / Path(targets_file).stem
+        )
+        write_folder_atomic(out, lambda staging: _write_poses(staging, rig, subset, controls,
+                                                              targets, error, seconds))  # fmt: skip
+        log(f"{out}: {len(controls)} pose(s), distance to the targets "
+            f"{float(error.max()):.3f} cm at most")  # fmt: skip
+        return out
+
+
+def _write_poses(staging: Path, rig, subset, controls, targets, error, seconds) -> None:
+    from rigmap.map.preview import render_pose
+
+    used = rig.controls.used_indices
+    poses = [
+        {
+            "used_controls": dict(zip(rig.used_controls, row[used].tolist(), strict=True)),
+            "target_distance_rms_cm": float(e),
+        }
+        for row, e in zip(controls, error, strict=True)
+    ]
+    write_json_atomic(
+        staging / "controls.json",
+        json_ready(
+            {"rig": rig.name, "effectors": list(subset.joints), "poses": poses, "seconds": seconds}
+        ),
+    )
+    for k in range(len(controls)):
+        render_pose(rig, controls[k], targets[k], subset, staging / f"pose_{k}.png",
+                    title=f"{rig.name} posed from {len(subset.joints)} targets "
+                          f"({error[k]:.2f} cm RMS)")  # fmt: skip
