@@ -191,3 +191,20 @@ def test_a_rig_without_gradients_gets_a_clear_error(tiny):
 
     with pytest.raises(NotDifferentiableRigError, match="forward surrogate"):
         PlacedRigForward(BlackBox(), placement)
+
+
+def test_tuning_on_the_target_lowers_its_joint_error_and_keeps_the_model(tiny):
+    from rigmap.regression.target_tuning import TuningSettings, tune_on_targets
+
+    rig = tiny[0]
+    mapping = fitted(tiny, epochs=20)
+    targets, _ = corpus(rig, 30, seed=5, spread=0.5)  # poses it was not trained on
+    before = joint_error(rig, mapping, targets)
+    prediction = mapping.predict(targets)
+    tuned, report = tune_on_targets(
+        mapping, rig, targets, TuningSettings(steps=150, learning_rate=3e-3, rest_weight=0.01)
+    )
+    after = joint_error(rig, tuned, targets)
+    assert after < 0.2 * before
+    assert report["last"]["joint"] < 0.2 * report["first"]["joint"]
+    np.testing.assert_array_equal(mapping.predict(targets), prediction)  # the original is kept

@@ -1,0 +1,131 @@
+"""Fine-tuning the joint-space network on the very poses being mapped (issue #15, item 2).
+
+What a user maps is joint positions, and the joint-space cost needs nothing
+else: no controls are known for them, so the network can be trained further on
+the target clip itself before it predicts it. EA SEED's published inversion
+code trains its encoder on the capture it inverts the same way; its neutral-pose
+term (the rest pose in, the default controls out) is the cheap regulariser that
+keeps the controls from drifting where joints do not pin them. Here:
+
+    ||rig(Phi(x)) - x||² / s_x  [target rows and the rest pose]
+      + rest_weight * ||(Phi(x_rest) - y_rest) / r||²
+
+``s_x`` the mean variance of a joint coordinate over the target rows, ``r``
+each output's soft-range width (its placement offset's std for root channels).
+The tuned copy is returned; the fitted model is untouched. Every setting is ours.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from rigmap.regression.features import inverse_features
+from rigmap.regression.joint_space_network import JointSpaceNetworkRegressor
+from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
+from rigmap.regression.mapping import InverseMapping
+from rigmap.regression.network import _adam, _torch_threads
+from rigmap.regression.rig_forward import PlacedRigForward
+
+
+@dataclass(frozen=True)
+class TuningSettings:
+    """Adam steps over the target rows (``batch_size`` per step), and the rest-pose weight."""
+
+    steps: int = 40
+    batch_size: int = 512
+    learning_rate: float = 3e-4
+    rest_weight: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.steps < 0 or self.batch_size < 1:
+            raise ValueError(f"TuningSettings: steps >= 0 and batch_size >= 1, got {self}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"TuningSettings: learning_rate must be > 0, got {self.learning_rate}")
+        if not (math.isfinite(self.rest_weight) and self.rest_weight >= 0):
+            raise ValueError(f"TuningSettings: rest_weight must be >= 0, got {self.rest_weight}")
+
+
+def _tuning_data(forward: PlacedRigForward, mapping: InverseMapping, X_pose) -> JointSpaceData:
+    """Row 0: the rest pose with its default controls (the one known row); then the targets."""
+    rig, placement = forward.rig, mapping.placement
+    rest = rig.pose(rig.default_controls(1))
+    rest_row = inverse_features(
+        np.asarray(rest.positions),
+        np.asarray(rest.cog),
+        np.asarray(rest.cog_rotation),
+        n_joints=rig.n_joints,
+        where=f"rig {rig.name!r} rest pose",
+    )
+    defaults = rig.controls.defaults[rig.controls.used_indices][None]
+    rest_in = placement.inputs(rest_row)
+    rest_target = placement.targets(defaults, rest_row)
+    targets_in = placement.inputs(X_pose, "target poses to tune on")
+    inputs = np.concatenate([rest_in, targets_in])
+    joints, cog = forward.input_pose(inputs)
+    points = np.concatenate([joints, cog[:, None, :]], axis=1)
+    network = mapping.regressor.network_
+    scale = torch.where(network.bounded > 0, network.span, network.free_std).clamp_min(1e-12)
+    known = np.zeros(len(inputs), dtype=bool)
+    known[0] = True
+    as_tensor = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
+    targets = np.zeros((len(inputs), rest_target.shape[1]))
+    targets[0] = rest_target[0]
+    return JointSpaceData(
+        inputs=as_tensor(inputs),
+        targets=as_tensor(targets),
+        known=torch.from_numpy(known),
+        natural=torch.from_numpy(known),
+        joints=as_tensor(points),
+        target_std=scale.float(),
+        spread=scale.float(),
+        joint_scale=max(float(points[1:].reshape(len(targets_in), -1).var(axis=0).mean()), 1e-12),
+    )
+
+
+def tune_on_targets(
+    mapping: InverseMapping, rig: Any, X_pose: Any, settings: TuningSettings = TuningSettings()
+) -> tuple[InverseMapping, dict[str, Any]]:
+    """A copy of ``mapping`` trained on the pose rows ``X_pose`` it is about to predict.
+
+    Returns the tuned mapping and what happened (steps, costs, seconds).
+    """
+    if not isinstance(mapping.regressor, JointSpaceNetworkRegressor):
+        raise TypeError(
+            f"tuning on the target needs a joint-space network (regressor=nn_joint_space), got "
+            f"{type(mapping.regressor).__name__}"
+        )
+    started = time.perf_counter()
+    forward = PlacedRigForward(rig, mapping.placement, who="tuning on the target")
+    tuned = copy.deepcopy(mapping.regressor)
+    data = _tuning_data(forward, mapping, X_pose)
+    network = tuned.network_
+    network.train()
+    optimizer = _adam(list(network.parameters()), float(settings.learning_rate))
+    generator = torch.Generator().manual_seed(int(tuned.seed))
+    n_targets, costs = len(data.inputs) - 1, []
+    with _torch_threads(tuned.threads):
+        for _ in range(int(settings.steps)):
+            pick = torch.randperm(n_targets, generator=generator)[: settings.batch_size] + 1
+            rows = torch.cat([torch.zeros(1, dtype=torch.long), pick])
+            joint, rest = joint_space_cost(network, forward, data, rows)
+            cost = joint + float(settings.rest_weight) * rest
+            optimizer.zero_grad(set_to_none=True)
+            cost.backward()
+            optimizer.step()
+            costs.append({"joint": float(joint.detach()), "rest": float(rest.detach())})
+    network.eval()
+    report = {
+        "settings": asdict(settings),
+        "rows": n_targets,
+        "first": costs[0] if costs else None,
+        "last": costs[-1] if costs else None,
+        "seconds": time.perf_counter() - started,
+    }
+    return InverseMapping(tuned, mapping.placement), report
