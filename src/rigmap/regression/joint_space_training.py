@@ -116,14 +116,15 @@ class JointSpaceData:
         return ((predicted - self.targets[rows]) / scale).square().mean()
 
 
-def joint_space_cost(network, forward: PlacedRigForward, data: JointSpaceData, rows):
+def joint_space_cost(network, forward: PlacedRigForward, data: JointSpaceData, rows, on=None):
     """``(joint, control)`` costs of one minibatch: the joint term (every row, through the
-    rig, in ``joint_scale`` units) and the control term (its known rows; zero if none)."""
+    rig, in ``joint_scale`` units) and the control term on the rows of the mask ``on``
+    (default ``data.known``; zero if the minibatch has none)."""
     predicted = network(data.inputs[rows])
     posed = forward(predicted)
     points = torch.cat([posed.joints, posed.cog[:, None, :]], dim=1)
     joint = (points - data.joints[rows]).square().mean() / data.joint_scale
-    known = data.known[rows]
+    known = (data.known if on is None else on)[rows]
     if not bool(known.any()):
         return joint, torch.zeros(())
     return joint, data.control_cost(predicted[known], rows[known])
