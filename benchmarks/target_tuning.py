@@ -19,7 +19,6 @@ import os
 import time
 from pathlib import Path
 
-
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
 from rigmap.error_measures import control_std, ground_truth_error, joint_error

@@ -129,3 +129,25 @@ def tune_on_targets(
         "seconds": time.perf_counter() - started,
     }
     return InverseMapping(tuned, mapping.placement), report
+
+
+class TunedOnTarget:
+    """An inverse mapping that tunes a copy of itself on every batch it predicts, then predicts.
+
+    The evaluation's method runner times ``predict``, so the tuning is inside the clock.
+    Its rig evaluations (``steps`` batches through the torch rig) are not in the runner's
+    rig-evaluation count; ``reports`` keeps what each call did.
+    """
+
+    def __init__(self, mapping: InverseMapping, rig: Any, settings: TuningSettings):
+        self.mapping = mapping
+        self.rig = rig
+        self.settings = settings
+        self.reports: list[dict[str, Any]] = []
+
+    def predict(self, X_pose: Any) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X_pose, dtype=np.float64))
+        tuned, report = tune_on_targets(self.mapping, self.rig, X, self.settings)
+        self.reports.append(report)
+        predicted = tuned.predict(X)
+        return predicted[0] if np.ndim(X_pose) == 1 else predicted

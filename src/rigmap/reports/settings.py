@@ -19,7 +19,11 @@ from rigmap.reports.catalog import KERNELS, METHODS, RIGS, SAMPLERS, find_row
 
 #: methods whose network trains through the rig: built-in rigs only, and they draw their own
 #: poses (their files are ``methods/<method>-none.json``)
-JOINT_SPACE_METHODS: tuple[str, ...] = ("nn_joint_space", "nn_joint_space_computed_jacobian")
+JOINT_SPACE_METHODS: tuple[str, ...] = (
+    "nn_joint_space",
+    "nn_joint_space_computed_jacobian",
+    "nn_joint_space_tuned",
+)
 #: the evaluate stages run the script baseline only where one exists (quadruped, biped, and
 #: the Blender rigs' constraint retarget) and autodiff only on differentiable rigs
 DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
