@@ -2,13 +2,13 @@
 
 For each rig and test clip: the fitted ``nn_joint_space`` model alone, then a copy tuned
 on the clip's own pose rows (:func:`rigmap.regression.target_tuning.tune_on_targets`:
-joint-space cost plus the neutral-pose term, no controls), its joint error (cm², the
+joint-space cost plus the neutral-pose and anchor terms, no controls), its joint error (cm², the
 evaluation's measure), ground-truth error (training-std units) and the wall time of the
 tuning plus prediction, with the machine's load average (a shared machine's wall clock
 means something only beside it).
 
     PYTHONPATH=src .venv/bin/python benchmarks/target_tuning.py [--rigs quadruped biped]
-        [--steps 40] [--learning-rate 3e-4] [--rest-weight 0.1] [--models models] [--data data]
+        [--steps 40] [--learning-rate 3e-4] [--control-weight 0.01] [--models models] [--data data]
 """
 
 from __future__ import annotations
@@ -88,11 +88,11 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=TuningSettings.steps)
     parser.add_argument("--batch-size", type=int, default=TuningSettings.batch_size)
     parser.add_argument("--learning-rate", type=float, default=TuningSettings.learning_rate)
-    parser.add_argument("--rest-weight", type=float, default=TuningSettings.rest_weight)
+    parser.add_argument("--control-weight", type=float, default=TuningSettings.control_weight)
     parser.add_argument("--models", default="models")
     parser.add_argument("--data", default="data")
     args = parser.parse_args()
-    settings = TuningSettings(args.steps, args.batch_size, args.learning_rate, args.rest_weight)
+    settings = TuningSettings(args.steps, args.batch_size, args.learning_rate, args.control_weight)
     layout = Layout(data=Path(args.data), models=Path(args.models))
     result = {
         "settings": settings.__dict__,

@@ -80,9 +80,10 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "evaluate_samplers": len(rigs),
         "evaluate_kernels": len(rigs),
         "sample_sweep": 2,
+        "fit_nn_joint_space": 2,
         "report": 1,
     }
-    assert len(stages) == 96 and len(blender) == 1
+    assert len(stages) == 98 and len(blender) == 1
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
@@ -128,7 +129,7 @@ def test_evaluations_declare_metrics_and_per_frame_plots(stages):
     evaluate = stages["evaluate@quadruped"]
     metrics = [o.def_path for o in evaluate.outs if o.metric]
     plots = [o.def_path for o in evaluate.outs if o.plot]
-    assert len(metrics) == len(plots) == 8
+    assert len(metrics) == len(plots) == 11
     assert [Path(p).with_suffix(".csv").as_posix() for p in metrics] == plots
     assert "models/quadruped" in paths(evaluate.deps)
     kernels = stages["evaluate_kernels@face"]

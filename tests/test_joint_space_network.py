@@ -202,7 +202,7 @@ def test_tuning_on_the_target_lowers_its_joint_error_and_keeps_the_model(tiny):
     before = joint_error(rig, mapping, targets)
     prediction = mapping.predict(targets)
     tuned, report = tune_on_targets(
-        mapping, rig, targets, TuningSettings(steps=150, learning_rate=3e-3, rest_weight=0.01)
+        mapping, rig, targets, TuningSettings(steps=150, learning_rate=3e-3, control_weight=0.001)
     )
     after = joint_error(rig, tuned, targets)
     assert after < 0.2 * before
