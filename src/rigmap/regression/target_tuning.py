@@ -16,7 +16,9 @@ so each target frame is also anchored to the general network's own controls for 
 ``s_x`` the mean variance of a joint coordinate over the target rows, ``s_y``
 each target's standard deviation in the training corpus (the ground-truth
 error's scale). The tuned copy is returned; the fitted model is untouched.
-Every setting is ours.
+Every setting is ours; with the defaults (80 steps, Adam 1e-3, weight 0.01) the
+extreme test clips went from 47.9 to 0.64 cm² (quadruped; ground truth 3.3 -> 2.6)
+and from 118 to 2.2 cm² (biped; 6.3 -> 5.5) — ``benchmarks/target_tuning.py``.
 """
 
 from __future__ import annotations
@@ -42,9 +44,9 @@ from rigmap.regression.rig_forward import PlacedRigForward
 class TuningSettings:
     """Adam steps over the target rows (``batch_size`` per step), and the control term's weight."""
 
-    steps: int = 40
+    steps: int = 80
     batch_size: int = 512
-    learning_rate: float = 3e-4
+    learning_rate: float = 1e-3
     control_weight: float = 0.01
 
     def __post_init__(self) -> None:
