@@ -97,13 +97,14 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "evaluate_samplers": len(rigs),
         "evaluate_kernels": len(rigs),
         "sample_sweep": 2,
+        "fit_nn_joint_space": 2,
         "report": 1,
         "edit_fit": 1,
         "edit_apply": 1,
         "edit_evaluate": 1,
         "map_mocap": len(params["pipeline"]["map_rigs"]),
     }
-    assert len(stages) == 108 + len(params["pipeline"]["map_rigs"]) and len(blender) == 1
+    assert len(stages) == 110 + len(params["pipeline"]["map_rigs"]) and len(blender) == 1
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
@@ -149,7 +150,7 @@ def test_evaluations_declare_metrics_and_per_frame_plots(stages):
     evaluate = stages["evaluate@quadruped"]
     metrics = [o.def_path for o in evaluate.outs if o.metric]
     plots = [o.def_path for o in evaluate.outs if o.plot]
-    assert len(metrics) == len(plots) == 9
+    assert len(metrics) == len(plots) == 12
     assert [Path(p).with_suffix(".csv").as_posix() for p in metrics] == plots
     assert "models/quadruped" in paths(evaluate.deps)
     kernels = stages["evaluate_kernels@face"]

@@ -162,9 +162,16 @@ def test_table1_has_every_method_row_per_clip_and_average(project):
             methods = rows[rows["motion"] == motion]["method"].tolist()
             assert methods == list(SETTINGS.methods_for(rig))
     assert "script" not in table[table["rig"] == "face"]["method"].tolist()
-    assert len(SETTINGS.methods_for("quadruped")) == 9
+    assert len(SETTINGS.methods_for("quadruped")) == 12
     extras = table[table["extra"].astype(str) == "True"]["method"].unique().tolist()
-    assert sorted(extras) == ["mean", "nn_autodiff_jacobian", "nn_learned_jacobian"]
+    assert sorted(extras) == [
+        "mean",
+        "nn_autodiff_jacobian",
+        "nn_joint_space",
+        "nn_joint_space_computed_jacobian",
+        "nn_joint_space_tuned",
+        "nn_learned_jacobian",
+    ]
     for column in ("joint_error", "ground_truth_error", "total_time_s", "fps"):
         values = table[column].astype(float).to_numpy()
         assert np.isfinite(values).all() and (values >= 0).all()
@@ -501,6 +508,7 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
     assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf")
     assert settings.sampler_rigs == ("quadruped", "biped", "face", "squirrel")
     assert "nn_autodiff_jacobian" not in settings.methods_for("rigify_wolf")
+    assert "nn_joint_space" not in settings.methods_for("rigify_wolf")  # needs gradients
     assert "script" in settings.methods_for("rigify_wolf")
 
 

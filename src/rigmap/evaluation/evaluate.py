@@ -124,11 +124,16 @@ def evaluate_job(
     method = job.method
     print(f"{rig.name}: {method.name} (sampler {job.sampler}, kernel {job.kernel})", flush=True)
     learned = models.learned_jacobian(job) if method.refine == "learned_jacobian" else None
+    regressor = models.regressor(job)
+    if configured.tune is not None:  # tuned on each clip inside the clock (issue #15)
+        from rigmap.regression.target_tuning import TunedOnTarget, TuningSettings
+
+        regressor = TunedOnTarget(regressor, rig, TuningSettings(**configured.tune))
     return run_method(
         rig,
         method,
         test_set,
-        regressor=models.regressor(job),
+        regressor=regressor,
         learned_jacobian=learned,
         refine=configured.refine,
         sampler=job.sampler,

@@ -24,6 +24,7 @@ class ConfiguredMethod:
     method: Method
     refine: RefineSettings | None  # None exactly when the method does not refine
     config: dict[str, Any] = field(default_factory=dict, compare=False)  # plain, for the record
+    tune: dict[str, Any] | None = None  # tuning on the target clip (regression.target_tuning)
 
     @property
     def name(self) -> str:
@@ -35,11 +36,14 @@ def configured_method(
     guess: str,
     regressor: str | None = None,
     refine: Mapping[str, Any] | None = None,
+    tune: Mapping[str, Any] | None = None,
 ) -> ConfiguredMethod:
     """The method ``name`` from its config node: guess, regressor, and its ``refine`` group.
 
     ``refine`` is a composed ``conf/refine/*.yaml`` (``name`` none, computed_jacobian
-    with its ``jacobian``, or learned_jacobian, plus the solver settings).
+    with its ``jacobian``, or learned_jacobian, plus the solver settings). ``tune``: the
+    :class:`~rigmap.regression.target_tuning.TuningSettings` of a joint-space network
+    tuned on each clip before it predicts it (``None``: no tuning).
     """
     refine = dict(refine or {"name": "none"})
     kind = refine.get("name")
@@ -50,8 +54,8 @@ def configured_method(
     jacobian = refine.get("jacobian") if kind == "computed_jacobian" else None
     method = Method(str(name), str(guess), regressor, str(kind), jacobian)
     settings = None if method.refine == "none" else RefineSettings.from_config(refine, method)
-    config = {"guess": guess, "regressor": regressor, "refine": refine}
-    return ConfiguredMethod(method, settings, config)
+    config = {"guess": guess, "regressor": regressor, "refine": refine, "tune": tune}
+    return ConfiguredMethod(method, settings, config, dict(tune) if tune is not None else None)
 
 
 def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, ConfiguredMethod]:

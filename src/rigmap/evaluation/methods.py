@@ -132,6 +132,10 @@ METHODS: dict[str, Method] = {
         Method("mean", "regressor", "mean"),  # the yardstick of the scale-free column (ours)
     )
 }
+#: rows that exist only as their config (conf/method/<name>.yaml): the joint-space network's
+#: (issue #15), whose model is fitted by its own stage and whose tuning settings live in the
+#: yaml (ConfiguredMethod.tune), not in a Method
+CONFIG_ONLY_METHODS = ("nn_joint_space", "nn_joint_space_computed_jacobian", "nn_joint_space_tuned")
 
 
 def get_method(name: str) -> Method:

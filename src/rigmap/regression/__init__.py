@@ -17,6 +17,7 @@ from rigmap.regression.base import Regressor, regressor_classes
 from rigmap.regression.errors import ModelFileError, ModelMismatchError, RegressionInputError
 from rigmap.regression.fingerprint import ModelFingerprint
 from rigmap.regression.gpr import GaussianProcessRegressor
+from rigmap.regression.joint_space_network import JointSpaceNetworkRegressor
 from rigmap.regression.kernels import (
     GaussianKernel,
     Kernel,
@@ -75,6 +76,7 @@ __all__ = [
     "FeedForwardRegressor",
     "GaussianKernel",
     "GaussianProcessRegressor",
+    "JointSpaceNetworkRegressor",
     "Kernel",
     "LearnedJacobian",
     "LinearKernel",

@@ -66,6 +66,10 @@ class Regressor(BaseEstimator):
         """Extra ``fit`` keywords from the training rows (the GPR starts from the rest pose)."""
         return {}
 
+    def rig_fit_options(self, *, rig: Any, placement: Any) -> dict[str, Any]:
+        """Extra ``fit`` keywords for a model trained through the rig (``rig``, ``placement``)."""
+        return {}
+
     @property
     def kernel_name(self) -> str:
         """The kernel part of the model id: the kernel's label, or ``none``."""

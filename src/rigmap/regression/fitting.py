@@ -379,6 +379,7 @@ def fit_regressor(
     """``model.fit`` on the training rows behind ``placement``, with the model's own options."""
     options: dict[str, Any] = {"rig_name": rig.name, "control_names": list(rig.used_controls)}
     options.update(model.fit_options(rest_index=data.rest_index))
+    options.update(model.rig_fit_options(rig=rig, placement=placement))
     log(f"  {model.describe_plan(data.rows)}")
     mapping = InverseMapping(model, placement).fit(data.features, data.controls, **options)
     for line in model.describe_result():

@@ -35,6 +35,9 @@ METHODS: tuple[Row, ...] = (
     Row("nn_computed_jacobian", "NN & Computed Jacobian"),
     Row("nn_learned_jacobian", "NN & Learned Jacobian", extra=True),
     Row("nn_autodiff_jacobian", "NN & Autodiff Jacobian", extra=True),
+    Row("nn_joint_space", "Joint-space NN", extra=True),
+    Row("nn_joint_space_computed_jacobian", "Joint-space NN & Computed Jacobian", extra=True),
+    Row("nn_joint_space_tuned", "Joint-space NN tuned on the clip", extra=True),
     Row("mean", "Mean Predictor", extra=True),
 )
 

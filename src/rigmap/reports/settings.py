@@ -17,12 +17,19 @@ from typing import Any
 
 from rigmap.reports.catalog import KERNELS, METHODS, RIGS, SAMPLERS, find_row
 
+#: methods whose network trains through the rig: built-in rigs only, and they draw their own
+#: poses (their files are ``methods/<method>-none.json``)
+JOINT_SPACE_METHODS: tuple[str, ...] = (
+    "nn_joint_space",
+    "nn_joint_space_computed_jacobian",
+    "nn_joint_space_tuned",
+)
 #: the evaluate stages run the script baseline only where one exists (quadruped, biped, and
 #: the Blender rigs' constraint retarget) and autodiff only on differentiable rigs
 DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
     "face": ("script",),
     "squirrel": ("script",),
-    "rigify_wolf": ("nn_autodiff_jacobian",),
+    "rigify_wolf": ("nn_autodiff_jacobian", *JOINT_SPACE_METHODS),
 }
 #: rigs whose pipeline compares methods only (Table 1) — no sampler or kernel sweeps
 METHODS_ONLY_RIGS: tuple[str, ...] = ("rigify_wolf",)
@@ -105,7 +112,10 @@ class ReportSettings:
         return tuple(m for m in self.methods if m not in left_out)
 
     def method_sampler(self, method: str) -> str:
-        """The sampler in a method's file name: the network's for ``nn*``, else ``none``."""
+        """The sampler in a method's file name: the network's for ``nn*`` (but the joint-space
+        network's, which draws its own poses), else ``none``."""
+        if method in JOINT_SPACE_METHODS:
+            return "none"
         return self.nn_sampler if method.startswith("nn") else "none"
 
     @classmethod

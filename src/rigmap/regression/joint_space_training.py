@@ -1,0 +1,130 @@
+"""What the joint-space network trains on, and its cost: drawn poses and the rig in the loop.
+
+:func:`draw_training_poses` gives poses beyond the corpus (the corpus alone
+covers a sliver of what test motion does: issue #15 found 85-100 % of the
+extreme test frames more than 3 training stds outside it). :func:`joint_space_cost`
+is the cost of :mod:`rigmap.regression.joint_space_network` on one minibatch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from rigmap.regression.features import inverse_features
+from rigmap.regression.normalisation import column_scale
+from rigmap.regression.rig_forward import PlacedRigForward
+
+
+def draw_training_poses(
+    rig, placement, Y_targets: np.ndarray, n_gaussian: int, scale: float, n_wide: int, rng
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n_gaussian`` PCA-Gaussian draws around ``Y_targets`` plus ``n_wide`` uniform draws
+    over the soft ranges, posed by ``rig``: their placement inputs and targets.
+
+    Gaussian draws are clamped into the soft ranges (the network's outputs cannot leave
+    them, so a pose made outside them could not be reproduced). Root channels are zero.
+    The Gaussian draws come first, then the wide ones.
+    """
+    from rigmap.sampling import PCAGaussianSampler, UniformSampler
+    from rigmap.sampling.clamping import clamp_to_limits
+
+    used = rig.controls.used_indices
+    lower, upper = rig.controls.lower[used], rig.controls.upper[used]
+    root = [c.index for c in placement.channels]
+    base = np.array(Y_targets, dtype=np.float64)
+    base[:, root] = 0.0
+    drawn = []
+    if n_gaussian:
+        gaussian = PCAGaussianSampler(scale=scale).fit(base).sample(n_gaussian, rng)
+        drawn.append(clamp_to_limits(gaussian, lower, upper, copy=False).values)
+    if n_wide:
+        drawn.append(UniformSampler("soft", lower, upper).fit(base).sample(n_wide, rng))
+    width = placement.input_width
+    if not drawn:
+        return np.empty((0, width)), np.empty((0, len(used)))
+    controls = np.concatenate(drawn)
+    controls[:, root] = 0.0
+    pose = rig.pose(rig.expand_used(controls))
+    where = f"poses drawn for joint-space training of rig {rig.name!r}"
+    features = inverse_features(
+        np.asarray(pose.positions),
+        np.asarray(pose.cog),
+        np.asarray(pose.cog_rotation),
+        n_joints=rig.n_joints,
+        where=where,
+    )
+    return placement.inputs(features, where), placement.targets(controls, features, where)
+
+
+@dataclass
+class JointSpaceData:
+    """Every training row as float32 tensors, and the scales that make the cost unit-free.
+
+    ``known``: rows whose controls are the animators' (or a sampler's), where the control
+    term applies in the joint-space phase; ``natural``: rows whose controls the
+    control-space phase regresses (the known rows and the draws around the corpus; a wide
+    draw's controls are a random answer among many for its pose, so it gets the joint
+    term only); ``joint_scale``: the mean variance of a joint
+    coordinate over those rows (cm²); ``target_std``: each target's std over them (the
+    ground-truth error's scale); ``spread``: each target's std over every row, the scale of
+    the control-space phase (in ``target_std`` units a wide draw's error would be
+    thousands, and would swamp the corpus).
+    """
+
+    inputs: torch.Tensor  # (N, D)
+    targets: torch.Tensor  # (N, C)
+    known: torch.Tensor  # (N,) bool
+    natural: torch.Tensor  # (N,) bool
+    joints: torch.Tensor  # (N, J + 1, 3): the joints and the COG the inputs hold
+    target_std: torch.Tensor  # (C,)
+    spread: torch.Tensor  # (C,)
+    joint_scale: float
+
+    @classmethod
+    def build(
+        cls, forward: PlacedRigForward, X, Y, drawn_X, drawn_Y, n_wide: int
+    ) -> JointSpaceData:
+        inputs = np.concatenate([X, drawn_X])
+        targets = np.concatenate([Y, drawn_Y])
+        known = np.zeros(len(inputs), dtype=bool)
+        known[: len(X)] = True
+        natural = np.ones(len(inputs), dtype=bool)
+        natural[len(inputs) - n_wide :] = False
+        joints, cog = forward.input_pose(inputs)
+        points = np.concatenate([joints, cog[:, None, :]], axis=1)
+        _, std = column_scale(Y)
+        _, spread = column_scale(targets)
+        scale = float(points[: len(X)].reshape(len(X), -1).var(axis=0).mean())
+        as_tensor = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
+        return cls(
+            inputs=as_tensor(inputs),
+            targets=as_tensor(targets),
+            known=torch.from_numpy(known),
+            natural=torch.from_numpy(natural),
+            joints=as_tensor(points),
+            target_std=as_tensor(std),
+            spread=as_tensor(spread),
+            joint_scale=max(scale, 1e-12),
+        )
+
+    def control_cost(self, predicted: torch.Tensor, rows: torch.Tensor, scale=None) -> torch.Tensor:
+        """Mean squared target error of ``rows`` in ``scale`` (default ``target_std``) units."""
+        scale = self.target_std if scale is None else scale
+        return ((predicted - self.targets[rows]) / scale).square().mean()
+
+
+def joint_space_cost(network, forward: PlacedRigForward, data: JointSpaceData, rows, on=None):
+    """``(joint, control)`` costs of one minibatch: the joint term (every row, through the
+    rig, in ``joint_scale`` units) and the control term on the rows of the mask ``on``
+    (default ``data.known``; zero if the minibatch has none)."""
+    predicted = network(data.inputs[rows])
+    posed = forward(predicted)
+    points = torch.cat([posed.joints, posed.cog[:, None, :]], dim=1)
+    joint = (points - data.joints[rows]).square().mean() / data.joint_scale
+    known = (data.known if on is None else on)[rows]
+    if not bool(known.any()):
+        return joint, torch.zeros(())
+    return joint, data.control_cost(predicted[known], rows[known])

@@ -1,0 +1,210 @@
+"""The network trained through the rig: its forward, its gradient, its training, its ranges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from rigmap.regression import JointSpaceNetworkRegressor, load_regressor
+from rigmap.regression.features import inverse_features
+from rigmap.regression.joint_space_network import SquashedNetwork
+from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
+from rigmap.regression.mapping import InverseMapping
+from rigmap.regression.placement import find_placement, heading, turn_matrix
+from rigmap.regression.rig_forward import NotDifferentiableRigError, PlacedRigForward
+from rigmap.rigs.engine.builder import RigBuilder
+from rigmap.rigs.engine.torch_rig import TorchRig
+
+
+def tiny_rig() -> TorchRig:
+    """A root that walks and turns, a COG, and a three-segment arm: 8 used controls."""
+    b = RigBuilder("tiny")
+    b.transform_control("root", parent=None, group="root", used="tx tz ry")
+    b.transform_control("cog", parent="root", offset=(0, 50, 0), group="body", used="ty rx")
+    b.transform_control("upper", parent="cog", offset=(10, 0, 0), group="arm", used="rz ry")
+    b.transform_control("lower", parent="upper", offset=(20, 0, 0), group="arm", used="rz")
+    b.transform_control("hand", parent="lower", offset=(20, 0, 0), group="arm")
+    for name, parent in (("cog", None), ("upper", "cog"), ("lower", "upper"), ("hand", "lower")):
+        b.joint(name, parent)
+    return TorchRig(b)
+
+
+def corpus(rig, n: int, seed: int, spread: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """Used controls a fraction into their soft ranges, and their pose rows."""
+    rng = np.random.default_rng(seed)
+    used = rig.controls.used_indices
+    lo, hi = rig.controls.lower[used], rig.controls.upper[used]
+    Y = spread * rng.uniform(lo, hi, size=(n, len(used)))
+    pose = rig.pose(rig.expand_used(Y))
+    X = inverse_features(
+        pose.positions, pose.cog, pose.cog_rotation, n_joints=rig.n_joints, where="t"
+    )
+    return X, Y
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    rig = tiny_rig()
+    X, Y = corpus(rig, 40, seed=0)
+    placement = find_placement(rig, np.concatenate([np.zeros((1, Y.shape[1])), Y[:3]]))
+    assert placement.turn is not None and placement.ground is not None
+    return rig, placement, X, Y
+
+
+def heading_frame_pose(rig, placement, targets, X):
+    """The numpy path: controls from the placement, the rig, turned into the target's frame."""
+    pose = rig.pose(rig.expand_used(placement.controls(targets, X)))
+    n3 = 3 * rig.n_joints
+    R = turn_matrix(heading(X[:, n3 + 3 :].reshape(-1, 3, 3)))
+    joints = np.einsum("nab,nja->njb", R, pose.positions)
+    cog = np.einsum("nab,na->nb", R, pose.cog - X[:, n3 : n3 + 3])
+    cog[:, 1] = pose.cog[:, 1]
+    return joints, cog
+
+
+@pytest.mark.parametrize("which", ["tiny", "quadruped"])
+def test_placed_forward_is_the_rig_behind_the_placement(which, tiny, quadruped):
+    if which == "tiny":
+        rig, placement, X, Y = tiny
+    else:
+        rig = quadruped
+        X, Y = corpus(rig, 6, seed=3, spread=0.1)
+        placement = find_placement(rig, np.concatenate([np.zeros((1, Y.shape[1])), Y[:3]]))
+    targets = placement.targets(Y, X) + 0.05 * np.random.default_rng(1).normal(size=Y.shape)
+    joints, cog = heading_frame_pose(rig, placement, targets, X)
+    placed = PlacedRigForward(rig, placement)(torch.from_numpy(targets))
+    np.testing.assert_allclose(placed.joints.numpy(), joints, atol=1e-9)
+    np.testing.assert_allclose(placed.cog.numpy(), cog, atol=1e-9)
+    # the exact targets give back the pose the inputs hold
+    exact = PlacedRigForward(rig, placement)(torch.from_numpy(placement.targets(Y, X)))
+    held_joints, held_cog = PlacedRigForward(rig, placement).input_pose(placement.inputs(X))
+    np.testing.assert_allclose(exact.joints.numpy(), held_joints, atol=1e-9)
+    np.testing.assert_allclose(exact.cog.numpy(), held_cog, atol=1e-9)
+
+
+def test_joint_space_cost_gradient_matches_finite_differences(tiny):
+    rig, placement, X, Y = tiny
+    forward = PlacedRigForward(rig, placement)
+    inputs, targets = placement.inputs(X), placement.targets(Y, X)
+    data = JointSpaceData.build(forward, inputs[:30], targets[:30], inputs[30:], targets[30:], 10)
+    for name in ("inputs", "targets", "joints", "target_std", "spread"):
+        setattr(data, name, getattr(data, name).double())
+    network = SquashedNetwork(
+        inputs.shape[1], 16, 2, targets.shape[1], torch.Generator().manual_seed(0)
+    )
+    bounded = np.ones(targets.shape[1], dtype=bool)
+    bounded[[c.index for c in placement.channels]] = False
+    used = rig.controls.used_indices
+    network.set_scales(
+        inputs.mean(0),
+        inputs.std(0) + 1e-3,
+        rig.controls.lower[used],
+        rig.controls.upper[used],
+        targets.mean(0),
+        targets.std(0),
+        bounded,
+    )
+    network = network.double()
+    rows = torch.arange(len(inputs))  # known rows and drawn ones: both terms
+
+    def cost() -> torch.Tensor:
+        joint, control = joint_space_cost(network, forward, data, rows)
+        return joint + 0.3 * control
+
+    weight = network.layers[0].weight
+    network.zero_grad()
+    cost().backward()
+    analytic = weight.grad.clone()
+    step = 1e-6
+    for i, j in [(0, 0), (3, 5), (7, 11), (15, 2)]:
+        with torch.no_grad():
+            weight[i, j] += step
+            plus = float(cost())
+            weight[i, j] -= 2 * step
+            minus = float(cost())
+            weight[i, j] += step
+        numeric = (plus - minus) / (2 * step)
+        assert numeric == pytest.approx(float(analytic[i, j]), rel=1e-5, abs=1e-9)
+
+
+def fitted(tiny, **params) -> InverseMapping:
+    rig, placement, X, Y = tiny
+    settings = dict(
+        hidden=64,
+        layers=2,
+        n_gaussian=0,
+        n_wide=0,
+        pretrain_epochs=0,
+        epochs=300,
+        batch_size=40,
+        control_weight=0.0,
+        learning_rate=3e-3,
+        progress=False,
+    )
+    settings.update(params)
+    model = JointSpaceNetworkRegressor(**settings)
+    options = {"rig_name": rig.name, "control_names": list(rig.used_controls)}
+    options.update(model.rig_fit_options(rig=rig, placement=placement))
+    return InverseMapping(model, placement).fit(X, Y, **options)
+
+
+def joint_error(rig, mapping, X) -> float:
+    posed = rig.evaluate(rig.expand_used(mapping.predict(X)))
+    return float(((posed.reshape(len(X), -1) - X[:, : 3 * rig.n_joints]) ** 2).mean())
+
+
+def test_training_on_a_tiny_set_drives_its_joint_error_toward_zero(tiny):
+    rig, _, X, _ = tiny
+    untrained = joint_error(rig, fitted(tiny, epochs=0), X)
+    trained_model = fitted(tiny)
+    trained = joint_error(rig, trained_model, X)
+    history = [epoch["joint"] for epoch in trained_model.regressor.history_["joint_space"]]
+    assert untrained > 10.0  # cm²: the start (the targets' mean) is far off
+    assert trained < 0.01 * untrained
+    assert history[-1] < 0.01 * history[0]
+
+
+def test_outputs_never_leave_the_soft_ranges(tiny, tmp_path):
+    rig, placement, X, _ = tiny
+    mapping = fitted(tiny, epochs=2, n_gaussian=50, n_wide=50, pretrain_epochs=3)
+    model = mapping.regressor
+    inputs = placement.inputs(X)
+    wild = inputs.mean(0) + 1e4 * np.random.default_rng(2).normal(size=(500, inputs.shape[1]))
+    predicted = model.predict(np.concatenate([inputs, wild]))
+    used = rig.controls.used_indices
+    bounded = [i for i in range(len(used)) if i not in {c.index for c in placement.channels}]
+    lower, upper = rig.controls.lower[used][bounded], rig.controls.upper[used][bounded]
+    assert (predicted[:, bounded] >= lower).all() and (predicted[:, bounded] <= upper).all()
+    assert np.abs(predicted[len(X) :, bounded] - upper).min() < 1e-3 * (upper - lower).max()
+    # and the saved model predicts the same
+    mapping.save(tmp_path)
+    loaded = load_regressor(tmp_path, rig=rig)
+    np.testing.assert_allclose(loaded.predict(X), mapping.predict(X), atol=1e-5)
+
+
+def test_a_rig_without_gradients_gets_a_clear_error(tiny):
+    placement = tiny[1]
+
+    class BlackBox:
+        name, differentiable = "rigify_wolf", False
+
+    with pytest.raises(NotDifferentiableRigError, match="forward surrogate"):
+        PlacedRigForward(BlackBox(), placement)
+
+
+def test_tuning_on_the_target_lowers_its_joint_error_and_keeps_the_model(tiny):
+    from rigmap.regression.target_tuning import TuningSettings, tune_on_targets
+
+    rig = tiny[0]
+    mapping = fitted(tiny, epochs=20)
+    targets, _ = corpus(rig, 30, seed=5, spread=0.5)  # poses it was not trained on
+    before = joint_error(rig, mapping, targets)
+    prediction = mapping.predict(targets)
+    tuned, report = tune_on_targets(
+        mapping, rig, targets, TuningSettings(steps=150, learning_rate=3e-3, control_weight=0.001)
+    )
+    after = joint_error(rig, tuned, targets)
+    assert after < 0.2 * before
+    assert report["last"]["joint"] < 0.2 * report["first"]["joint"]
+    np.testing.assert_array_equal(mapping.predict(targets), prediction)  # the original is kept
