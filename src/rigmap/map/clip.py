@@ -27,6 +27,7 @@ from rigmap.map.contacts import Contacts, detect_contacts, foot_skate, pin_conta
 from rigmap.map.curves import largest_jumps, smooth, unwrap_rotations
 from rigmap.map.key_reduction import ReducedKeys, reduce_within_joint_tolerance
 from rigmap.map.partial import SubsetMapping
+from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
 from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
@@ -38,7 +39,12 @@ class MapError(RigmapError, ValueError):
 
 @dataclass(frozen=True)
 class MapSettings:
-    """How a clip is mapped; every default is ours (the paper gives none)."""
+    """How a clip is mapped; every default is ours (the paper gives none).
+
+    ``prior_weight`` (cm per training std) pulls refinement toward the guess so poorly
+    determined controls do not wander (:mod:`rigmap.map.prior_refinement`); 0 is plain
+    Eq. 13, which reaches a few effector targets exactly at the price of that drift.
+    """
 
     refine_iterations: int = 3
     damping: float | str = "auto"
@@ -47,12 +53,15 @@ class MapSettings:
     smoothing_frames: float = 0.0
     hold: tuple[str, ...] = ("*.ik_fk", "*.follow")
     key_tolerance_cm: float = 0.5
+    prior_weight: float = DEFAULT_PRIOR_WEIGHT
 
     def __post_init__(self) -> None:
         if not (isinstance(self.refine_iterations, int) and self.refine_iterations >= 0):
             raise MapError(f"refine_iterations {self.refine_iterations!r} must be an integer >= 0")
         if not self.key_tolerance_cm > 0:
             raise MapError(f"key_tolerance_cm {self.key_tolerance_cm!r} must be > 0")
+        if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0):
+            raise MapError(f"prior_weight {self.prior_weight!r} must be a finite number >= 0")
 
 
 @dataclass
@@ -134,7 +143,9 @@ def map_clip(
 def solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds) -> np.ndarray:
     """Used controls ``(N, U)`` for world targets ``(N, K, 3)`` of the mapping's joints:
     the mapping's guess with held controls set, then damped least squares on the targets
-    (held controls stay). Adds ``predict_s``, ``refine_s`` (and evaluations) to ``seconds``."""
+    (held controls stay), pulled toward the guess by ``settings.prior_weight``
+    (:mod:`rigmap.map.prior_refinement`). Adds ``predict_s``, ``refine_s`` (and evaluations)
+    to ``seconds``."""
     started = time.perf_counter()
     Y = mapping.predict(world)
     held = held_controls(rig, settings.hold)
@@ -144,13 +155,19 @@ def solve_controls(rig, mapping, world, settings, control_std, hold_values, seco
         seconds["refine_s"] = 0.0
         return Y
     started = time.perf_counter()
-    view = WorldSubsetRig(rig, mapping.subset.joints)
     scale = np.asarray(control_std, dtype=np.float64).copy()
     scale[held] = 0.0  # a control with scale 0 does not move
-    result = damped_least_squares(
-        view, Y, world, ComputedJacobian(view), damping=settings.damping,
-        max_iterations=settings.refine_iterations, control_scale=scale, keep_in_range=True,
-    )  # fmt: skip
+    if settings.prior_weight > 0:
+        result = refine_toward_guess(
+            rig, mapping.subset.joints, Y, world, prior_weight=settings.prior_weight,
+            control_scale=scale, damping=settings.damping, iterations=settings.refine_iterations,
+        )  # fmt: skip
+    else:  # plain Eq. 13 on the mapped joints
+        view = WorldSubsetRig(rig, mapping.subset.joints)
+        result = damped_least_squares(
+            view, Y, world, ComputedJacobian(view), damping=settings.damping,
+            max_iterations=settings.refine_iterations, control_scale=scale, keep_in_range=True,
+        )  # fmt: skip
     seconds["refine_s"] = time.perf_counter() - started
     seconds["refine_rig_evaluations"] = float(result.rig_evaluations)
     return result.Y_used
