@@ -39,10 +39,16 @@ DEFAULT_PRIOR_WEIGHT = 1.0  # μ, cm of joint error worth one training std of a 
 
 
 class PriorRig(Rig):
-    """A world-subset rig whose outputs also hold ``weights · y_used`` as pseudo joints."""
+    """A world-subset rig whose outputs also hold ``weights · y_used`` as pseudo joints;
+    ``joint_weights`` (one per joint of ``view``, default 1) scale the joints' own rows."""
 
-    def __init__(self, view: WorldSubsetRig, weights: np.ndarray):
+    def __init__(self, view: WorldSubsetRig, weights: np.ndarray, joint_weights=None):
         weights = np.asarray(weights, dtype=np.float64)
+        n_joints = len(view.joint_names)
+        self.joint_weights = (np.ones(n_joints) if joint_weights is None
+                              else np.asarray(joint_weights, dtype=np.float64))  # fmt: skip
+        if self.joint_weights.shape != (n_joints,) or not (self.joint_weights > 0).all():
+            raise ValueError(f"joint weights must be {n_joints} numbers > 0")
         n_used = len(view.controls.used_indices)
         if weights.shape != (n_used,) or not np.isfinite(weights).all():
             raise ValueError(f"prior weights must be {n_used} finite numbers, got {weights.shape}")
@@ -66,7 +72,7 @@ class PriorRig(Rig):
 
     def _pose(self, Y) -> Pose:
         Y = np.asarray(Y, dtype=np.float64)
-        world = np.asarray(self.inner.evaluate(Y), dtype=np.float64)
+        world = np.asarray(self.inner.evaluate(Y), dtype=np.float64) * self.joint_weights[:, None]
         prior = self.prior_rows(Y[:, self.controls.used_indices])
         positions = np.concatenate([world, prior], axis=1)
         n = len(Y)
@@ -83,18 +89,21 @@ def refine_toward_guess(
     control_scale: np.ndarray,
     damping: float | str,
     iterations: int,
+    joint_weights=None,
 ):
     """Refine used controls ``guess`` ``(N, U)`` onto world targets ``(N, K, 3)`` of
     ``joints`` with the prior term ``prior_weight² ‖(y − guess)/σ‖²``; controls with scale 0
-    (held, or never moved in training) stay. Returns :class:`rigmap.refine.RefineResult`
-    (its errors include the prior rows)."""
+    (held, or never moved in training) stay; ``joint_weights`` (per joint, default 1)
+    weigh the joints' errors, e.g. planted feet above the rest. Returns
+    :class:`rigmap.refine.RefineResult` (its errors include the prior rows)."""
     if not (np.isfinite(prior_weight) and prior_weight >= 0):
         raise ValueError(f"prior weight {prior_weight!r} must be a finite number >= 0")
     scale = np.asarray(control_scale, dtype=np.float64)
     moving = scale > 0
     weights = np.where(moving, prior_weight / np.where(moving, scale, 1.0), 0.0)
-    view = PriorRig(WorldSubsetRig(rig, joints), weights)
-    targets = np.concatenate([np.asarray(world, dtype=np.float64), view.prior_rows(guess)], axis=1)
+    view = PriorRig(WorldSubsetRig(rig, joints), weights, joint_weights)
+    world = np.asarray(world, dtype=np.float64) * view.joint_weights[:, None]
+    targets = np.concatenate([world, view.prior_rows(guess)], axis=1)
     return damped_least_squares(
         view, guess, targets, ComputedJacobian(view, differences="forward"), damping=damping,
         max_iterations=iterations, control_scale=scale, keep_in_range=True,
