@@ -10,7 +10,7 @@ import pytest
 from rigmap.animation.library import build_corpus
 from rigmap.map import RetargetMap, tracks_from_bvh
 from rigmap.map.clip import MapError, MapSettings, solve_controls
-from rigmap.map.curves import largest_jumps, unwrap_rotations
+from rigmap.map.curves import largest_jumps, smooth, unwrap_rotations
 from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.map.prior_refinement import PriorRig
 from rigmap.map.world_subset_rig import WorldSubsetRig
@@ -50,6 +50,9 @@ def test_prior_rows_are_the_weighted_controls(biped):
     flat = out[:, 2:].reshape(3, -1)
     np.testing.assert_allclose(flat[:, : len(weights)], Y[:, biped.controls.used_indices] * weights)
     assert not flat[:, len(weights) :].any()
+    heavy = PriorRig(view, weights, joint_weights=[3.0, 1.0]).evaluate(Y)
+    np.testing.assert_allclose(heavy[:, 0], 3.0 * out[:, 0])
+    np.testing.assert_allclose(heavy[:, 1:], out[:, 1:])
     with pytest.raises(MapError, match="prior_weight"):
         MapSettings(prior_weight=-1.0)
 
@@ -66,9 +69,15 @@ def test_the_prior_calms_the_kick_and_keeps_the_joints_close(biped, kick):
         )
         error = np.sqrt(((view.evaluate(biped.expand_used(Y)) - world) ** 2).sum(axis=2).mean())
         found[weight] = (largest_jumps(Y, std).max(), error)
+        if weight == 1.0:  # MapSettings' default smoothing (1 frame) before key reduction
+            calm = smooth(Y, MapSettings().smoothing_frames)
+            calm_error = np.sqrt(((view.evaluate(biped.expand_used(calm)) - world) ** 2)
+                                 .sum(axis=2).mean())  # fmt: skip
     guess = mapping.predict(world)
     guess_error = np.sqrt(((view.evaluate(biped.expand_used(guess)) - world) ** 2).sum(2).mean())
     (plain_jump, plain_error), (prior_jump, prior_error) = found[0.0], found[1.0]
     assert plain_jump > 8.0  # plain Eq. 13 swings hips.rz by ~11 training std in one frame
     assert prior_jump < 0.7 * plain_jump
     assert prior_error < plain_error + 1.5 < guess_error  # cm: still far closer than the guess
+    assert largest_jumps(calm, std).max() < 5.0 < prior_jump
+    assert calm_error < prior_error + 0.5
