@@ -49,6 +49,11 @@ class MapSettings:
     more joint error (branch switches of the refinement become short ramps).
     ``foot_weight`` weighs the errors of the ``feet`` joints in that refinement (1: like
     every joint), so planted feet slide less where the rig cannot reach every target.
+    Measured on both CMU walks at 120 fps (3 iterations, these defaults against plain
+    Eq. 13 without smoothing): largest jump 10.8 -> 3.0 and 3.2 -> 2.6 std, keys at 1 cm
+    19.8 -> 12.9 and 15.7 -> 13.3 % of frames × controls, planted-foot skate 0.130 -> 0.105
+    and 0.085 -> 0.055 cm/frame (source 0.099 and 0.065), RMS joint error 5.19 -> 5.01 and
+    2.99 -> 3.34 cm.
     """
 
     refine_iterations: int = 3
@@ -59,7 +64,7 @@ class MapSettings:
     hold: tuple[str, ...] = ("*.ik_fk", "*.follow")
     key_tolerance_cm: float = 0.5
     prior_weight: float = DEFAULT_PRIOR_WEIGHT
-    foot_weight: float = 1.0
+    foot_weight: float = 3.0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.refine_iterations, int) and self.refine_iterations >= 0):
