@@ -247,7 +247,9 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         model = _model(config, rig, subset, log)
         settings = map_settings(options, rig.name)
         controls, error, seconds = pose_from_effectors(
-            rig, model.mapping, targets, dataclasses.replace(settings, feet=()),
+            # a few effectors are reached exactly by plain Eq. 13 (prior_weight 0); the pull
+            # toward the guess is for the many joints of a clip (MapSettings' docstring)
+            rig, model.mapping, targets, dataclasses.replace(settings, feet=(), prior_weight=0.0),
             control_std=model.control_std, hold_values=model.hold_values,
         )  # fmt: skip
         out = Path(

@@ -2,8 +2,8 @@
 
 A mapping predicts every frame on its own, so a rotation near ±π can jump by 2π between
 frames although the pose barely moves; unwrapping removes those jumps (the values stay
-equivalent rotations). Smoothing is a Gaussian filter over time (scipy), off by default:
-it trades joint accuracy for calmer curves, a choice the user makes.
+equivalent rotations). Smoothing is a Gaussian filter over time (scipy), light by default
+in :class:`rigmap.map.clip.MapSettings`: it trades joint accuracy for calmer curves.
 """
 
 from __future__ import annotations

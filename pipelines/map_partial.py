@@ -1,0 +1,27 @@
+"""DVC stage ``map_partial``: the rig posed from a few joints, and a joint-space edit mapped back.
+
+Reads ``<paths.data>/<rig>/{corpus,poses}/{train,test}.parquet``; fits a subset mapping (the
+``regressor`` group) per input of ``map_partial.input_joints`` plus the full joint set,
+scores them on the test clips and maps the motion-editing demo (paper §6.3, Figs 5-7);
+writes ``<paths.metrics>/<rig>/map_partial/{partial_inputs.json,partial_inputs.csv,
+motion_edit.json}`` (:mod:`rigmap.map.partial_report`).
+
+    python pipelines/map_partial.py rig=biped regressor=gpr kernel=multiquadric
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from rigmap.map.partial_report import map_partial_from_config
+from rigmap.stage import run_stage
+
+
+def run(cfg: DictConfig) -> list[Path]:
+    return map_partial_from_config(OmegaConf.to_container(cfg, resolve=True))
+
+
+if __name__ == "__main__":
+    run_stage(run)
