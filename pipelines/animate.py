@@ -15,18 +15,12 @@ from omegaconf import DictConfig
 
 from rigmap.animation.corpus_files import require_motion_library, write_corpora
 from rigmap.stage import run_stage
-from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config
+from rigmap.stage.inputs import corpus_settings, layout_of, rig_from_config
 
 
 def run(cfg: DictConfig) -> list[Path]:
     require_motion_library(cfg.rig.name)  # a rig without clips fails here, before it is built
-    return write_corpora(
-        rig_from_config(cfg.rig),
-        layout_of(cfg),
-        seed=int(cfg.seed),
-        fps=corpus_fps(cfg.rig),
-        variation=float(cfg.corpus.variation),
-    )
+    return write_corpora(rig_from_config(cfg.rig), layout_of(cfg), **corpus_settings(cfg))
 
 
 if __name__ == "__main__":

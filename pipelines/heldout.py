@@ -16,18 +16,12 @@ from omegaconf import DictConfig
 
 from rigmap.animation.corpus_files import write_heldout
 from rigmap.stage import run_stage
-from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config
+from rigmap.stage.inputs import corpus_settings, layout_of, rig_from_config
 
 
 def run(cfg: DictConfig) -> list[Path]:
-    return write_heldout(
-        rig_from_config(cfg.rig),
-        layout_of(cfg),
-        seed=int(cfg.seed),
-        fps=corpus_fps(cfg.rig),
-        variation=float(cfg.corpus.variation),
-        batch_size=int(cfg.pose.batch_size),
-    )
+    rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
+    return write_heldout(rig, layout, batch_size=int(cfg.pose.batch_size), **corpus_settings(cfg))
 
 
 if __name__ == "__main__":

@@ -37,6 +37,16 @@ def corpus_fps(rig_cfg: DictConfig) -> int:
     return int((rig_cfg.get("corpus") or {}).get("fps", DEFAULT_FPS))
 
 
+def corpus_settings(cfg: DictConfig) -> dict[str, Any]:
+    """How the motion library is played: ``seed``, ``fps`` and ``variation`` keywords of
+    :func:`rigmap.animation.corpus_files.write_corpora` and ``write_heldout``."""
+    return {
+        "seed": int(cfg.seed),
+        "fps": corpus_fps(cfg.rig),
+        "variation": float(cfg.corpus.variation),
+    }
+
+
 def sampler_from_config(sampler_cfg: DictConfig, rig) -> Any:
     """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
     from rigmap.sampling import instantiate_sampler, sampler_name

@@ -1,0 +1,34 @@
+"""DVC stages ``edit_fit``, ``edit_apply``, ``edit_evaluate``: edit propagation (002).
+
+One script for the three steps of :mod:`rigmap.edits.runs` (``run_fit``, ``run_apply``,
+``run_evaluate``), chosen by ``+edits_step``:
+
+    python pipelines/edits.py +edits=default +edits_step=fit                    # both subjects
+    python pipelines/edits.py +edits=default +edits_step=apply 'edits.run=[cmu_131]'  # CMU only
+"""
+
+from __future__ import annotations
+
+from omegaconf import DictConfig, OmegaConf
+
+from rigmap.edits import runs
+from rigmap.edits.representation import TargetError
+from rigmap.stage import run_stage
+from rigmap.store import Layout
+
+STEPS = ("fit", "apply", "evaluate")
+
+
+def run(cfg: DictConfig):
+    if "edits" not in cfg:
+        raise TargetError("no edits config: add +edits=default to the command")
+    step = cfg.get("edits_step")
+    if step not in STEPS:
+        raise TargetError(f"+edits_step: expected one of {STEPS}, got {step!r}")
+    config = OmegaConf.to_container(cfg.edits, resolve=True)
+    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
+    return getattr(runs, f"run_{step}")(config, layout)
+
+
+if __name__ == "__main__":
+    run_stage(run)
