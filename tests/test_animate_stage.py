@@ -121,8 +121,9 @@ def test_hydra_entry_point_writes_only_the_declared_outputs(tmp_path):
 
 
 def test_a_rig_without_a_motion_library_is_a_clear_error(tmp_path):
-    """Refused before the rig is built (a Blender rig would start worker processes)."""
-    cfg = config("rig=rigify_human", f"paths.data={tmp_path}")
-    with pytest.raises(KeyError, match="no motion library for rig 'rigify_human'"):
+    """Refused before the rig is built (a Blender rig would start worker processes): a
+    user's own .blend rig (registered as ``blend_file``) comes with no motion library."""
+    cfg = config("rig=rigify_human", "rig.name=blend_file", f"paths.data={tmp_path}")
+    with pytest.raises(KeyError, match="no motion library for rig 'blend_file'"):
         _stage("animate").run(cfg)
     assert not any(tmp_path.iterdir())
