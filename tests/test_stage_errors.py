@@ -79,8 +79,11 @@ def test_a_corrupted_corpus_file_is_one_message_naming_it(tmp_path):
         ("fit", ["rig=face", "regressor=gpr", "sampler=none"], "the train corpus of rig 'face'"),
         ("report", ["paths.metrics=m", "paths.data=d", "paths.reports=r"], "m/quadruped/methods/"),
         ("supersample", ["rig=face", "sampler=nope"], "Could not find 'sampler/nope'"),
-        ("animate", ["rig=rigify_human", "rig.name=blend_file"],
-         "no motion library for rig 'blend_file'"),  # a user's .blend rig: no clips
+        (
+            "animate",
+            ["rig=rigify_human", "rig.name=blend_file"],
+            "no motion library for rig 'blend_file'",
+        ),  # a user's .blend rig: no clips
     ],
 )
 def test_other_stages_print_their_errors_as_one_message(tmp_path, stage, overrides, expected):
