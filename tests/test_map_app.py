@@ -120,12 +120,19 @@ def test_pose_from_seven_effectors(project, biped, tmp_path):
     targets["hand_l"][1] += 25.0  # raise the left hand
     path = tmp_path / "effectors.json"
     path.write_text(json.dumps({"rig": "biped", "targets": targets}))
-    out = pose_from_config(map_config(project, f"targets={path}", f"out={tmp_path / 'pose'}"),
-                           log=lambda _: None)  # fmt: skip
-    written = json.loads((out / "controls.json").read_text())
-    assert sorted(p.name for p in out.iterdir()) == ["controls.json", "pose_0.png"]
-    assert written["effectors"] == joints
-    assert written["poses"][0]["target_distance_rms_cm"] < 5.0
+    distances = {}
+    for mode in ("drag", "batch"):
+        out = pose_from_config(map_config(project, f"targets={path}", f"map.pose_mode={mode}",
+                                          f"out={tmp_path / mode}"), log=lambda _: None)  # fmt: skip
+        written = json.loads((out / "controls.json").read_text())
+        assert sorted(p.name for p in out.iterdir()) == ["controls.json", "pose_0.png"]
+        assert written["effectors"] == joints
+        distances[mode] = written["poses"][0]["target_distance_rms_cm"]
+    assert distances["drag"] < 5.0 and distances["batch"] < 5.0
+    with pytest.raises(MapConfigError, match=r"map.pose_mode: expected 'drag' or 'batch'"):
+        pose_from_config(map_config(project, f"targets={path}", "map.pose_mode=sideways",
+                                    f"out={tmp_path / 'no'}"), log=lambda _: None)  # fmt: skip
+    assert not (tmp_path / "no").exists()
 
 
 # --------------------------------------------------------------------------- bad input

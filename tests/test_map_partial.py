@@ -10,6 +10,7 @@ from rigmap.regression import GaussianProcessRegressor
 from rigmap.regression.features import inverse_features
 from rigmap.regression.kernels import MultiquadricKernel
 from rigmap.regression.placement import turn_matrix
+from rigmap.rigs import RigInputError
 
 FEET = {"joints": ["foot_l", "foot_r", "toe_l", "toe_r"], "origin": "foot_l",
         "left": "foot_l", "right": "foot_r"}  # fmt: skip
@@ -173,3 +174,40 @@ def test_posing_from_seven_effectors_reaches_them(biped, effector_mapping, tmp_p
     (tmp_path / "bad.json").write_text('{"targets": {"pelvis": [0, 1]}}')
     with pytest.raises(EffectorError, match=r"bad\.json"):
         read_effector_targets(tmp_path / "bad.json", ("pelvis",))
+
+
+def test_interactive_posing_follows_a_drag(biped, effector_mapping):
+    """A drag: the effectors of a pose moved toward another's in 8 small steps. Each pose
+    costs its four rig calls, lands closer than the mapping's guess, and the last pose of
+    the drag reaches its targets about as well as the batch refinement does."""
+    from rigmap.map.clip import MapSettings
+    from rigmap.map.effectors import pose_from_effectors
+    from rigmap.map.interactive_pose import STEP_LENGTHS, InteractivePoser
+
+    Y_train, _, _ = random_poses(biped, 400, seed=0)
+    _, _, world = random_poses(biped, 2, seed=33)
+    ends = world[:, effector_mapping.subset.columns(biped)]
+    drag = [ends[0] + t * (ends[1] - ends[0]) for t in np.linspace(0, 1, 9)]
+    std, median = Y_train.std(axis=0), np.median(Y_train, axis=0)
+    poser = InteractivePoser(biped, effector_mapping, control_std=std, hold_values=median)
+    results = [poser(target) for target in drag]
+    guesses = pose_from_effectors(biped, effector_mapping, np.array(drag),
+                                  MapSettings(refine_iterations=0), control_std=std,
+                                  hold_values=median)[1]  # fmt: skip
+    distances = np.array([r.distance_cm for r in results])
+    assert (distances <= guesses + 1e-9).all() and distances.mean() < 0.5 * guesses.mean()
+    n_used = len(biped.used_controls)
+    first, rest = results[0].rig_evaluations, [r.rig_evaluations for r in results[1:]]
+    assert first <= 1 + n_used + 1 + poser.steps * len(STEP_LENGTHS)
+    assert max(rest) <= 2 + n_used + 1 + poser.steps * len(STEP_LENGTHS)
+    reached = biped.pose(results[-1].controls[None])
+    at = (np.asarray(reached.positions) + np.asarray(reached.cog)[:, None])[0]
+    np.testing.assert_allclose(
+        np.sqrt(((at[effector_mapping.subset.columns(biped)] - drag[-1]) ** 2).sum(1).mean()),
+        distances[-1], atol=1e-6)  # fmt: skip
+    batch = pose_from_effectors(biped, effector_mapping, drag[-1][None],
+                                MapSettings(refine_iterations=3, prior_weight=0.0),
+                                control_std=std, hold_values=median)[1]  # fmt: skip
+    assert distances[-1] < max(2 * batch[0], 0.5)
+    with pytest.raises(RigInputError, match=r"interactive posing on 'biped'.*\(7, 3\)"):
+        poser(drag[0][:3])

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -246,12 +247,19 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         targets = read_effector_targets(targets_file, subset.joints)
         model = _model(config, rig, subset, log)
         settings = map_settings(options, rig.name)
-        controls, error, seconds = pose_from_effectors(
+        mode = options.get("pose_mode", "drag")
+        if mode == "drag":
+            controls, error, seconds = _drag(rig, model, targets, settings)
+        elif mode == "batch":
             # a few effectors are reached exactly by plain Eq. 13 (prior_weight 0); the pull
             # toward the guess is for the many joints of a clip (MapSettings' docstring)
-            rig, model.mapping, targets, dataclasses.replace(settings, feet=(), prior_weight=0.0),
-            control_std=model.control_std, hold_values=model.hold_values,
-        )  # fmt: skip
+            plain = dataclasses.replace(settings, feet=(), prior_weight=0.0)
+            controls, error, seconds = pose_from_effectors(
+                rig, model.mapping, targets, plain, control_std=model.control_std,
+                hold_values=model.hold_values,
+            )  # fmt: skip
+        else:
+            raise MapConfigError(f"map.pose_mode: expected 'drag' or 'batch', got {mode!r}")
         out = Path(
             config.get("out") or Path("outputs") / "pose" / rig.name / Path(targets_file).stem
         )
@@ -260,6 +268,21 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         log(f"{out}: {len(controls)} pose(s), distance to the targets "
             f"{float(error.max()):.3f} cm at most")  # fmt: skip
         return out
+
+
+def _drag(rig, model, targets, settings) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The poses of ``targets`` in order, as :class:`InteractivePoser` follows a drag."""
+    from rigmap.map.interactive_pose import InteractivePoser
+
+    poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
+                             hold_values=model.hold_values, hold=settings.hold,
+                             damping=settings.damping)  # fmt: skip
+    started = time.perf_counter()
+    results = [poser(frame) for frame in targets]
+    seconds = {"pose_s": time.perf_counter() - started,
+               "rig_evaluations": float(sum(r.rig_evaluations for r in results))}  # fmt: skip
+    controls = np.array([r.controls for r in results])
+    return controls, np.array([r.distance_cm for r in results]), seconds
 
 
 def _write_poses(staging: Path, rig, subset, controls, targets, error, seconds) -> None:

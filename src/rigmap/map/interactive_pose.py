@@ -1,0 +1,122 @@
+"""Posing while an animator drags effectors: one pose per call, at interactive rates (Fig. 5).
+
+:func:`rigmap.map.effectors.pose_from_effectors` refines a batch of poses from their
+guesses with central differences at every iteration: right for a file of targets, but a
+few poses per second when called once per pose. A drag is a *stream* of nearby targets,
+and :class:`InteractivePoser` makes each of its poses cost four small rig calls:
+
+1. the partial mapping's guess, and the last pose moved as the guess moved (a drag moves
+   the targets a little, so that start is usually the closer one): both in one call;
+2. one forward-difference Jacobian at the better start (one call of ``U + 1`` poses);
+3. ``steps`` damped least-squares steps (Eq. 13 in training-std units, controls kept in
+   their soft ranges), each tried at the lengths ``STEP_LENGTHS`` in one call (a line
+   search at no extra call), the Jacobian corrected between steps by Broyden's rank-one
+   update along the step taken.
+
+The rig calls go through the built-in rig's TorchScript traces
+(:meth:`rigmap.rigs.engine.torch_rig.TorchRig.traced_pose`), which halve the cost of a
+small batch; a DCC rig is called as it is. ``benchmarks/map.py`` measures the rate and the
+distance reached beside the batch refinement.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigmap.map.clip import held_controls
+from rigmap.map.partial import SubsetMapping
+from rigmap.map.world_subset_rig import WorldSubsetRig
+from rigmap.refine.jacobian import jacobian
+from rigmap.refine.jacobian_reuse import broyden_update
+from rigmap.refine.normal_equations import Damping, damped_solver
+from rigmap.rigs.base import RigInputError
+
+#: the damped step is tried at these fractions of its length, in one rig call (ours)
+STEP_LENGTHS = np.array([1.0, 0.5, 0.25])
+
+
+@dataclass
+class PoseResult:
+    """One pose: the full control row, its RMS distance to the targets (cm), its cost."""
+
+    controls: np.ndarray  # (C,)
+    distance_cm: float
+    rig_evaluations: int
+
+
+class InteractivePoser:
+    """``poser(targets (K, 3)) -> PoseResult`` for a stream of effector targets.
+
+    ``damping`` is λ (cm per training std) or ``"auto"`` (Chiaverini's rule); ``steps``
+    (default 2, ours) is the damped steps per pose; ``hold`` globs name used controls
+    kept at ``hold_values`` (IK/FK switches), as in :class:`rigmap.map.clip.MapSettings`.
+    :meth:`reset` starts a new drag (the next pose starts from its guess alone).
+    """
+
+    def __init__(
+        self,
+        rig,
+        mapping: SubsetMapping,
+        *,
+        control_std: np.ndarray,
+        hold_values: np.ndarray,
+        hold=("*.ik_fk", "*.follow"),
+        damping: float | str = "auto",
+        steps: int = 2,
+    ):
+        if not (isinstance(steps, int) and steps >= 1):
+            raise ValueError(f"interactive posing: steps must be an integer >= 1, got {steps!r}")
+        self.rig, self.mapping, self.steps = rig, mapping, steps
+        self.view = WorldSubsetRig(rig, mapping.subset.joints, traced=True)
+        self.held = held_controls(rig, hold)
+        self.hold_values = np.asarray(hold_values, dtype=np.float64)
+        self.scale = np.asarray(control_std, dtype=np.float64).copy()
+        self.scale[self.held] = 0.0  # a control with scale 0 does not move
+        used = rig.controls.used_indices
+        self.lower, self.upper = rig.controls.lower[used], rig.controls.upper[used]
+        self.damping = Damping(None) if damping == "auto" else Damping(float(damping))
+        self.last: tuple[np.ndarray, np.ndarray] | None = None  # (last pose, its guess)
+
+    def reset(self) -> None:
+        """Forget the last pose: a new drag."""
+        self.last = None
+
+    def __call__(self, targets) -> PoseResult:
+        targets = np.asarray(targets, dtype=np.float64)
+        k = len(self.mapping.subset.joints)
+        if targets.shape != (k, 3) or not np.isfinite(targets).all():
+            raise RigInputError(
+                f"interactive posing on {self.rig.name!r}: expected finite targets of shape "
+                f"({k}, 3) for {list(self.mapping.subset.joints)}, got {targets.shape}"
+            )
+        goal = targets.reshape(-1)
+        guess = self.mapping.predict(targets[None])[0]
+        guess[self.held] = self.hold_values[self.held]
+        lower, upper = np.minimum(self.lower, guess), np.maximum(self.upper, guess)
+        starts = [guess] if self.last is None else [guess, self.last[0] + guess - self.last[1]]
+        y, x, error = self._best(np.clip(np.array(starts), lower, upper), goal)
+        evaluations = len(starts) + len(y) + 1
+        J = jacobian(self.view, self.rig.expand_used(y[None]), differences="forward", chunk=None)[0]
+        for _ in range(self.steps):
+            step = damped_solver((J * self.scale)[None], self.damping).solve((goal - x)[None])[0]
+            trials = np.clip(y + STEP_LENGTHS[:, None] * (step * self.scale), lower, upper)
+            y_new, x_new, new_error = self._best(trials, goal)
+            evaluations += len(trials)
+            if new_error >= error:
+                break
+            J = broyden_update(J[None], (y_new - y)[None], (x_new - x)[None])[0]
+            y, x, error = y_new, x_new, new_error
+        self.last = (y, guess)
+        distance = np.sqrt(np.mean(((goal - x).reshape(k, 3) ** 2).sum(axis=1)))
+        return PoseResult(self.rig.expand_used(y[None])[0], float(distance), evaluations)
+
+    def _best(self, candidates: np.ndarray, goal: np.ndarray):
+        """The candidate rows ``(P, U)`` closest to ``goal``, evaluated in one rig call:
+        its controls, flat subset positions and mean squared error."""
+        x = np.asarray(self.view.evaluate(self.rig.expand_used(candidates)))
+        x = x.reshape(len(candidates), -1)
+        errors = np.mean((goal - x) ** 2, axis=1)
+        best = int(np.argmin(errors))
+        return candidates[best], x[best], float(errors[best])
