@@ -3,14 +3,13 @@
 - map: frames/s of :func:`rigmap.map.clip.map_clip` on a stretch of the CMU walk
   (``../shared/mocap/cmu_131_01_walk.bvh`` at 30 fps), regression only and with
   refinement, with the seconds split into prediction, refinement and key reduction;
-- pose: poses/s of :func:`rigmap.map.effectors.pose_from_effectors` from the 7 effectors
-  (hips, chest, head, hands, feet) of test-corpus poses, one pose per call as an
-  interactive tool calls it (regression only, refined as ``rigmap pose`` refines, and
-  refined with one forward-difference Jacobian kept for every iteration), and all poses
-  in one call; with the cost of one rig evaluation of a single pose, which bounds the
-  interactive rate (every pose needs at least one, to place the rig's joints). CPU
-  seconds are printed beside wall seconds: on a loaded machine they are the better guess
-  of the idle rate.
+- pose: poses/s of ``rigmap pose`` from the 7 effectors (hips, chest, head, hands, feet)
+  along a drag (consecutive test-corpus frames), one pose per call as an interactive tool
+  calls it: regression only, ``map.pose_mode=batch`` (each pose refined from its guess,
+  :func:`rigmap.map.effectors.pose_from_effectors`) and ``map.pose_mode=drag``
+  (:class:`rigmap.map.interactive_pose.InteractivePoser`), with the distance each reaches
+  and the cost of one rig evaluation of a single pose. CPU seconds are printed beside wall
+  seconds: on a loaded machine they are the better guess of the idle rate.
 
 The machine may be shared, so the 1-minute load average is printed beside the numbers.
 
@@ -86,87 +85,80 @@ def bench_map(rig, args) -> dict:
     return out
 
 
-def _effector_targets(rig, subset, n: int, data: str) -> np.ndarray:
-    """World positions of the subset's joints on ``n`` test-corpus frames (animator poses)."""
+def _drag_targets(rig, subset, n: int, data: str) -> np.ndarray:
+    """World positions of the subset's joints on the first ``n`` frames of the first test
+    clip, in order: an animator's drag moving all seven effectors at once, at the clip's
+    frame rate (the target moves about 3 cm per frame, 13 cm at the 90th percentile)."""
     from rigmap.animation.posing import PoseTable
     from rigmap.store import Layout
 
     poses = PoseTable.read(Layout(data=Path(data)).poses(rig.name, "test"), rig=rig.name,
                            n_joints=rig.n_joints, split="test")  # fmt: skip
+    names = poses.table["clip"].to_numpy()
+    first = np.flatnonzero(names == names[0])[:n]
     world = np.asarray(poses.positions()) + np.asarray(poses.cog())[:, None, :]
-    picks = np.linspace(0, len(world) - 1, n).round().astype(int)
-    return world[picks][:, subset.columns(rig)]
+    return world[first][:, subset.columns(rig)]
 
 
 def bench_pose(rig, args) -> dict:
+    """Every variant poses the same drag, one pose per call as an interactive tool calls it."""
     from rigmap.map.app import map_settings
 
     config = _config(args)
     model = _model(rig, config, "effectors")
-    targets = _effector_targets(rig, model.mapping.subset, args.poses, args.data)
-    base = dataclasses.replace(map_settings(config["map"], rig.name), feet=())
+    targets = _drag_targets(rig, model.mapping.subset, args.poses, args.data)
+    base = dataclasses.replace(map_settings(config["map"], rig.name), feet=(), prior_weight=0.0)
     wall, cpu = _one_evaluation(rig)
     out = {"effectors": list(model.mapping.subset.joints), "poses": len(targets),
            "one_rig_evaluation_of_one_pose_s": wall,
            "one_rig_evaluation_of_one_pose_cpu_s": cpu}  # fmt: skip
     variants = (
-        ("regression_only", 0, "per_iteration"),
-        ("refined", args.iterations, "per_iteration"),
-        ("refined_one_forward_jacobian", args.iterations, "once"),
+        ("regression_only", "batch", 0),
+        ("batch_refined", "batch", args.iterations),  # map.pose_mode=batch
+        ("drag", "drag", None),  # map.pose_mode=drag, rigmap pose's default
     )
-    for label, iterations, jacobian in variants:
-        settings = dataclasses.replace(base, refine_iterations=iterations)
-        pose = _poser(rig, model, settings, jacobian)
-        pose(targets[:1])  # warm-up
+    for label, mode, iterations in variants:
+        settings = dataclasses.replace(base, refine_iterations=iterations or 0)
+        pose = _poser(rig, model, settings, mode)
+        pose(targets[0])  # warm-up (the drag mode's traces are built here)
         load = os.getloadavg()[0]
         started, cpu_started = time.perf_counter(), time.process_time()
-        errors = [pose(targets[k : k + 1])[0] for k in range(len(targets))]
-        one_by_one, one_by_one_cpu = (
-            time.perf_counter() - started,
-            time.process_time() - cpu_started,
-        )
-        started = time.perf_counter()
-        pose(targets)
-        batched = time.perf_counter() - started
-        out[label] = {"refine_iterations": iterations, "jacobian": jacobian,
-                      "poses_per_second_one_per_call": len(targets) / one_by_one,
-                      "poses_per_cpu_second_one_per_call": len(targets) / one_by_one_cpu,
-                      "poses_per_second_batched": len(targets) / batched,
-                      "target_distance_rms_cm_median": float(np.median(errors)),
+        results = [pose(target) for target in targets[1:]]
+        seconds, cpu = time.perf_counter() - started, time.process_time() - cpu_started
+        distances = np.array([d for d, _ in results])
+        out[label] = {"mode": mode, "refine_iterations": iterations,
+                      "poses_per_second": len(results) / seconds,
+                      "poses_per_cpu_second": len(results) / cpu,
+                      "rig_evaluations_per_pose": float(np.mean([e for _, e in results])),
+                      "target_distance_rms_cm_median": float(np.median(distances)),
+                      "target_distance_rms_cm_p90": float(np.percentile(distances, 90)),
                       "load_average_1min": load}  # fmt: skip
     return out
 
 
-def _poser(rig, model, settings, jacobian: str):
-    """``targets -> per-pose distance (cm)``: :func:`pose_from_effectors` as ``rigmap pose``
-    runs it (``per_iteration``: central differences at every iteration), or the same guess
-    refined with one forward-difference Jacobian at the guess, kept for every iteration
-    (``once``: n_used + 1 rig evaluations instead of 2 n_used per iteration)."""
-    from rigmap.map.clip import held_controls
+def _poser(rig, model, settings, mode: str):
+    """``target (K, 3) -> (distance cm, rig evaluations)``: ``rigmap pose`` in ``mode``."""
     from rigmap.map.effectors import pose_from_effectors
-    from rigmap.map.world_subset_rig import WorldSubsetRig
-    from rigmap.refine import ComputedJacobian, damped_least_squares
+    from rigmap.map.interactive_pose import InteractivePoser
 
-    if jacobian == "per_iteration":
-        return lambda batch: pose_from_effectors(
-            rig, model.mapping, batch, settings, control_std=model.control_std,
-            hold_values=model.hold_values)[1]  # fmt: skip
-    view = WorldSubsetRig(rig, model.mapping.subset.joints)
-    held = held_controls(rig, settings.hold)
-    scale = np.asarray(model.control_std, dtype=np.float64).copy()
-    scale[held] = 0.0
+    if mode == "drag":
+        poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
+                                 hold_values=model.hold_values, hold=settings.hold,
+                                 damping=settings.damping)  # fmt: skip
 
-    def pose(batch):
-        Y = model.mapping.predict(batch)
-        Y[:, held] = model.hold_values[held]
-        source = ComputedJacobian(view, differences="forward", per_iteration=False)
-        result = damped_least_squares(view, Y, batch, source, damping=settings.damping,
-                                      max_iterations=settings.refine_iterations,
-                                      control_scale=scale, keep_in_range=True)  # fmt: skip
-        reached = np.asarray(view.evaluate(rig.expand_used(result.Y_used)))
-        return np.sqrt(((reached - batch) ** 2).sum(axis=2).mean(axis=1))
+        def drag(target):
+            result = poser(target)
+            return result.distance_cm, result.rig_evaluations
 
-    return pose
+        return drag
+
+    def batch(target):
+        _, distance, seconds = pose_from_effectors(
+            rig, model.mapping, target[None], settings, control_std=model.control_std,
+            hold_values=model.hold_values)  # fmt: skip
+        return float(distance[0]), 1 + seconds.get("refine_rig_evaluations", 0.0)
+
+    return batch
 
 
 def _one_evaluation(rig) -> tuple[float, float]:
@@ -185,7 +177,9 @@ def _one_evaluation(rig) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=48, help="mapped frames of the walk")
-    parser.add_argument("--poses", type=int, default=20, help="effector poses")
+    parser.add_argument(
+        "--poses", type=int, default=90, help="poses of the drag (at most the first test clip)"
+    )
     parser.add_argument("--iterations", type=int, default=3, help="refinement iterations")
     parser.add_argument("--data", default="data")
     parser.add_argument("--models", default="models")

@@ -122,8 +122,9 @@ def test_pose_from_seven_effectors(project, biped, tmp_path):
     path.write_text(json.dumps({"rig": "biped", "targets": targets}))
     distances = {}
     for mode in ("drag", "batch"):
-        out = pose_from_config(map_config(project, f"targets={path}", f"map.pose_mode={mode}",
-                                          f"out={tmp_path / mode}"), log=lambda _: None)  # fmt: skip
+        config = map_config(project, f"targets={path}", f"map.pose_mode={mode}",
+                            f"out={tmp_path / mode}")  # fmt: skip
+        out = pose_from_config(config, log=lambda _: None)
         written = json.loads((out / "controls.json").read_text())
         assert sorted(p.name for p in out.iterdir()) == ["controls.json", "pose_0.png"]
         assert written["effectors"] == joints

@@ -189,6 +189,9 @@ def test_interactive_posing_follows_a_drag(biped, effector_mapping):
     ends = world[:, effector_mapping.subset.columns(biped)]
     drag = [ends[0] + t * (ends[1] - ends[0]) for t in np.linspace(0, 1, 9)]
     std, median = Y_train.std(axis=0), np.median(Y_train, axis=0)
+    carried = InteractivePoser(biped, effector_mapping, control_std=std, hold_values=median,
+                               carry_jacobian=True)  # fmt: skip
+    carried_results = [carried(target) for target in drag]
     poser = InteractivePoser(biped, effector_mapping, control_std=std, hold_values=median)
     results = [poser(target) for target in drag]
     guesses = pose_from_effectors(biped, effector_mapping, np.array(drag),
@@ -196,6 +199,9 @@ def test_interactive_posing_follows_a_drag(biped, effector_mapping):
                                   hold_values=median)[1]  # fmt: skip
     distances = np.array([r.distance_cm for r in results])
     assert (distances <= guesses + 1e-9).all() and distances.mean() < 0.5 * guesses.mean()
+    carried_distances = np.array([r.distance_cm for r in carried_results])
+    assert (carried_distances <= guesses + 1e-9).all()
+    assert sum(r.rig_evaluations for r in carried_results) < sum(r.rig_evaluations for r in results)
     n_used = len(biped.used_controls)
     first, rest = results[0].rig_evaluations, [r.rig_evaluations for r in results[1:]]
     assert first <= 1 + n_used + 1 + poser.steps * len(STEP_LENGTHS)

@@ -3,14 +3,18 @@
 :func:`rigmap.map.effectors.pose_from_effectors` refines a batch of poses from their
 guesses with central differences at every iteration: right for a file of targets, but a
 few poses per second when called once per pose. A drag is a *stream* of nearby targets,
-and :class:`InteractivePoser` makes each of its poses cost four small rig calls:
+and :class:`InteractivePoser` makes each of its poses cost four small rig calls, on one
+thread (on two cores, threads of so small a call only wait for each other):
 
 1. the partial mapping's guess, and the last pose moved as the guess moved (a drag moves
    the targets a little, so that start is usually the closer one): both in one call;
-2. one forward-difference Jacobian at the better start (one call of ``U + 1`` poses);
+2. one forward-difference Jacobian at the better start (one call of ``U + 1`` poses), or,
+   with ``carry_jacobian``, the last pose's Jacobian, recomputed only when a step with it
+   does not bring the effectors closer (about a third of the rig evaluations, at about
+   twice the distance left: ``benchmarks/map.py``);
 3. ``steps`` damped least-squares steps (Eq. 13 in training-std units, controls kept in
    their soft ranges), each tried at the lengths ``STEP_LENGTHS`` in one call (a line
-   search at no extra call), the Jacobian corrected between steps by Broyden's rank-one
+   search at no extra call), the Jacobian corrected after each by Broyden's rank-one
    update along the step taken.
 
 The rig calls go through the built-in rig's TorchScript traces
@@ -30,7 +34,7 @@ from rigmap.map.partial import SubsetMapping
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine.jacobian import jacobian
 from rigmap.refine.jacobian_reuse import broyden_update
-from rigmap.refine.normal_equations import Damping, damped_solver
+from rigmap.refine.normal_equations import Damping, damped_solver, one_thread
 from rigmap.rigs.base import RigInputError
 
 #: the damped step is tried at these fractions of its length, in one rig call (ours)
@@ -50,7 +54,8 @@ class InteractivePoser:
     """``poser(targets (K, 3)) -> PoseResult`` for a stream of effector targets.
 
     ``damping`` is λ (cm per training std) or ``"auto"`` (Chiaverini's rule); ``steps``
-    (default 2, ours) is the damped steps per pose; ``hold`` globs name used controls
+    (default 2, ours) is the damped steps per pose; ``carry_jacobian`` (default off, ours)
+    keeps the Jacobian from pose to pose (step 2 above); ``hold`` globs name used controls
     kept at ``hold_values`` (IK/FK switches), as in :class:`rigmap.map.clip.MapSettings`.
     :meth:`reset` starts a new drag (the next pose starts from its guess alone).
     """
@@ -65,6 +70,7 @@ class InteractivePoser:
         hold=("*.ik_fk", "*.follow"),
         damping: float | str = "auto",
         steps: int = 2,
+        carry_jacobian: bool = False,
     ):
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"interactive posing: steps must be an integer >= 1, got {steps!r}")
@@ -78,10 +84,12 @@ class InteractivePoser:
         self.lower, self.upper = rig.controls.lower[used], rig.controls.upper[used]
         self.damping = Damping(None) if damping == "auto" else Damping(float(damping))
         self.last: tuple[np.ndarray, np.ndarray] | None = None  # (last pose, its guess)
+        self.carry = carry_jacobian
+        self.J: np.ndarray | None = None  # (3K, U) the last pose's Jacobian, Broyden-updated
 
     def reset(self) -> None:
-        """Forget the last pose: a new drag."""
-        self.last = None
+        """Forget the last pose and its Jacobian: a new drag."""
+        self.last, self.J = None, None
 
     def __call__(self, targets) -> PoseResult:
         targets = np.asarray(targets, dtype=np.float64)
@@ -91,26 +99,53 @@ class InteractivePoser:
                 f"interactive posing on {self.rig.name!r}: expected finite targets of shape "
                 f"({k}, 3) for {list(self.mapping.subset.joints)}, got {targets.shape}"
             )
+        with one_thread():  # a pose is a few small calls: threads only contend
+            return self._pose(targets, k)
+
+    def _pose(self, targets: np.ndarray, k: int) -> PoseResult:
         goal = targets.reshape(-1)
         guess = self.mapping.predict(targets[None])[0]
         guess[self.held] = self.hold_values[self.held]
         lower, upper = np.minimum(self.lower, guess), np.maximum(self.upper, guess)
         starts = [guess] if self.last is None else [guess, self.last[0] + guess - self.last[1]]
         y, x, error = self._best(np.clip(np.array(starts), lower, upper), goal)
-        evaluations = len(starts) + len(y) + 1
-        J = jacobian(self.view, self.rig.expand_used(y[None]), differences="forward", chunk=None)[0]
+        evaluations = len(starts)
+        fresh = self.J is None or not self.carry
+        if fresh:
+            evaluations += self._recompute(y)
         for _ in range(self.steps):
-            step = damped_solver((J * self.scale)[None], self.damping).solve((goal - x)[None])[0]
-            trials = np.clip(y + STEP_LENGTHS[:, None] * (step * self.scale), lower, upper)
-            y_new, x_new, new_error = self._best(trials, goal)
-            evaluations += len(trials)
+            y_new, x_new, new_error = self._step(y, x, goal, lower, upper)
+            evaluations += len(STEP_LENGTHS)
+            if new_error >= error and not fresh:  # the carried Jacobian no longer fits
+                evaluations += self._recompute(y)
+                fresh = True
+                y_new, x_new, new_error = self._step(y, x, goal, lower, upper)
+                evaluations += len(STEP_LENGTHS)
             if new_error >= error:
                 break
-            J = broyden_update(J[None], (y_new - y)[None], (x_new - x)[None])[0]
             y, x, error = y_new, x_new, new_error
         self.last = (y, guess)
         distance = np.sqrt(np.mean(((goal - x).reshape(k, 3) ** 2).sum(axis=1)))
         return PoseResult(self.rig.expand_used(y[None])[0], float(distance), evaluations)
+
+    def _recompute(self, y: np.ndarray) -> int:
+        """A forward-difference Jacobian at ``y``; returns the rig evaluations it cost."""
+        self.J = jacobian(
+            self.view, self.rig.expand_used(y[None]), differences="forward", chunk=None
+        )[0]
+        return len(y) + 1
+
+    def _step(self, y, x, goal, lower, upper):
+        """One damped step from ``y`` (whose effectors are at ``x``), tried at every length
+        of ``STEP_LENGTHS`` in one rig call (a line search at no extra call); the Jacobian is
+        then corrected by Broyden's update along the best trial. Returns that trial's
+        controls, flat positions and mean squared error."""
+        solver = damped_solver((self.J * self.scale)[None], self.damping)
+        step = solver.solve((goal - x)[None])[0] * self.scale
+        trials = np.clip(y + STEP_LENGTHS[:, None] * step, lower, upper)
+        y_new, x_new, new_error = self._best(trials, goal)
+        self.J = broyden_update(self.J[None], (y_new - y)[None], (x_new - x)[None])[0]
+        return y_new, x_new, new_error
 
     def _best(self, candidates: np.ndarray, goal: np.ndarray):
         """The candidate rows ``(P, U)`` closest to ``goal``, evaluated in one rig call:

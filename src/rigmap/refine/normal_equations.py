@@ -88,7 +88,7 @@ class CholeskyStep:
     """Eq. 13 by normal equations, factorised once in float64 and reused for every solve."""
 
     def __init__(self, J: np.ndarray, damping: Damping):
-        with _one_thread():
+        with one_thread():
             self._factorise(J, damping)
 
     def _factorise(self, J: np.ndarray, damping: Damping) -> None:
@@ -128,7 +128,7 @@ class CholeskyStep:
 
     def solve(self, residual: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Steps for ``residual`` ``(F', R)``, of the solver's frames ``rows`` (default all)."""
-        with _one_thread():
+        with one_thread():
             return self._solve(residual, np.arange(len(self.J)) if rows is None else rows)
 
     def _solve(self, residual: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -171,7 +171,7 @@ def _surely_singular(J: torch.Tensor) -> np.ndarray:
 
 
 @contextmanager
-def _one_thread() -> Iterator[None]:
+def one_thread() -> Iterator[None]:
     """Batched small factorisations on one thread: 0.6 ms per 218² Cholesky, 8 ms on two.
 
     torch hands each small matrix of a batch to a threaded LAPACK, and on a
