@@ -59,6 +59,7 @@ def test_a_float32_rig_gets_a_step_its_rounding_does_not_drown(biped, frames):
     # the float64 step on the same float32 numbers is many times further off
     assert errors[False] > 10 * errors[True]
 
+
 def test_the_prior_rig_passes_the_flag_on(biped, frames):
     view = WorldSubsetRig(Float32Rig(biped, flagged=True), ["hand_l", "head"])
     prior = PriorRig(view, np.ones(len(biped.controls.used_indices)))
