@@ -53,11 +53,7 @@ def test_params_yaml_is_composed_from_conf():
 
 
 #: rigs with a motion library that the quick pipeline leaves out, and why
-OUTSIDE_THE_PIPELINE = {
-    # its Blender fit costs ~9 min (150-point GPR with a learned Jacobian) plus Table 1's
-    # computed-Jacobian refinement: over the quick budget; the lead decides
-    "rigify_human",
-}
+OUTSIDE_THE_PIPELINE: set[str] = set()
 
 
 def test_every_rig_with_a_motion_library_is_in_one_family(params):
@@ -67,8 +63,12 @@ def test_every_rig_with_a_motion_library_is_in_one_family(params):
         if name in available_rigs() and name not in OUTSIDE_THE_PIPELINE
     )
     pipeline = params["pipeline"]
-    assert sorted(pipeline["rigs"] + pipeline["blender_rigs"]) == with_library
+    families = pipeline["rigs"] + pipeline["blender_rigs"] + pipeline["blender_map_rigs"]
+    assert sorted(families) == with_library
     assert pipeline["blender_rigs"] == ["rigify_wolf"]
+    # rigify_human is only mapped: its fit and Table 1 (~9 min) are over the quick budget
+    assert pipeline["blender_map_rigs"] == ["rigify_human"]
+    assert set(pipeline["blender_map_rigs"]) <= set(pipeline["map_rigs"])
     assert set(pipeline["table1_rigs"]) <= set(pipeline["rigs"])
 
 
@@ -76,8 +76,10 @@ def test_the_planned_work_per_stage_kind(stages, params):
     """The 95 stages the hand-written 664-line dvc.yaml planned, counted by kind, plus the
     check_params stage every stage depends on, the mean predictor's fits, the held-out takes
     and their evaluations, the three edit-propagation stages,
-    the mocap maps and the two map_partial stages (issue 14)."""
+    the mocap maps, the corpus and poses of the Blender rigs only mapped (rigify_human)
+    and the two map_partial stages (issue 14)."""
     rigs, blender = params["pipeline"]["rigs"], params["pipeline"]["blender_rigs"]
+    map_only = params["pipeline"]["blender_map_rigs"]
     kinds: dict[str, int] = {}
     for name in stages:
         kind = name.split("@")[0].removesuffix("_blender")
@@ -104,8 +106,23 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "edit_evaluate": 1,
         "map_mocap": len(params["pipeline"]["map_rigs"]),
         "map_partial": 2,
+        "animate_map": len(map_only),
+        "pose_map": len(map_only),
     }
-    assert len(stages) == 112 + len(params["pipeline"]["map_rigs"]) and len(blender) == 1
+    assert len(stages) == 112 + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only)
+    assert len(blender) == 1
+
+
+def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params):
+    for rig in params["pipeline"]["blender_map_rigs"]:
+        animate, pose = stages[f"animate_map_blender@{rig}"], stages[f"pose_map_blender@{rig}"]
+        assert paths(animate.outs) == [f"data/{rig}/corpus"] and f"rig={rig}" in animate.cmd
+        assert paths(pose.outs) == [f"data/{rig}/poses"]
+        assert f"data/{rig}/corpus" in paths(pose.deps)
+        mapped = stages[f"map_mocap@{rig}"]
+        assert {f"data/{rig}/corpus", f"data/{rig}/poses"} <= set(paths(mapped.deps))
+        assert not [name for name in stages if name.startswith(("fit_", "evaluate")) and
+                    name.endswith(f"@{rig}")]  # fmt: skip
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from rigmap.cli import compose_config, find_config_dir, main
-from rigmap.map.app import MapConfigError, map_from_config, pose_from_config
+from rigmap.map.app import MapConfigError, map_from_config, map_settings, pose_from_config
 from rigmap.map.subset_model import RECORD_FILE, SubsetModelError
 from rigmap.map.tracks import TracksError, tracks_from_bvh
 
@@ -331,3 +331,18 @@ def test_the_hydra_app_names_a_missing_input(tmp_path):
                           timeout=600)  # fmt: skip
     assert done.returncode == 2, done.stderr
     assert done.stderr.startswith("error: map: input nope.bvh does not exist")
+
+
+def test_a_rigs_own_settings_go_over_the_map_settings():
+    from omegaconf import OmegaConf
+
+    cfg = compose_config(["map.settings.key_tolerance_cm=0.7"], CONF, config_name="map")
+    options = OmegaConf.to_container(cfg.map, resolve=True)
+    biped_settings, human = map_settings(options, "biped"), map_settings(options, "rigify_human")
+    assert biped_settings.hold == ("*.ik_fk", "*.follow")
+    assert human.hold == ("*.IK_FK", "*.IK_Stretch", "*_follow", "root.rz")  # Rigify's names
+    assert human.key_tolerance_cm == biped_settings.key_tolerance_cm == 0.7
+    assert human.feet == ("DEF-foot.L", "DEF-foot.R")
+    options["rigs"]["rigify_human"]["settings"]["no_such_setting"] = 1
+    with pytest.raises(MapConfigError, match=r"map\.rigs\.rigify_human\.settings"):
+        map_settings(options, "rigify_human")

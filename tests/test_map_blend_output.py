@@ -7,8 +7,10 @@ which lists every F-curve and its keys: the test compares them with the mapped v
 from __future__ import annotations
 
 import textwrap
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from blender_script import run_bpy
@@ -122,3 +124,53 @@ def test_bad_input_is_refused_and_nothing_is_written(human, tmp_path):
     with pytest.raises(TypeError, match="not a Blender rig"):
         write_mapped_blend(load("biped"), np.zeros((2, 3)), 24.0, target)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_rigmap_map_on_rigify_human_writes_its_keys_into_a_blend(human, tmp_path):
+    """The CLI's library path (rigmap.map.app) end to end on a Blender rig: every output of
+    a clip, the .blend's F-curves holding controls.parquet, and Rigify's IK/FK switches held
+    (map.rigs.rigify_human.settings.hold) at their corpus median."""
+    from omegaconf import OmegaConf
+
+    from rigmap.animation.corpus_files import pose_corpora, write_corpora
+    from rigmap.cli import compose_config, find_config_dir
+    from rigmap.map.app import map_from_config
+    from rigmap.stage.runner import stage_config
+    from rigmap.store import Layout
+
+    root = Path(__file__).resolve().parents[1]
+    conf = find_config_dir(root / "conf")
+    layout = Layout(data=tmp_path / "data", models=tmp_path / "models")
+    write_corpora(human, layout, seed=0, fps=24, variation=1.0, log=lambda _: None)
+    pose_corpora(human, layout, batch_size=512, progress=False)
+    walk = root.parent / "shared" / "mocap" / "cmu_131_01_walk.bvh"
+    overrides = ["rig=rigify_human", f"paths.data={layout.data}", f"paths.models={layout.models}",
+                 "budget.length_scales=3", "budget.cv_splits=2", f"input={walk}",
+                 f"out={tmp_path / 'out'}", "map.first_frame=240", "map.frames=4",
+                 "map.settings.refine_iterations=1", "map.preview=false"]  # fmt: skip
+    config = OmegaConf.to_container(
+        stage_config(compose_config(overrides, conf, config_name="map")), resolve=True
+    )
+    (clip,) = map_from_config(config, config_dir=conf, log=lambda _: None)
+    assert sorted(p.name for p in clip.folder.iterdir()) == [
+        "controls.parquet", "frames.parquet", "keys.json", "result.blend", "result.bvh",
+        "summary.json"]  # fmt: skip
+    assert clip.summary["frames"] == 4 and clip.summary["joint_error_rms_cm"] < 15.0
+
+    controls = pd.read_parquet(clip.folder / "controls.parquet")
+    corpus = pd.read_parquet(layout.data / "rigify_human" / "corpus" / "train.parquet")
+    for switch in ("upper_arm_parent.L.IK_FK", "thigh_parent.R.IK_FK", "root.rz"):
+        np.testing.assert_allclose(controls[switch], corpus[switch].median(), atol=1e-9)
+    read = read_fcurves(clip.folder / "result.blend", tmp_path)
+    assert read["frame_range"] == [0, 3] and read["fps"] == pytest.approx(30.0, abs=1e-3)
+    assert len(read["curves"]) == len(human.used_controls)
+    values = {(path, index): np.asarray(keys)[:, 1] for path, index, _, keys in read["curves"]}
+    for name in ("torso.tx", "foot_ik.L.ty", "upper_arm_fk.R.rx", "thigh_parent.L.IK_FK"):
+        bone, channel = name.rsplit(".", 1)
+        if human.controls[name].kind == "scalar":
+            key = (f'pose.bones["{bone}"]["{channel}"]', 0)
+        else:
+            attribute = {"t": "location", "r": "rotation_euler"}[channel[0]]
+            key = (f'pose.bones["{bone}"].{attribute}', "xyz".index(channel[1]))
+        unit = 100.0 if human.controls[name].kind == "translate" else 1.0
+        np.testing.assert_allclose(values[key], controls[name] / unit, atol=1e-5, err_msg=name)

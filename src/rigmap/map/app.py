@@ -169,15 +169,18 @@ def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -
 
 
 def map_settings(options: Mapping, rig_name: str) -> MapSettings:
-    """:class:`MapSettings` from ``map.settings`` and the rig's ``feet``."""
-    settings = dict(options.get("settings") or {})
+    """:class:`MapSettings` from ``map.settings``, with the rig's own ``settings``
+    (``map.rigs.<rig>.settings``: e.g. its IK/FK switches' names) over them, and the rig's
+    ``feet``."""
+    section = _rig_section(options, rig_name)
+    settings = {**(options.get("settings") or {}), **(section.get("settings") or {})}
     if "hold" in settings:
         settings["hold"] = tuple(settings["hold"])
-    feet = tuple(_rig_section(options, rig_name).get("feet") or ())
+    feet = tuple(section.get("feet") or ())
     try:
         return MapSettings(feet=feet, **settings)
     except TypeError as error:
-        raise MapConfigError(f"map.settings: {error}") from None
+        raise MapConfigError(f"map.settings or map.rigs.{rig_name}.settings: {error}") from None
 
 
 def _read_clip(path: Path, retarget: RetargetMap, rig, options: Mapping) -> MappedTargets:

@@ -28,6 +28,7 @@ class WorldSubsetRig(Rig):
         self.joint_names = list(joints)
         self.parents = None
         self.differentiable = rig.differentiable
+        self.computes_in_float32 = getattr(rig, "computes_in_float32", False)
         self.length_unit = rig.length_unit
         self.description = f"{rig.name}: world positions of {len(joints)} joints"
         self._columns = [rig.joint_names.index(j) for j in joints]

@@ -32,7 +32,8 @@ def jacobian(
     ``Y`` holds full control vectors ``(N, C)`` (or one ``(C,)``). Finite
     differences are ``"central"`` or ``"forward"`` (one-sided: half the rig
     evaluations, an error of the order of the step) with ``step`` (default
-    1e-6 in float64, 1e-3 in float32), in the controls' own units. ``chunk``
+    1e-6 in float64, 1e-3 in float32 or on a rig that computes in float32,
+    ``rig.computes_in_float32``: Blender's), in the controls' own units. ``chunk``
     poses go to the rig per ``evaluate`` call (``None``: all in one call, what
     a worker pool wants).
     """
@@ -62,7 +63,10 @@ def _finite_difference(
     rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool
 ) -> np.ndarray:
     dtype = np.float32 if Y.dtype == np.float32 else np.float64
-    h = step if step is not None else (1e-3 if dtype == np.float32 else 1e-6)
+    # a float32 rig (Blender) loses a 1e-6 step in its rounding: on rigify_human the default
+    # step's forward-difference Jacobian was 59 % off (median column 86 %), 1e-3's 0.15 %
+    coarse = dtype == np.float32 or getattr(rig, "computes_in_float32", False)
+    h = step if step is not None else (1e-3 if coarse else 1e-6)
     used = rig.controls.used_indices
     n_used = len(used)
     k = np.arange(n_used)

@@ -157,6 +157,10 @@ class Rig(ABC):
     parents: np.ndarray | None = None
     faces: np.ndarray | None = None
     differentiable: bool = False
+    # a rig that computes in float32 whatever the controls' dtype (Blender's armatures): its
+    # finite-difference Jacobians need a step far above float32's resolution
+    # (rigmap.refine.jacobian)
+    computes_in_float32: bool = False
     length_unit: str = "cm"
     description: str = ""
 

@@ -128,6 +128,7 @@ class BlenderRig(Rig):
     """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
 
     differentiable = False
+    computes_in_float32 = True  # Blender's bone matrices and properties are float32
     length_unit = "cm"
 
     def __init__(
