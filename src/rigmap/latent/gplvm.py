@@ -152,7 +152,8 @@ class GPLVM:
         if not np.isfinite(times).all():
             raise LatentInputError("frame times have non-finite values")
         labels, counts = np.unique(segments, return_counts=True)
-        short = [(lab.item(), int(c)) for lab, c in zip(labels, counts) if c < s.min_segment_frames]
+        pairs = zip(labels, counts, strict=True)
+        short = [(lab.item(), int(c)) for lab, c in pairs if c < s.min_segment_frames]
         if short:
             raise LatentInputError(
                 f"segments with fewer than {s.min_segment_frames} frames: {short[:5]}"
