@@ -41,12 +41,12 @@ class ControlScaling:
 
     def scale(self, P) -> np.ndarray:
         """Controls ``(N, C)`` → scaled controls ``z = W (p − p̄) + p̄``."""
-        P = _check_values(P, len(self.names), "controls")
+        P = check_values(P, len(self.names), "controls")
         return (P - self.mean) * self.weights + self.mean
 
     def unscale(self, Z, *, clamp: bool = True) -> np.ndarray:
         """Scaled controls → controls, clamped to the soft ranges unless ``clamp=False``."""
-        Z = _check_values(Z, len(self.names), "scaled controls")
+        Z = check_values(Z, len(self.names), "scaled controls")
         safe = np.where(self.weights > 0, self.weights, 1.0)
         P = np.where(self.weights > 0, (Z - self.mean) / safe + self.mean, self.mean)
         return np.clip(P, self.lower, self.upper) if clamp else P
@@ -64,7 +64,7 @@ def fit_control_scaling(rig, P, *, steps=STEPS) -> ControlScaling:
     of used-control values. One batched rig evaluation of ``1 + C·len(steps)`` poses."""
     used = rig.controls.used_indices
     names = tuple(rig.controls.names[i] for i in used)
-    P = _check_values(P, len(used), "controls")
+    P = check_values(P, len(used), "controls")
     if len(P) < 2:
         raise LatentInputError(f"control scaling needs at least 2 frames, got {len(P)}")
     lower, upper = rig.controls.lower[used], rig.controls.upper[used]
@@ -92,7 +92,7 @@ def fit_control_scaling(rig, P, *, steps=STEPS) -> ControlScaling:
     return ControlScaling(names, weights, mean, lower.copy(), upper.copy())
 
 
-def _check_values(P, n_columns: int, what: str) -> np.ndarray:
+def check_values(P, n_columns: int, what: str) -> np.ndarray:
     P = np.asarray(P, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != n_columns:
         raise LatentInputError(f"{what}: expected shape (N, {n_columns}), got {P.shape}")

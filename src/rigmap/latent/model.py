@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.decomposition import PCA
 
-from rigmap.latent.control_scaling import ControlScaling, _check_values, fit_control_scaling
+from rigmap.latent.control_scaling import ControlScaling, check_values, fit_control_scaling
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVM, GPLVMSettings
 from rigmap.latent.pca import VARIANCE_FRACTION, fit_pca
@@ -48,7 +48,7 @@ class LatentModel:
         scale: bool = True,
     ) -> LatentModel:
         """Fit all three stages; ``scale=False`` skips §4.1 (unit weights), for comparison."""
-        P = _check_values(P, len(rig.controls.used_indices), "controls")
+        P = check_values(P, len(rig.controls.used_indices), "controls")
         segments = np.asarray(segments)
         if segments.shape != (len(P),):
             raise LatentInputError(f"segments must be ({len(P)},), got {segments.shape}")
