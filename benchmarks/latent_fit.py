@@ -71,6 +71,8 @@ def fit_record(model: LatentModel, seconds: float, n: int, n_seg: int) -> dict:
         "latent_dim": int(g.settings.latent_dim),
         "fit_s": round(seconds, 2),
         "objective_evaluations": len(g.history),
+        "lbfgs_iterations": g.iterations,
+        "converged": g.converged,
         "objective_start": round(g.history[0], 3),
         "objective_end": round(g.history[-1], 3),
         "kernel": {

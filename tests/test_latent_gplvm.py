@@ -81,6 +81,7 @@ def fitted():
 def test_fit_lowers_the_objective_from_pca(fitted):
     _, model = fitted
     assert model.history[-1] < model.history[0] - 1.0
+    assert 0 < model.iterations <= 150
 
 
 def test_eq8_reproduces_the_training_outputs_at_their_latents(fitted):

@@ -129,7 +129,9 @@ class GPLVM:
     def __init__(self, settings: GPLVMSettings | None = None):
         self.settings = settings or GPLVMSettings()
         self.X: np.ndarray | None = None
-        self.history: list[float] = []
+        self.history: list[float] = []  # objective at every evaluation
+        self.iterations = 0  # L-BFGS iterations of the last fit
+        self.converged = False
 
     # --- the objective -------------------------------------------------------------
     def setup(self, Y, segments, times) -> tuple[torch.Tensor, torch.Tensor]:
@@ -229,6 +231,8 @@ class GPLVM:
             return loss
 
         opt.step(closure)
+        self.iterations = int(opt.state_dict()["state"][0]["n_iter"])
+        self.converged = self.iterations < self.settings.max_iter  # stopped on a tolerance
         self._finish(X.detach(), h.detach())
         return self
 
