@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -137,3 +139,19 @@ def test_the_closed_form_jacobian_matches_autograd(fitted):
     for m in range(2):
         auto = torch.autograd.functional.jacobian(lambda v: model.mean_t(v[None])[0], x[m])
         np.testing.assert_allclose(J[m].numpy(), auto.numpy(), rtol=1e-9, atol=1e-12)
+
+
+def test_connectivity_prior_pulls_a_distant_segment_closer():
+    """ψ_C grows as a second take of a curve moves from far away into contact with the
+    first (the paper's reason for it); it does not want them merged point on point: a
+    near-duplicate pair dominates its ‖·‖⁻⁴ graph and starves the rest of the diffusion."""
+    s = torch.linspace(0, 3, 30, dtype=torch.float64)
+    chain = torch.stack([torch.cos(s), torch.sin(s)], 1)
+
+    def prior(offset: float) -> float:
+        X = torch.cat([chain, chain + torch.tensor([offset + 0.01, 0.0], dtype=torch.float64)])
+        return float(diffusion_log_kernel(X, 2.0, 4.0, 1e-3).sum())
+
+    values = [prior(offset) for offset in (3.0, 2.0, 1.0, 0.5)]
+    assert all(a < b for a, b in itertools.pairwise(values))
+    assert prior(0.0) < prior(0.5)
