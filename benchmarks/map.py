@@ -7,9 +7,10 @@
   along a drag (consecutive test-corpus frames), one pose per call as an interactive tool
   calls it: regression only, ``map.pose_mode=batch`` (each pose refined from its guess,
   :func:`rigmap.map.effectors.pose_from_effectors`) and ``map.pose_mode=drag``
-  (:class:`rigmap.map.interactive_pose.InteractivePoser`), with the distance each reaches
-  and the cost of one rig evaluation of a single pose. CPU seconds are printed beside wall
-  seconds: on a loaded machine they are the better guess of the idle rate.
+  (:class:`rigmap.map.interactive_pose.InteractivePoser`, with its Jacobian carried from
+  pose to pose and fresh for every pose), each ``--repeats`` times, with the distance each
+  reaches and the cost of one rig evaluation of a single pose. CPU seconds are printed
+  beside wall seconds: on a loaded machine they are the better guess of the idle rate.
 
 The machine may be shared, so the 1-minute load average is printed beside the numbers.
 
@@ -113,30 +114,35 @@ def bench_pose(rig, args) -> dict:
            "one_rig_evaluation_of_one_pose_s": wall,
            "one_rig_evaluation_of_one_pose_cpu_s": cpu}  # fmt: skip
     variants = (
-        ("regression_only", "batch", 0),
-        ("batch_refined", "batch", args.iterations),  # map.pose_mode=batch
-        ("drag", "drag", None),  # map.pose_mode=drag, rigmap pose's default
+        ("regression_only", "batch", 0, None),
+        ("batch_refined", "batch", args.iterations, None),  # map.pose_mode=batch
+        ("drag", "drag", None, True),  # map.pose_mode=drag, rigmap pose's default
+        ("drag_fresh_jacobian", "drag", None, False),  # map.drag.carry_jacobian=false
     )
-    for label, mode, iterations in variants:
+    for label, mode, iterations, carry in variants:
         settings = dataclasses.replace(base, refine_iterations=iterations or 0)
-        pose = _poser(rig, model, settings, mode)
-        pose(targets[0])  # warm-up (the drag mode's traces are built here)
-        load = os.getloadavg()[0]
-        started, cpu_started = time.perf_counter(), time.process_time()
-        results = [pose(target) for target in targets[1:]]
-        seconds, cpu = time.perf_counter() - started, time.process_time() - cpu_started
+        rates, cpu_rates, loads = [], [], []
+        for _ in range(args.repeats):  # the machine is shared: the spread says how much
+            pose = _poser(rig, model, settings, mode, carry)
+            pose(targets[0])  # warm-up (the drag mode's traces are built here)
+            loads.append(os.getloadavg()[0])
+            started, cpu_started = time.perf_counter(), time.process_time()
+            results = [pose(target) for target in targets[1:]]
+            rates.append(len(results) / (time.perf_counter() - started))
+            cpu_rates.append(len(results) / (time.process_time() - cpu_started))
         distances = np.array([d for d, _ in results])
-        out[label] = {"mode": mode, "refine_iterations": iterations,
-                      "poses_per_second": len(results) / seconds,
-                      "poses_per_cpu_second": len(results) / cpu,
+        out[label] = {"mode": mode, "refine_iterations": iterations, "carry_jacobian": carry,
+                      "poses_per_second_median": float(np.median(rates)),
+                      "poses_per_second_repeats": rates,
+                      "poses_per_cpu_second_median": float(np.median(cpu_rates)),
                       "rig_evaluations_per_pose": float(np.mean([e for _, e in results])),
                       "target_distance_rms_cm_median": float(np.median(distances)),
                       "target_distance_rms_cm_p90": float(np.percentile(distances, 90)),
-                      "load_average_1min": load}  # fmt: skip
+                      "load_average_1min": loads}  # fmt: skip
     return out
 
 
-def _poser(rig, model, settings, mode: str):
+def _poser(rig, model, settings, mode: str, carry: bool | None):
     """``target (K, 3) -> (distance cm, rig evaluations)``: ``rigmap pose`` in ``mode``."""
     from rigmap.map.effectors import pose_from_effectors
     from rigmap.map.interactive_pose import InteractivePoser
@@ -144,7 +150,7 @@ def _poser(rig, model, settings, mode: str):
     if mode == "drag":
         poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
                                  hold_values=model.hold_values, hold=settings.hold,
-                                 damping=settings.damping)  # fmt: skip
+                                 damping=settings.damping, carry_jacobian=carry)  # fmt: skip
 
         def drag(target):
             result = poser(target)
@@ -181,6 +187,7 @@ def main() -> None:
         "--poses", type=int, default=90, help="poses of the drag (at most the first test clip)"
     )
     parser.add_argument("--iterations", type=int, default=3, help="refinement iterations")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each pose variant")
     parser.add_argument("--data", default="data")
     parser.add_argument("--models", default="models")
     parser.add_argument("--only", choices=["map", "pose"], default=None, help="one part only")

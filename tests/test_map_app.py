@@ -133,6 +133,9 @@ def test_pose_from_seven_effectors(project, biped, tmp_path):
     with pytest.raises(MapConfigError, match=r"map.pose_mode: expected 'drag' or 'batch'"):
         pose_from_config(map_config(project, f"targets={path}", "map.pose_mode=sideways",
                                     f"out={tmp_path / 'no'}"), log=lambda _: None)  # fmt: skip
+    with pytest.raises(MapConfigError, match=r"map.drag: .*steps must be an integer >= 1"):
+        pose_from_config(map_config(project, f"targets={path}", "map.drag.steps=0",
+                                    f"out={tmp_path / 'no'}"), log=lambda _: None)  # fmt: skip
     assert not (tmp_path / "no").exists()
 
 

@@ -252,7 +252,7 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         settings = map_settings(options, rig.name)
         mode = options.get("pose_mode", "drag")
         if mode == "drag":
-            controls, error, seconds = _drag(rig, model, targets, settings)
+            controls, error, seconds = _drag(rig, model, targets, settings, options.get("drag"))
         elif mode == "batch":
             # a few effectors are reached exactly by plain Eq. 13 (prior_weight 0); the pull
             # toward the guess is for the many joints of a clip (MapSettings' docstring)
@@ -273,13 +273,20 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         return out
 
 
-def _drag(rig, model, targets, settings) -> tuple[np.ndarray, np.ndarray, dict]:
+def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarray, dict]:
     """The poses of ``targets`` in order, as :class:`InteractivePoser` follows a drag."""
     from rigmap.map.interactive_pose import InteractivePoser
 
-    poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
-                             hold_values=model.hold_values, hold=settings.hold,
-                             damping=settings.damping)  # fmt: skip
+    options = dict(options or {})
+    unknown = sorted(set(options) - {"steps", "carry_jacobian"})
+    if unknown:
+        raise MapConfigError(f"map.drag: unknown keys {unknown}; known: steps, carry_jacobian")
+    try:
+        poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
+                                 hold_values=model.hold_values, hold=settings.hold,
+                                 damping=settings.damping, **options)  # fmt: skip
+    except (TypeError, ValueError) as error:
+        raise MapConfigError(f"map.drag: {error}") from None
     started = time.perf_counter()
     results = [poser(frame) for frame in targets]
     seconds = {"pose_s": time.perf_counter() - started,
