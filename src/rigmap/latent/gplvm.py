@@ -26,14 +26,13 @@ used scaled conjugate gradient) optimises it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from rigmap.latent.errors import LatentInputError
+from rigmap.torch_threads import torch_threads
 
 DTYPE = torch.float64
 
@@ -64,22 +63,6 @@ class GPLVMSettings:
         for name in ("dynamics_lengthscale_s", "dynamics_variance", "connectivity_beta"):
             if not getattr(self, name) > 0:
                 raise LatentInputError(f"{name} must be > 0, got {getattr(self, name)}")
-
-
-@contextmanager
-def torch_threads(threads: int | None) -> Iterator[None]:
-    """Run with ``threads`` torch threads. On the project's busy 2-core machine a 150²
-    float64 Cholesky takes 0.13 ms on one thread and 22 ms on two (measured), so the
-    fit's small dense algebra runs on one by default (ours)."""
-    if threads is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(int(threads))
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
 
 
 def rbf(A: torch.Tensor, B: torch.Tensor, variance, lengthscale2) -> torch.Tensor:

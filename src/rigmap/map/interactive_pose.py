@@ -34,8 +34,9 @@ from rigmap.map.partial import SubsetMapping
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine.jacobian import jacobian
 from rigmap.refine.jacobian_reuse import broyden_update
-from rigmap.refine.normal_equations import Damping, damped_solver, one_thread
+from rigmap.refine.normal_equations import Damping, damped_solver
 from rigmap.rigs.base import RigInputError
+from rigmap.torch_threads import one_thread
 
 #: the damped step is tried at these fractions of its length, in one rig call (ours)
 STEP_LENGTHS = np.array([1.0, 0.5, 0.25])

@@ -21,14 +21,13 @@ falls back to the SVD pseudo-inverse.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
+from rigmap.torch_threads import one_thread
 
 SOLVERS = ("cholesky", "svd")
 
@@ -168,19 +167,3 @@ def _surely_singular(J: torch.Tensor) -> np.ndarray:
     if J.shape[1] < J.shape[2]:
         return np.ones(len(J), dtype=bool)
     return (J.abs().amax(dim=1) == 0).any(dim=1).numpy()
-
-
-@contextmanager
-def one_thread() -> Iterator[None]:
-    """Batched small factorisations on one thread: 0.6 ms per 218² Cholesky, 8 ms on two.
-
-    torch hands each small matrix of a batch to a threaded LAPACK, and on a
-    busy 2-core machine the threads mostly wait for each other (measured on
-    this project's machine, issue #16).
-    """
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)

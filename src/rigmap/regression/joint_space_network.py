@@ -63,11 +63,11 @@ from rigmap.regression.network import (
     TrainingDivergedError,
     _adam,
     _deterministic_algorithms,
-    _torch_threads,
 )
 from rigmap.regression.normalisation import column_scale
 from rigmap.regression.rig_forward import PlacedRigForward
 from rigmap.regression.validation import check_training_data
+from rigmap.torch_threads import torch_threads
 
 _PREDICT_CHUNK = 65_536
 #: rows the joint-space phase's control term covers: those given with controls, or those and
@@ -265,7 +265,7 @@ class JointSpaceNetworkRegressor(Regressor):
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = self._new_network(rig, placement, data, generator)
-        with _torch_threads(self.threads), _deterministic_algorithms():
+        with torch_threads(self.threads), _deterministic_algorithms():
             self.history_ = {
                 "pretrain": self._pretrain(data, generator),
                 "joint_space": self._train_joint_space(forward, data, generator),

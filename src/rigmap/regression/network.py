@@ -44,6 +44,7 @@ from rigmap.regression.errors import ModelFileError
 from rigmap.regression.fingerprint import ModelFingerprint
 from rigmap.regression.normalisation import column_scale
 from rigmap.regression.validation import check_training_data
+from rigmap.torch_threads import torch_threads
 
 CostReduction = Literal["mean", "sum"]
 
@@ -172,7 +173,7 @@ class FeedForwardRegressor(Regressor):
 
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = OneHiddenLayer(X.shape[1], int(self.hidden), Y2.shape[1], generator)
-        with _torch_threads(self.threads), _deterministic_algorithms():
+        with torch_threads(self.threads), _deterministic_algorithms():
             self.loss_history_ = self._train(inputs, targets, generator)
         self._folded = None
         return self
@@ -367,16 +368,3 @@ def _deterministic_algorithms():
         yield
     finally:
         torch.use_deterministic_algorithms(previous)
-
-
-@contextmanager
-def _torch_threads(threads: int | None):
-    if threads is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(int(threads))
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)

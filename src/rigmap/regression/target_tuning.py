@@ -36,8 +36,9 @@ from rigmap.regression.features import inverse_features
 from rigmap.regression.joint_space_network import JointSpaceNetworkRegressor
 from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
 from rigmap.regression.mapping import InverseMapping
-from rigmap.regression.network import _adam, _torch_threads
+from rigmap.regression.network import _adam
 from rigmap.regression.rig_forward import PlacedRigForward
+from rigmap.torch_threads import torch_threads
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,7 @@ def tune_on_targets(
     optimizer = _adam(list(network.parameters()), float(settings.learning_rate))
     generator = torch.Generator().manual_seed(int(tuned.seed))
     n_targets, costs = len(data.inputs) - 1, []
-    with _torch_threads(tuned.threads):
+    with torch_threads(tuned.threads):
         for _ in range(int(settings.steps)):
             pick = torch.randperm(n_targets, generator=generator)[: settings.batch_size] + 1
             rows = torch.cat([torch.zeros(1, dtype=torch.long), pick])
