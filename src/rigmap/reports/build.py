@@ -25,6 +25,7 @@ from rigmap.reports.figures import (
     time_figure,
 )
 from rigmap.reports.index_page import sample_grid_figures, write_index
+from rigmap.reports.mapping_tables import mocap_table, partial_table
 from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
 from rigmap.reports.rig_facts import rig_facts
 from rigmap.reports.settings import ReportSettings
@@ -90,6 +91,8 @@ def build_report(
     splits = splits_table(tree, settings)
     if splits is not None:  # only when the evaluate_splits stage ran
         tables.append(splits)
+    # the mapping stages' tables, when map_mocap and map_partial ran
+    tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
     written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
 
     figures_folder = reports_root / RESULT_FIGURES_FOLDER
