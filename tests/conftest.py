@@ -21,6 +21,22 @@ def pytest_runtest_setup(item):
         pytest.fail(f"the Blender worker environment is missing: {INSTALL_HINT}", pytrace=False)
 
 
+@pytest.fixture(autouse=True)
+def no_mlflow_state_from_earlier_tests(monkeypatch):
+    """Each test starts without MLflow's process-wide state: an active run, an active
+    experiment, or the MLFLOW_EXPERIMENT_ID / MLFLOW_RUN_ID that ``mlflow.set_experiment``
+    and runs leave for child processes. Without this a test that resumes a run on a real
+    server failed after earlier tests ("active experiment ID does not match")."""
+    import mlflow
+    import mlflow.tracking.fluent as fluent
+
+    while mlflow.active_run() is not None:
+        mlflow.end_run()
+    for name in ("MLFLOW_EXPERIMENT_ID", "MLFLOW_RUN_ID"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(fluent, "_active_experiment_id", None)
+
+
 @pytest.fixture(scope="session")
 def quadruped():
     from rigmap.rigs import load

@@ -154,8 +154,10 @@ def test_logged_model_is_registered_and_loads_by_name(biped, fitted, tmp_path):
 
     mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'mlruns.db'}")
     try:
-        mlflow.set_experiment("rigmap-biped")
-        with mlflow.start_run():
+        # an experiment id of our own, not mlflow.set_experiment: that sets a process-wide
+        # active experiment and MLFLOW_EXPERIMENT_ID, which later tests' runs would inherit
+        experiment = mlflow.create_experiment("rigmap-biped")
+        with mlflow.start_run(experiment_id=experiment):
             info = log_map_model(biped, fitted["mapping"], SETTINGS, control_std=fitted["std"],
                                  hold_values=fitted["hold"], fps=24.0,
                                  registered_model_name="rigmap-biped-map-effectors")  # fmt: skip

@@ -145,16 +145,30 @@ def test_a_killed_run_resumes_from_its_finished_chunks_and_gives_the_same_file(
     assert not (tmp_path / "resumed" / "pca_gaussian.chunks").exists()
 
 
+# every run of this test is its own process: the draw (a PCA of a corpus made by a matrix
+# product) must match to the last bit between the killed run and its restart, and a test
+# process that ran hundreds of tests before may round a BLAS product differently
 KILLED_RUN = """
-import sys
+import json, sys
 sys.path.insert(0, {tests!r})
 from rigmap.rigs import load
 from rigmap.sampling import PCAGaussianSampler, supersample
-from test_supersample import SlowRig, quadruped_corpus
+from test_supersample import SlowRig, WatchedRig, quadruped_corpus
 rig = load("quadruped")
 sampler = PCAGaussianSampler().fit(quadruped_corpus(rig))
-supersample(SlowRig(rig), sampler, {n}, {path!r}, seed=11, chunk_size={chunk}, progress=False)
+watched = {rig_class}(rig)
+result = supersample(watched, sampler, {n}, {path!r}, seed=11, chunk_size={chunk}, progress=False)
+print(json.dumps({{"calls": watched.calls, "resumed": result.chunks_resumed}}))
 """
+
+
+def _run_alone(tests: Path, target: Path, chunk: int, rig_class: str = "WatchedRig") -> dict:
+    """A supersample run in a fresh process: its rig calls and resumed chunks."""
+    script = KILLED_RUN.format(tests=str(tests), n=N, path=str(target), chunk=chunk,
+                               rig_class=rig_class)  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=300, check=True)  # fmt: skip
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 @pytest.mark.slow
@@ -163,9 +177,9 @@ def test_a_process_killed_with_sigkill_resumes_to_the_same_file(quadruped, sampl
     n_chunks = -(-N // chunk_size)  # 9
     target = tmp_path / "killed" / "pca_gaussian.npz"
     chunk_folder = target.parent / "pca_gaussian.chunks"
-    script = KILLED_RUN.format(
-        tests=str(Path(__file__).parent), n=N, path=str(target), chunk=chunk_size
-    )
+    tests = Path(__file__).parent
+    script = KILLED_RUN.format(tests=str(tests), n=N, path=str(target), chunk=chunk_size,
+                               rig_class="SlowRig")  # fmt: skip
     process = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 120
@@ -180,10 +194,10 @@ def test_a_process_killed_with_sigkill_resumes_to_the_same_file(quadruped, sampl
     finished = len(list(chunk_folder.glob("chunk_*.npz")))
     assert 2 <= finished < n_chunks and not target.exists()
 
-    restarted = WatchedRig(quadruped)
-    run(restarted, sampler, target.parent, chunk_size=chunk_size)
-    assert restarted.calls == n_chunks - finished
-    run(quadruped, sampler, tmp_path / "whole")
+    restarted = _run_alone(tests, target, chunk_size)
+    assert restarted == {"calls": n_chunks - finished, "resumed": finished}
+    whole = _run_alone(tests, tmp_path / "whole" / "pca_gaussian.npz", CHUNK)
+    assert whole["resumed"] == 0
     assert target.read_bytes() == (tmp_path / "whole" / "pca_gaussian.npz").read_bytes()
     assert [p.name for p in target.parent.iterdir()] == ["pca_gaussian.npz"]
 
