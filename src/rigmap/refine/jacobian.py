@@ -112,27 +112,51 @@ def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
             f"rig {rig.name!r} is not differentiable (it runs outside this process); "
             "use method='finite_difference'"
         )
+    chunk = min(chunk, AUTODIFF_POSES_PER_PASS)
+    # reverse mode costs one pass per output, forward mode one per input: pick the fewer
+    n_used = len(rig.controls.used_indices)
+    directional = _forward_dual if 3 * rig.n_joints > n_used else _reverse
+    return np.concatenate(
+        [directional(rig, Y[start : start + chunk]) for start in range(0, len(Y), chunk)]
+    )
+
+
+def _forward_dual(rig: Rig, Y: np.ndarray) -> np.ndarray:
+    """Forward mode as one batched pass of dual numbers: pose n, direction m is row n·M + m.
+
+    ``torch.func.jacfwd`` vmaps the same pass and ran 5-6x slower on the built-in
+    rigs (quadruped 500 against 87 ms per pose, biped 300 against 60; equal to the
+    last bit), so the directions go in as ordinary batch rows instead.
+    """
+    import torch
+    import torch.autograd.forward_ad as forward_ad
+
+    dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
+    used = torch.as_tensor(rig.controls.used_indices)
+    n, m = len(Y), len(used)
+    full = torch.as_tensor(Y, dtype=dtype)
+    primal = full[:, None, :].expand(n, m, full.shape[1]).reshape(n * m, -1)
+    tangent = torch.zeros(n, m, full.shape[1], dtype=dtype)
+    tangent[:, torch.arange(m), used] = 1.0
+    with forward_ad.dual_level():
+        x = rig.evaluate(forward_ad.make_dual(primal, tangent.reshape(n * m, -1)))
+        dx = forward_ad.unpack_dual(x).tangent
+    return dx.reshape(n, m, -1).permute(0, 2, 1).detach().numpy()
+
+
+def _reverse(rig: Rig, Y: np.ndarray) -> np.ndarray:
     import torch
 
     dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
     used = torch.as_tensor(rig.controls.used_indices)
-    blocks = []
-    chunk = min(chunk, AUTODIFF_POSES_PER_PASS)
-    for start in range(0, len(Y), chunk):
-        full = torch.as_tensor(Y[start : start + chunk], dtype=dtype)
+    full = torch.as_tensor(Y, dtype=dtype)
 
-        def positions_summed_over_batch(y_used, full=full):
-            # poses are independent, so d(sum_n x_n)/d y_m = d x_m / d y_m
-            x = rig.evaluate(full.index_copy(1, used, y_used))
-            return x.reshape(x.shape[0], -1).sum(0)
+    def positions_summed_over_batch(y_used):
+        # poses are independent, so d(sum_n x_n)/d y_m = d x_m / d y_m
+        x = rig.evaluate(full.index_copy(1, used, y_used))
+        return x.reshape(x.shape[0], -1).sum(0)
 
-        # reverse mode costs one pass per output, forward mode one per input: pick the fewer
-        n_outputs = 3 * rig.n_joints
-        if n_outputs > len(used):
-            J = torch.func.jacfwd(positions_summed_over_batch)(full[:, used])
-        else:
-            J = torch.func.jacrev(
-                positions_summed_over_batch, chunk_size=AUTODIFF_DIRECTIONS_PER_PASS
-            )(full[:, used])  # (3J, n, C_used)
-        blocks.append(J.permute(1, 0, 2).detach().numpy())
-    return np.concatenate(blocks)
+    J = torch.func.jacrev(positions_summed_over_batch, chunk_size=AUTODIFF_DIRECTIONS_PER_PASS)(
+        full[:, used]
+    )  # (3J, n, C_used)
+    return J.permute(1, 0, 2).detach().numpy()
