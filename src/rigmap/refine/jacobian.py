@@ -135,7 +135,7 @@ def _forward_dual(rig: Rig, Y: np.ndarray) -> np.ndarray:
     used = torch.as_tensor(rig.controls.used_indices)
     n, m = len(Y), len(used)
     full = torch.as_tensor(Y, dtype=dtype)
-    primal = full[:, None, :].expand(n, m, full.shape[1]).reshape(n * m, -1)
+    primal = full.repeat_interleave(m, dim=0)  # a copy: make_dual refuses stride-0 views
     tangent = torch.zeros(n, m, full.shape[1], dtype=dtype)
     tangent[:, torch.arange(m), used] = 1.0
     with forward_ad.dual_level():
