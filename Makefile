@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender reproduce demo test lint format benchmark clean
+.PHONY: setup blender reproduce push pull demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -29,6 +29,14 @@ blender:
 # It needs both environments: the wolf's stages evaluate a Rigify rig in Blender workers.
 reproduce: setup blender
 	$(BIN)/rigmap reproduce
+
+# Share outputs through the default DVC remote (.dvc/config: <clone>/../rigmap-dvc-remote):
+# `make push` after a run, `make pull` in another clone instead of recomputing.
+push: setup
+	PATH=$(BIN):$$PATH $(BIN)/dvc push
+
+pull: setup
+	PATH=$(BIN):$$PATH $(BIN)/dvc pull
 
 # A first look without running the pipeline: describe and render the built-in rigs.
 demo: setup
