@@ -12,6 +12,7 @@ from __future__ import annotations
 import html.parser
 import json
 import math
+import re
 import shutil
 import subprocess
 import sys
@@ -580,7 +581,10 @@ def test_reproduce_runs_dvc_with_the_composed_experiment(tmp_path):
     assert "params.yaml updated: experiment=paper" in text
     assert "[rigmap reproduce] 2 stage(s) changed or downstream of a change" in text
     assert "[rigmap reproduce] stage 1/2: samples" in text
-    assert "[rigmap reproduce] stage 2/2: report" in text
+    assert re.search(r"\[rigmap reproduce\] stage 2/2: report \(previous took \d+\.\d s\)", text)
+    assert "[rigmap reproduce] 2 stage(s) ran in" in text
+    summary = text[text.index("by stage family:") :]
+    assert "  samples (1)" in summary and "  report (1)" in summary
     assert f"report: {project / 'reports' / 'index.html'}" in text
     import yaml
 

@@ -27,6 +27,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -298,6 +299,7 @@ def _stream(plan: ReproducePlan, out: TextIO, total: int | None) -> int:
     )
     assert process.stdout is not None
     announced: list[str] = []
+    clock = StageClock()
     pending = ""
     try:
         while chunk := process.stdout.read1(4096):
@@ -311,12 +313,59 @@ def _stream(plan: ReproducePlan, out: TextIO, total: int | None) -> int:
                     if match and match.group(1) not in announced:
                         announced.append(match.group(1))
                         of = f"/{total}" if total else ""
+                        took = clock.start(match.group(1))
                         out.write(
-                            f"{PREFIX} stage {len(announced)}{of}: {match.group(1)}{remark}\n"
+                            f"{PREFIX} stage {len(announced)}{of}: {match.group(1)}{remark}{took}\n"
                         )
             out.flush()
     except BaseException:  # Ctrl-C, SIGTERM (Interrupted), a broken pipe: DVC stops too
         process.terminate()
         process.wait()
         raise
-    return process.wait()
+    code = process.wait()
+    clock.stop()
+    out.write(clock.summary())
+    return code
+
+
+class StageClock:
+    """Wall time per stage, from one stage's start to the next one's (DVC runs them in turn).
+
+    DVC prints no stage times; the summary tells where a run's time went (the
+    slowest stages and each stage family: ``fit_nn@quadruped-gmm`` is ``fit_nn``).
+    """
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._current: tuple[str, float] | None = None
+
+    def start(self, stage: str) -> str:
+        """Start timing ``stage``; returns the note on the previous one (``""`` for the first)."""
+        previous = self.stop()
+        self._current = (stage, time.perf_counter())
+        return f" (previous took {previous:.1f} s)" if previous is not None else ""
+
+    def stop(self) -> float | None:
+        if self._current is None:
+            return None
+        stage, began = self._current
+        self._current = None
+        self.seconds[stage] = time.perf_counter() - began
+        return self.seconds[stage]
+
+    def summary(self, slowest: int = 10) -> str:
+        if not self.seconds:
+            return ""
+        families: dict[str, float] = {}
+        for stage, seconds in self.seconds.items():
+            family = stage.split("@", 1)[0]
+            families[family] = families.get(family, 0.0) + seconds
+        total = sum(self.seconds.values())
+        lines = [f"{PREFIX} {len(self.seconds)} stage(s) ran in {total:.0f} s; slowest:"]
+        for stage, seconds in sorted(self.seconds.items(), key=lambda kv: -kv[1])[:slowest]:
+            lines.append(f"{PREFIX}   {seconds:7.1f} s  {stage}")
+        lines.append(f"{PREFIX} by stage family:")
+        for family, seconds in sorted(families.items(), key=lambda kv: -kv[1]):
+            count = sum(1 for stage in self.seconds if stage.split("@", 1)[0] == family)
+            lines.append(f"{PREFIX}   {seconds:7.1f} s  {family} ({count})")
+        return "\n".join(lines) + "\n"
