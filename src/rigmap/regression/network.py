@@ -363,8 +363,18 @@ def _deterministic_algorithms():
     """Torch's deterministic kernels while training: on the CPU ops used here it costs nothing
     (measured: same time, same bits), and an op without one fails instead of varying."""
     previous = torch.are_deterministic_algorithms_enabled()
-    torch.use_deterministic_algorithms(True)
+    _set_deterministic(True)
     try:
         yield
     finally:
-        torch.use_deterministic_algorithms(previous)
+        _set_deterministic(previous)
+
+
+def _set_deterministic(mode: bool) -> None:
+    # torch.use_deterministic_algorithms also imports torch._inductor to set its flag, 1.5 s per
+    # stage process on this machine (about 30 stages train a network); nothing here compiles
+    setter = getattr(torch._C, "_set_deterministic_algorithms", None)
+    if setter is None:  # a torch without the private setter: the public call
+        torch.use_deterministic_algorithms(mode)
+    else:
+        setter(mode)
