@@ -7,9 +7,12 @@ corpus is seeded), so a parallel sweep changes the wall time, not a result.
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import yaml
@@ -58,3 +61,64 @@ def test_joblib_multirun_writes_what_single_runs_write(tmp_path):
     assert sweep["hydra"]["launcher"]["n_jobs"] == 2
     # one job folder per swept value
     assert sorted(p.name for p in (tmp_path / "multirun").iterdir() if p.is_dir()) == ["0", "1"]
+
+
+def _dvc(project: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+    bin_dir = Path(sys.executable).parent
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ.get('PATH', '')}"}
+    return subprocess.run(
+        [str(bin_dir / "dvc"), *args],
+        cwd=project,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=check,
+        timeout=300,
+    )
+
+
+def test_dvc_queue_runs_a_two_point_sweep_in_parallel(tmp_path):
+    """The README's `dvc exp run --queue -S …` then `dvc queue start -j 2`, on a one-stage
+    project that composes the repository's conf/ (DVC's Hydra integration)."""
+    from rigmap.pipeline_params import write_params
+
+    project = tmp_path / "project"
+    shutil.copytree(ROOT / "conf", project / "conf")
+    (project / "dvc.yaml").write_text(
+        "stages:\n"
+        "  samples:\n"
+        "    cmd: python -c \"open('n.txt','w').write('${budget.samples}')\"\n"
+        "    outs: [n.txt]\n"
+    )
+    (project / ".gitignore").write_text("n.txt\n")
+    git = ["git", "-c", "user.name=rigmap-test", "-c", "user.email=test@localhost"]
+    subprocess.run(["git", "init", "-q"], cwd=project, check=True)
+    _dvc(project, "init", "-q")
+    _dvc(project, "config", "hydra.enabled", "true")
+    write_params(project, [])
+    subprocess.run(["git", "add", "-A"], cwd=project, check=True)
+    subprocess.run([*git, "commit", "-qm", "sweep"], cwd=project, check=True)
+
+    for samples in (3, 5):
+        _dvc(project, "exp", "run", "--queue", "-S", f"budget.samples={samples}", "-q")
+    _dvc(project, "queue", "start", "-j", "2")
+    deadline = time.monotonic() + 300
+    while True:
+        status = _dvc(project, "queue", "status").stdout
+        if not any(word in status for word in ("Queued", "Running")):
+            break
+        assert time.monotonic() < deadline, f"the queue did not finish:\n{status}"
+        time.sleep(2)
+    assert status.count("Success") == 2, status
+
+    shown = json.loads(_dvc(project, "exp", "show", "--json").stdout)
+    runs = {
+        rev["name"]: rev["data"]["params"]["params.yaml"]["data"]["budget"]["samples"]
+        for commit in shown
+        for experiment in commit.get("experiments") or []
+        for rev in experiment["revs"]
+    }
+    assert sorted(runs.values()) == [3, 5]
+    for name, samples in runs.items():  # each experiment's own output, applied to the workspace
+        _dvc(project, "exp", "apply", name)
+        assert (project / "n.txt").read_text() == str(samples)
