@@ -20,21 +20,27 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _animate(tmp: Path, *overrides: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT / 'pipelines'}"}
+BIN = Path(sys.executable).parent
+
+
+def _run(command: list[str], cwd: Path, *, check: bool = False) -> subprocess.CompletedProcess:
+    """``command`` with the project's environment first on PATH and its code importable."""
+    env = {
+        **os.environ,
+        "PATH": f"{BIN}:{os.environ.get('PATH', '')}",
+        "PYTHONPATH": f"{ROOT / 'src'}:{ROOT / 'pipelines'}",
+    }
     return subprocess.run(
-        [sys.executable, str(ROOT / "pipelines" / "animate.py"), *overrides],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
+        command, cwd=cwd, env=env, capture_output=True, text=True, check=check, timeout=600
     )
+
+
+def _animate(*overrides: str) -> subprocess.CompletedProcess:
+    return _run([sys.executable, str(ROOT / "pipelines" / "animate.py"), *overrides], ROOT)
 
 
 def test_joblib_multirun_writes_what_single_runs_write(tmp_path):
     swept = _animate(
-        tmp_path,
         "-m",
         "hydra/launcher=joblib",
         "hydra.launcher.n_jobs=2",
@@ -44,7 +50,6 @@ def test_joblib_multirun_writes_what_single_runs_write(tmp_path):
     )
     assert swept.returncode == 0, swept.stderr[-2000:]
     alone = _animate(
-        tmp_path,
         "rig=face",
         f"paths.data={tmp_path / 'alone'}",
         f"hydra.run.dir={tmp_path / 'run'}",
@@ -63,18 +68,8 @@ def test_joblib_multirun_writes_what_single_runs_write(tmp_path):
     assert sorted(p.name for p in (tmp_path / "multirun").iterdir() if p.is_dir()) == ["0", "1"]
 
 
-def _dvc(project: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
-    bin_dir = Path(sys.executable).parent
-    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ.get('PATH', '')}"}
-    return subprocess.run(
-        [str(bin_dir / "dvc"), *args],
-        cwd=project,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=check,
-        timeout=300,
-    )
+def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
+    return _run([str(BIN / "dvc"), *args], project, check=True)
 
 
 def test_dvc_queue_runs_a_two_point_sweep_in_parallel(tmp_path):
