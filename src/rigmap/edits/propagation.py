@@ -84,11 +84,13 @@ class EditModel:
         weights: Weights | None = None,
         residual: bool = False,
         max_iterations: int = 100,
+        gp_method: str = "profile",
     ):
         self.joints = joints
         self.weights = weights or Weights()
         self.residual = residual
         self.max_iterations = max_iterations
+        self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
 
     def fit(self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale) -> EditModel:
         """Fit both GPs on example ``(source, edited track)`` pairs."""
@@ -112,7 +114,10 @@ class EditModel:
         # 2-core machine fits both in the time of the slower
         with ThreadPoolExecutor(max_workers=2) as pool:
             fits = [
-                pool.submit(SharedGP(self.max_iterations, center=center).fit, X, Y) for X, Y in data
+                pool.submit(
+                    SharedGP(self.max_iterations, center=center, method=self.gp_method).fit, X, Y
+                )
+                for X, Y in data
             ]
             self.kinematic_gp_, self.acceleration_gp_ = (f.result() for f in fits)
         return self
