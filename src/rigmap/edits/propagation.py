@@ -92,10 +92,15 @@ class EditModel:
         self.max_iterations = max_iterations
         self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
 
-    def fit(self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale) -> EditModel:
-        """Fit both GPs on example ``(source, edited track)`` pairs."""
+    def fit(
+        self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale, mirror=None
+    ) -> EditModel:
+        """Fit both GPs on example ``(source, edited track)`` pairs (and their mirrors, with
+        a :class:`rigmap.edits.mirror.Mirror`: §7.1 doubles the training data so)."""
         if not pairs:
             raise TargetError("an edit needs at least one example pair")
+        if mirror is not None:
+            pairs = mirror.pairs(pairs)
         xk, yk, xa, ya = [], [], [], []
         for source, edited in pairs:
             _check_pair(source.track, edited)
