@@ -27,6 +27,7 @@ import numpy as np
 from rigmap.edits.combine import Weights, accelerations, combine
 from rigmap.edits.features import acceleration_features, kinematic_features
 from rigmap.edits.gp import Prediction, SharedGP
+from rigmap.edits.mls import MovingLeastSquares
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
 from rigmap.store import atomic_file
 
@@ -75,6 +76,9 @@ class SourceClip:
         return kinematic, acceleration
 
 
+ESTIMATORS = ("gp", "mls")
+
+
 class EditModel:
     """The two GPs of an edit, and the combined solve that applies them (module docstring)."""
 
@@ -85,12 +89,16 @@ class EditModel:
         residual: bool = False,
         max_iterations: int = 100,
         gp_method: str = "profile",
+        estimator: str = "gp",
     ):
+        if estimator not in ESTIMATORS:
+            raise TargetError(f"unknown edit estimator {estimator!r}; expected one of {ESTIMATORS}")
         self.joints = joints
         self.weights = weights or Weights()
         self.residual = residual
         self.max_iterations = max_iterations
         self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
+        self.estimator = estimator  # "gp" (§4.1) or "mls" (§4.4, rigmap.edits.mls)
 
     def fit(
         self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale, mirror=None
@@ -118,14 +126,14 @@ class EditModel:
         # the two fits are independent: one thread each (LAPACK releases the GIL), so a
         # 2-core machine fits both in the time of the slower
         with ThreadPoolExecutor(max_workers=2) as pool:
-            fits = [
-                pool.submit(
-                    SharedGP(self.max_iterations, center=center, method=self.gp_method).fit, X, Y
-                )
-                for X, Y in data
-            ]
+            fits = [pool.submit(self._estimator(center).fit, X, Y) for X, Y in data]
             self.kinematic_gp_, self.acceleration_gp_ = (f.result() for f in fits)
         return self
+
+    def _estimator(self, center: bool):
+        if self.estimator == "mls":
+            return MovingLeastSquares()
+        return SharedGP(self.max_iterations, center=center, method=self.gp_method)
 
     def predict(self, source: SourceClip) -> tuple[Prediction, Prediction]:
         """The two GPs' predictions on a clip, in scaled channels (targets, not offsets)."""
@@ -184,6 +192,7 @@ def save_model(model: EditModel, path) -> None:
         "feature_joints": np.array(j.feature),
         "heading_joints": np.array([j.root, j.left, j.right]),
         "residual": np.array(model.residual),
+        "estimator": np.array(model.estimator),
         "max_iterations": np.array(model.max_iterations),
         "weights": np.array(
             [
@@ -208,9 +217,11 @@ def load_model(path) -> EditModel:
             Weights(*(float(w) for w in data["weights"])),
             bool(data["residual"]),
             int(data["max_iterations"]),
+            estimator=str(data["estimator"]) if "estimator" in data.files else "gp",
         )
         model.scale = ChannelScale(tuple(str(c) for c in data["channels"]), data["std"].copy())
         for which in ("kinematic", "acceleration"):
             state = {k[len(which) + 1 :]: data[k] for k in data.files if k.startswith(which)}
-            setattr(model, f"{which}_gp_", SharedGP.from_state(state))
+            kind = MovingLeastSquares if model.estimator == "mls" else SharedGP
+            setattr(model, f"{which}_gp_", kind.from_state(state))
     return model
