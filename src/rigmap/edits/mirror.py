@@ -143,13 +143,13 @@ class Mirror:
         return reflect_positions(positions, self.joints)
 
     def pairs(self, pairs: list) -> list:
-        """Example ``(SourceClip, edited track)`` pairs followed by their mirrors."""
+        """Example ``(SourceClip, edited track[, frames])`` pairs followed by their mirrors."""
         from rigmap.edits.propagation import SourceClip  # propagation imports this module
 
         mirrored = [
-            (SourceClip(self.positions(source.positions), self.track(source.track)),
-             self.track(edited))
-            for source, edited in pairs
+            (SourceClip(self.positions(pair[0].positions), self.track(pair[0].track)),
+             self.track(pair[1]), *pair[2:])
+            for pair in pairs
         ]  # fmt: skip
         return [*pairs, *mirrored]
 

@@ -100,26 +100,32 @@ class EditModel:
         self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
         self.estimator = estimator  # "gp" (§4.1) or "mls" (§4.4, rigmap.edits.mls)
 
-    def fit(
-        self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale, mirror=None
-    ) -> EditModel:
+    def fit(self, pairs: list[tuple], scale: ChannelScale, mirror=None) -> EditModel:
         """Fit both GPs on example ``(source, edited track)`` pairs (and their mirrors, with
-        a :class:`rigmap.edits.mirror.Mirror`: §7.1 doubles the training data so)."""
+        a :class:`rigmap.edits.mirror.Mirror`: §7.1 doubles the training data so).
+
+        A pair may carry a third element, the frames of the clip that are examples (a
+        boolean mask or indices: the frames an artist fixed, §3): the features still see
+        the whole clip, the configuration GP those frames, the acceleration GP the fixed
+        frames whose both neighbours are fixed too."""
         if not pairs:
             raise TargetError("an edit needs at least one example pair")
         if mirror is not None:
             pairs = mirror.pairs(pairs)
         xk, yk, xa, ya = [], [], [], []
-        for source, edited in pairs:
+        for pair in pairs:
+            source, edited = pair[:2]
             _check_pair(source.track, edited)
             kinematic, acceleration = source.features(self.joints)
             target = scale.scaled(edited)
             if self.residual:
                 target = target - scale.scaled(source.track)
-            xk.append(kinematic)
-            yk.append(target)
-            xa.append(acceleration[1:-1])
-            ya.append(accelerations(target))
+            chosen = _frame_mask(pair[2] if len(pair) > 2 else None, source.track)
+            inner = chosen[1:-1] & chosen[:-2] & chosen[2:]
+            xk.append(kinematic[chosen])
+            yk.append(target[chosen])
+            xa.append(acceleration[1:-1][inner])
+            ya.append(accelerations(target)[inner])
         self.scale = scale
         center = not self.residual  # an offset's prior is no edit
         data = ((np.vstack(xk), np.vstack(yk)), (np.vstack(xa), np.vstack(ya)))
@@ -165,6 +171,22 @@ class EditModel:
         return source.track.with_values(
             self.scale.unscaled(solution), source=f"{source.track.source} (propagated)"
         )
+
+
+def _frame_mask(frames, track: TargetTrack) -> np.ndarray:
+    n = track.n_frames
+    if frames is None:
+        return np.ones(n, dtype=bool)
+    frames = np.asarray(frames)
+    if frames.dtype == bool:
+        if frames.shape != (n,):
+            raise TargetError(f"{track.source}: a frame mask of {frames.shape} for {n} frames")
+        return frames
+    if frames.size and (frames.min() < 0 or frames.max() >= n):
+        raise TargetError(f"{track.source}: example frames outside 0..{n - 1}")
+    mask = np.zeros(n, dtype=bool)
+    mask[frames.astype(int)] = True
+    return mask
 
 
 def _check_pair(source: TargetTrack, edited: TargetTrack) -> None:
