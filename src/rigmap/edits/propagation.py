@@ -88,7 +88,7 @@ class EditModel:
         weights: Weights | None = None,
         residual: bool = False,
         max_iterations: int = 100,
-        gp_method: str = "profile",
+        gp_method: str = "lbfgs",
         estimator: str = "gp",
     ):
         if estimator not in ESTIMATORS:

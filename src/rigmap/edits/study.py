@@ -103,7 +103,7 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
         weights_from(settings["weights"]),
         residual=bool(settings["residual"]),
         max_iterations=int(settings["max_iterations"]),
-        gp_method=str(settings.get("gp_method", "profile")),
+        gp_method=str(settings.get("gp_method", "lbfgs")),
         estimator=str(settings.get("estimator", "gp")),  # "mls": §4.4 (conf/edits/mls.yaml)
     )
     # §7.1 mirrors the training data; off unless the config says so (ours: the stages'
