@@ -96,9 +96,13 @@ def _pick(variances, fixed, count: int, segment: int, rng=None) -> list[Suggesti
             k, f = max(candidates, key=lambda c: variances[c[0]][c[1]])
         else:
             k, f = candidates[int(rng.integers(len(candidates)))]
-        n = len(variances[k])
-        start = int(np.clip(f - half, 0, max(n - segment, 0)))
-        stop = min(start + segment, n)
+        # the segment stays inside the run of unfixed frames around the pick (shorter if
+        # the run is), centred on it where it can be
+        unfixed = ~(fixed[k][2] if k in fixed else np.zeros(len(variances[k]), bool))
+        low = f - int(np.argmin(unfixed[f::-1])) + 1 if not unfixed[: f + 1].all() else 0
+        high = f + int(np.argmin(unfixed[f:])) if not unfixed[f:].all() else len(unfixed)
+        start = int(np.clip(f - half, low, max(high - segment, low)))
+        stop = min(start + segment, high)
         picks.append(Suggestion(k, start, stop, float(variances[k][f])))
         free[k][max(start - half, 0) : stop + half] = False  # picks a segment apart
     return picks
