@@ -152,7 +152,11 @@ class SharedGP:
         matrix in it is symmetric): ``K⁻¹`` from LAPACK ``potri`` and ``ααᵀ`` from
         ``syrk`` fill just that half, and ``self._lower`` (2 below the diagonal, 1 on it,
         0 above) weighs it back to the whole sum — half the work of full matrices."""
-        length, signal, noise = np.exp(theta)
+        with np.errstate(over="ignore"):
+            length, signal, noise = np.exp(theta)
+            scales = np.array([length**2, signal**2, noise**2])
+        if not (np.isfinite(scales).all() and scales[0] > 0):
+            return 1e300, np.zeros(3)  # a line search's step out of range: reject it
         n, d = self.Y_.shape
         sq = self._sq
         rbf = signal**2 * np.exp(-0.5 * sq / length**2)
