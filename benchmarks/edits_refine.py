@@ -6,8 +6,10 @@ A procedural edit is learned from the examples (mirrored left/right, §7.1) and 
 the held-out clips; then for 5 rounds the "artist" fixes ``--per-round`` segments of
 ``--segment`` frames to the edit's ground truth, chosen either by the highest predictive
 variance of the configuration predictor (the suggestion) or at random, and the model is
-refitted. Printed per round: frames authored, edit error (std units², over all held-out
-frames and over the frames not fixed), joint RMSE (cm), transfer ratio ρ, refit seconds.
+refitted, its hyper-parameters searched from the paper's initial values ("cold") or
+from the last round's ("warm", ours). Printed per round: frames authored, edit error
+(std units², over all held-out frames and over the frames not fixed), joint RMSE (cm),
+transfer ratio ρ, refit seconds.
 Beside it: the edit error of the GP and of moving least squares after round 0.
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits_refine.py [--edit arm_swing]
@@ -40,6 +42,8 @@ def main() -> None:
     parser.add_argument("--segment", type=int, default=12)  # frames (0.5 s at 24 fps): ours
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-mirror", action="store_true")
+    parser.add_argument("--starts", nargs="+", default=["cold", "warm"], choices=["cold", "warm"])
+    parser.add_argument("--no-estimators", action="store_true")
     args = parser.parse_args()
     settings = yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text())
     catalogue = {p.stem: yaml.safe_load(p.read_text()) for p in (ROOT / "conf/edit").glob("*.yaml")}
@@ -54,7 +58,7 @@ def main() -> None:
                          residual=bool(settings["residual"]), estimator=estimator)  # fmt: skip
 
     estimators = {}
-    for estimator in ("gp", "mls"):
+    for estimator in () if args.no_estimators else ("gp", "mls"):
         start = time.perf_counter()
         fitted = model(estimator).fit(examples, data.scale, mirror=mirror)
         fit_s = time.perf_counter() - start
@@ -70,11 +74,12 @@ def main() -> None:
                         "source_joint_rmse_cm", "transfer", "leak_std", "jerk_ratio")
         } | {"fit_s": fit_s}  # fmt: skip
     rounds = {
-        choice: refinement_rounds(
+        f"{choice}_{start}": refinement_rounds(
             model(), data.scale, examples, data.heldout, truths, rounds=args.rounds,
             per_round=args.per_round, segment=args.segment, choice=choice, seed=args.seed,
-            mirror=mirror, relative_cm=data.subject.relative_cm,
+            mirror=mirror, relative_cm=data.subject.relative_cm, warm_start=start == "warm",
         )
+        for start in args.starts
         for choice in ("variance", "random")
     }  # fmt: skip
     print(json.dumps({

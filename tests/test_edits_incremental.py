@@ -67,3 +67,20 @@ def test_rounds_of_suggested_fixes_lower_the_edit_error(setup):
     with pytest.raises(TargetError, match="choice must be"):
         refinement_rounds(EditModel(subject.joints), scale, examples, heldout, truths,
                           choice="best")  # fmt: skip
+
+
+def test_the_cli_plays_refinement_rounds(tmp_path, capsys):
+    from rigmap.cli import main
+
+    root = Path(__file__).resolve().parents[1]
+    paths = [f"paths.{k}={tmp_path / k}" for k in ("models", "data", "metrics")]
+    chosen = ["edits.run=[biped]", "edits.names=[arm_swing]", "+edits.refine.rounds=1",
+              "+edits.refine.per_round=1", "+edits.mirror=true", *paths]  # fmt: skip
+    assert main(["edits", "add", "--config-dir", str(root / "conf"), *chosen]) == 0
+    folder = tmp_path / "metrics/biped/edits/refinement"
+    report = yaml.safe_load((folder / "arm_swing.json").read_text())
+    assert [r["frames_authored"] for r in report["variance"]] == [0, 12]
+    assert [r["round"] for r in report["random"]] == [0, 1]
+    assert report["settings"]["rounds"] == 1
+    assert (folder / "arm_swing.csv").read_text().startswith("choice,round,frames_authored")
+    assert "refinement" in capsys.readouterr().out

@@ -47,11 +47,12 @@ class Refinement:
     scale: ChannelScale
     examples: list[tuple]
     mirror: object | None = None
+    warm_start: bool = False  # refits start from the last hyper-parameters (EditModel.fit)
     fixed: dict[int, tuple[SourceClip, TargetTrack, np.ndarray]] = field(default_factory=dict)
 
     def fit(self) -> EditModel:
         pairs = [*self.examples, *self.fixed.values()]
-        return self.model.fit(pairs, self.scale, mirror=self.mirror)
+        return self.model.fit(pairs, self.scale, mirror=self.mirror, warm_start=self.warm_start)
 
     def add(self, key: int, source: SourceClip, edited: TargetTrack, start: int, stop: int):
         """The artist's fix of frames ``start:stop`` of clip ``key`` (its edited track there;
@@ -122,15 +123,17 @@ def refinement_rounds(
     seed: int = 0,
     mirror=None,
     relative_cm=None,
+    warm_start: bool = False,
 ) -> list[dict]:
     """Edit error against frames authored: round 0 is the examples alone, each later round
     fixes ``per_round`` segments of ``segment`` frames (``choice``: ``"variance"``, the
-    highest-variance suggestion, or ``"random"``) to their ground truth and refits."""
+    highest-variance suggestion, or ``"random"``) to their ground truth and refits
+    (``warm_start``: from the last round's hyper-parameters)."""
     if choice not in ("variance", "random"):
         raise TargetError(f"refinement choice must be 'variance' or 'random', got {choice!r}")
     if len(heldout) != len(truths):
         raise TargetError(f"{len(heldout)} held-out clips but {len(truths)} ground truths")
-    refinement = Refinement(model, scale, list(examples), mirror)
+    refinement = Refinement(model, scale, list(examples), mirror, warm_start)
     rng = np.random.default_rng(seed)
     rows = []
     for round_ in range(rounds + 1):

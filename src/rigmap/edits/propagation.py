@@ -100,14 +100,19 @@ class EditModel:
         self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
         self.estimator = estimator  # "gp" (§4.1) or "mls" (§4.4, rigmap.edits.mls)
 
-    def fit(self, pairs: list[tuple], scale: ChannelScale, mirror=None) -> EditModel:
+    def fit(
+        self, pairs: list[tuple], scale: ChannelScale, mirror=None, warm_start: bool = False
+    ) -> EditModel:
         """Fit both GPs on example ``(source, edited track)`` pairs (and their mirrors, with
         a :class:`rigmap.edits.mirror.Mirror`: §7.1 doubles the training data so).
 
         A pair may carry a third element, the frames of the clip that are examples (a
         boolean mask or indices: the frames an artist fixed, §3): the features still see
         the whole clip, the configuration GP those frames, the acceleration GP the fixed
-        frames whose both neighbours are fixed too."""
+        frames whose both neighbours are fixed too. ``warm_start`` starts each GP's
+        hyper-parameter search from this model's last fit (ours; the paper refits from its
+        initial values, and "suspect[s] that it could be possible [to] reuse
+        hyperparameters for new data", §7.1)."""
         if not pairs:
             raise TargetError("an edit needs at least one example pair")
         if mirror is not None:
@@ -131,8 +136,17 @@ class EditModel:
         data = ((np.vstack(xk), np.vstack(yk)), (np.vstack(xa), np.vstack(ya)))
         # the two fits are independent: one thread each (LAPACK releases the GIL), so a
         # 2-core machine fits both in the time of the slower
+        starts = [None, None]
+        if warm_start and hasattr(self, "kinematic_gp_") and self.estimator == "gp":
+            starts = [
+                {"length_scale": gp.length_scale_, "signal": gp.signal_, "noise": gp.noise_}
+                for gp in (self.kinematic_gp_, self.acceleration_gp_)
+            ]
         with ThreadPoolExecutor(max_workers=2) as pool:
-            fits = [pool.submit(self._estimator(center).fit, X, Y) for X, Y in data]
+            fits = [
+                pool.submit(self._estimator(center).fit, X, Y, initial=start)
+                for (X, Y), start in zip(data, starts, strict=True)
+            ]
             self.kinematic_gp_, self.acceleration_gp_ = (f.result() for f in fits)
         return self
 
