@@ -86,6 +86,26 @@ def test_marginal_likelihood_gradient_matches_finite_differences():
     assert np.isfinite(value)
 
 
+def test_profile_fit_reaches_the_optimum_of_the_three_parameter_search():
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 20, 300)
+    X = np.column_stack([np.sin(t * k) for k in range(1, 12)]) + 0.05 * rng.normal(size=(300, 11))
+    Y = np.column_stack([np.sin(2 * t) * X[:, 0], X[:, 1] ** 2, X[:, 3]])
+    Y = Y + 0.05 * rng.normal(size=Y.shape)
+    old = SharedGP(method="lbfgs").fit(X, Y)
+    new = SharedGP(method="profile").fit(X, Y)
+    for name in ("length_scale_", "signal_", "noise_"):
+        assert getattr(new, name) == pytest.approx(getattr(old, name), rel=1e-3)
+    assert new.log_marginal_likelihood_ == pytest.approx(old.log_marginal_likelihood_, rel=1e-8)
+    theta = np.log([new.length_scale_, new.signal_, new.noise_])
+    value, gradient = new._objective(theta)
+    assert np.abs(gradient).max() < 1e-5 * abs(value)  # a stationary point of the 3-D objective
+    assert new.evaluations_ < old.iterations_
+    np.testing.assert_allclose(new.predict(X[:50]).mean, old.predict(X[:50]).mean, atol=1e-4)
+    with pytest.raises(GPInputError, match="unknown GP fitting method"):
+        SharedGP(method="cg")
+
+
 def test_fitted_gp_predicts_with_variance_that_grows_away_from_data():
     rng = np.random.default_rng(3)
     X = rng.uniform(-2, 2, size=(80, 2))

@@ -161,7 +161,8 @@ def _add_evaluate(commands) -> None:
 
 
 def _add_edits(commands) -> None:
-    """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process."""
+    """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
+    ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth."""
     edits = commands.add_parser(
         "edits", help="learn procedural artist edits and propagate them to held-out motion"
     )
@@ -170,13 +171,25 @@ def _add_edits(commands) -> None:
         ("fit", "fit each edit's GPs into models/<subject>/edits/"),
         ("apply", "propagate each edit to the held-out clips into data/<subject>/edits/"),
         ("evaluate", "score the propagated edits into metrics/<subject>/edits/"),
+        (
+            "add",
+            "fix frames round by round (suggested vs random) and refit, into "
+            "metrics/<subject>/edits/refinement/",
+        ),
     ):
         _add_stage_command(
             verbs,
             verb,
             help=what,
-            description=f"Runs the edit_{verb} stage (pipelines/edit_{verb}.py) on "
-            "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
+            description=(
+                f"Runs the edit_{verb} stage (pipelines/edit_{verb}.py) on "
+                if verb != "add"
+                else "Incremental refinement (rigmap.edits.incremental; not a stage): each "
+                "round fixes the highest-variance (or random) frames of the held-out clips to "
+                "the edit's ground truth and refits (+edits.refine.rounds=, per_round, segment, "
+                "seed; +edits.mirror=true). Runs on "
+            )
+            + "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
             f"{verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. Paths are relative to the "
             "working directory.",
             overrides="edits.run=, edits.names=, edits.residual=, edits.weights.*=, paths.*=",

@@ -9,5 +9,9 @@ source where the predictions are unsure, to edit minutes of other motion.
   by all outputs, marginal-likelihood fit, predictive variance);
 - :mod:`rigmap.edits.combine`: the combined solve of Eqs 7–12 as one banded SPD system;
 - :mod:`rigmap.edits.features`: source features (§4.5): the skeleton around each frame in
-  its own heading frame, and smoothed root-relative accelerations.
+  its own heading frame, and smoothed root-relative accelerations;
+- :mod:`rigmap.edits.mirror`: training data mirrored left/right (§7.1), per rig;
+- :mod:`rigmap.edits.mls`: moving least squares (§4.4) behind the GP's interface;
+- :mod:`rigmap.edits.incremental`: incremental refinement (§3, Fig 2) — fixed frames join
+  the examples, refit, the highest-variance frames suggested next.
 """

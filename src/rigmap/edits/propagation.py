@@ -27,6 +27,7 @@ import numpy as np
 from rigmap.edits.combine import Weights, accelerations, combine
 from rigmap.edits.features import acceleration_features, kinematic_features
 from rigmap.edits.gp import Prediction, SharedGP
+from rigmap.edits.mls import MovingLeastSquares
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
 from rigmap.store import atomic_file
 
@@ -75,6 +76,9 @@ class SourceClip:
         return kinematic, acceleration
 
 
+ESTIMATORS = ("gp", "mls")
+
+
 class EditModel:
     """The two GPs of an edit, and the combined solve that applies them (module docstring)."""
 
@@ -84,38 +88,72 @@ class EditModel:
         weights: Weights | None = None,
         residual: bool = False,
         max_iterations: int = 100,
+        gp_method: str = "lbfgs",
+        estimator: str = "gp",
     ):
+        if estimator not in ESTIMATORS:
+            raise TargetError(f"unknown edit estimator {estimator!r}; expected one of {ESTIMATORS}")
         self.joints = joints
         self.weights = weights or Weights()
         self.residual = residual
         self.max_iterations = max_iterations
+        self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
+        self.estimator = estimator  # "gp" (§4.1) or "mls" (§4.4, rigmap.edits.mls)
 
-    def fit(self, pairs: list[tuple[SourceClip, TargetTrack]], scale: ChannelScale) -> EditModel:
-        """Fit both GPs on example ``(source, edited track)`` pairs."""
+    def fit(
+        self, pairs: list[tuple], scale: ChannelScale, mirror=None, warm_start: bool = False
+    ) -> EditModel:
+        """Fit both GPs on example ``(source, edited track)`` pairs (and their mirrors, with
+        a :class:`rigmap.edits.mirror.Mirror`: §7.1 doubles the training data so).
+
+        A pair may carry a third element, the frames of the clip that are examples (a
+        boolean mask or indices: the frames an artist fixed, §3): the features still see
+        the whole clip, the configuration GP those frames, the acceleration GP the fixed
+        frames whose both neighbours are fixed too. ``warm_start`` starts each GP's
+        hyper-parameter search from this model's last fit (ours; the paper refits from its
+        initial values, and "suspect[s] that it could be possible [to] reuse
+        hyperparameters for new data", §7.1)."""
         if not pairs:
             raise TargetError("an edit needs at least one example pair")
+        if mirror is not None:
+            pairs = mirror.pairs(pairs)
         xk, yk, xa, ya = [], [], [], []
-        for source, edited in pairs:
+        for pair in pairs:
+            source, edited = pair[:2]
             _check_pair(source.track, edited)
             kinematic, acceleration = source.features(self.joints)
             target = scale.scaled(edited)
             if self.residual:
                 target = target - scale.scaled(source.track)
-            xk.append(kinematic)
-            yk.append(target)
-            xa.append(acceleration[1:-1])
-            ya.append(accelerations(target))
+            chosen = _frame_mask(pair[2] if len(pair) > 2 else None, source.track)
+            inner = chosen[1:-1] & chosen[:-2] & chosen[2:]
+            xk.append(kinematic[chosen])
+            yk.append(target[chosen])
+            xa.append(acceleration[1:-1][inner])
+            ya.append(accelerations(target)[inner])
         self.scale = scale
         center = not self.residual  # an offset's prior is no edit
         data = ((np.vstack(xk), np.vstack(yk)), (np.vstack(xa), np.vstack(ya)))
         # the two fits are independent: one thread each (LAPACK releases the GIL), so a
         # 2-core machine fits both in the time of the slower
+        starts = [None, None]
+        if warm_start and hasattr(self, "kinematic_gp_") and self.estimator == "gp":
+            starts = [
+                {"length_scale": gp.length_scale_, "signal": gp.signal_, "noise": gp.noise_}
+                for gp in (self.kinematic_gp_, self.acceleration_gp_)
+            ]
         with ThreadPoolExecutor(max_workers=2) as pool:
             fits = [
-                pool.submit(SharedGP(self.max_iterations, center=center).fit, X, Y) for X, Y in data
+                pool.submit(self._estimator(center).fit, X, Y, initial=start)
+                for (X, Y), start in zip(data, starts, strict=True)
             ]
             self.kinematic_gp_, self.acceleration_gp_ = (f.result() for f in fits)
         return self
+
+    def _estimator(self, center: bool):
+        if self.estimator == "mls":
+            return MovingLeastSquares()
+        return SharedGP(self.max_iterations, center=center, method=self.gp_method)
 
     def predict(self, source: SourceClip) -> tuple[Prediction, Prediction]:
         """The two GPs' predictions on a clip, in scaled channels (targets, not offsets)."""
@@ -149,6 +187,22 @@ class EditModel:
         )
 
 
+def _frame_mask(frames, track: TargetTrack) -> np.ndarray:
+    n = track.n_frames
+    if frames is None:
+        return np.ones(n, dtype=bool)
+    frames = np.asarray(frames)
+    if frames.dtype == bool:
+        if frames.shape != (n,):
+            raise TargetError(f"{track.source}: a frame mask of {frames.shape} for {n} frames")
+        return frames
+    if frames.size and (frames.min() < 0 or frames.max() >= n):
+        raise TargetError(f"{track.source}: example frames outside 0..{n - 1}")
+    mask = np.zeros(n, dtype=bool)
+    mask[frames.astype(int)] = True
+    return mask
+
+
 def _check_pair(source: TargetTrack, edited: TargetTrack) -> None:
     if edited.n_frames != source.n_frames:
         raise TargetError(
@@ -174,6 +228,7 @@ def save_model(model: EditModel, path) -> None:
         "feature_joints": np.array(j.feature),
         "heading_joints": np.array([j.root, j.left, j.right]),
         "residual": np.array(model.residual),
+        "estimator": np.array(model.estimator),
         "max_iterations": np.array(model.max_iterations),
         "weights": np.array(
             [
@@ -198,9 +253,11 @@ def load_model(path) -> EditModel:
             Weights(*(float(w) for w in data["weights"])),
             bool(data["residual"]),
             int(data["max_iterations"]),
+            estimator=str(data["estimator"]) if "estimator" in data.files else "gp",
         )
         model.scale = ChannelScale(tuple(str(c) for c in data["channels"]), data["std"].copy())
         for which in ("kinematic", "acceleration"):
             state = {k[len(which) + 1 :]: data[k] for k in data.files if k.startswith(which)}
-            setattr(model, f"{which}_gp_", SharedGP.from_state(state))
+            kind = MovingLeastSquares if model.estimator == "mls" else SharedGP
+            setattr(model, f"{which}_gp_", kind.from_state(state))
     return model

@@ -8,7 +8,10 @@ torch and the rigs, costs more than the edits of a subject).
 - :func:`run_apply`: each model on the held-out clips → ``data/<subject>/edits/<edit>.npz``
   (the propagated tracks' values, one array per clip);
 - :func:`run_evaluate`: the scores → ``metrics/<subject>/edits/detail/<edit>.json`` (per
-  clip, too), ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``.
+  clip, too), ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``;
+- :func:`run_add` (``rigmap edits add``; not a stage): incremental refinement (§3) played
+  with each edit's ground truth on the held-out clips, suggested (highest-variance) against
+  random fixes → ``metrics/<subject>/edits/refinement/<edit>.json`` and ``.csv``.
 """
 
 from __future__ import annotations
@@ -21,9 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.edits.evaluation import evaluate_edit
-from rigmap.edits.propagation import load_model, save_model
+from rigmap.edits.incremental import refinement_rounds
+from rigmap.edits.mirror import subject_mirror
+from rigmap.edits.propagation import EditModel, load_model, save_model
 from rigmap.edits.representation import TargetError
-from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study
+from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study, weights_from
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
 
 EDITS = "edits"
@@ -71,6 +76,44 @@ def run_apply(config: dict, layout: Layout) -> list[Path]:
 
 def run_evaluate(config: dict, layout: Layout) -> list[Path]:
     return [_evaluate(config, subject, layout) for subject in _subjects(config)]
+
+
+def run_add(config: dict, layout: Layout) -> list[Path]:
+    return [_add(config, subject, layout) for subject in _subjects(config)]
+
+
+REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0}  # ours
+
+
+def _add(config: dict, subject: str, layout: Layout) -> Path:
+    subject, data, edits = _setup(config, subject)
+    settings = {**REFINE_DEFAULTS, **(config.get("refine") or {})}
+    folder = layout.metrics_folder(subject, EDITS) / "refinement"
+    mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
+    cm = data.subject.cm_per_unit
+    for name, edit in edits.items():
+        examples = [(source, edit.apply(source.track, cm)) for source in data.train]
+        truths = [edit.apply(source.track, cm) for source in data.heldout]
+        report = {}
+        for choice in ("variance", "random"):
+            model = EditModel(
+                data.subject.joints,
+                weights_from(config["weights"]),
+                residual=bool(config["residual"]),
+                max_iterations=int(config["max_iterations"]),
+                gp_method=str(config.get("gp_method", "lbfgs")),
+                estimator=str(config.get("estimator", "gp")),
+            )
+            report[choice] = refinement_rounds(
+                model, data.scale, examples, data.heldout, truths,
+                rounds=int(settings["rounds"]), per_round=int(settings["per_round"]),
+                segment=int(settings["segment"]), choice=choice, seed=int(settings["seed"]),
+                mirror=mirror, relative_cm=data.subject.relative_cm,
+            )  # fmt: skip
+        rows = [{"choice": c, **row} for c, table in report.items() for row in table]
+        write_text_atomic(folder / f"{name}.csv", _csv(rows))
+        write_json_atomic(folder / f"{name}.json", json_ready({**report, "settings": settings}))
+    return folder
 
 
 def _fit(config: dict, subject: str, layout: Layout) -> Path:

@@ -18,6 +18,7 @@ from pathlib import Path
 import rigmap.rigs
 from rigmap.animation.library import motion_library
 from rigmap.edits.combine import Weights
+from rigmap.edits.mirror import subject_mirror
 from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel, SourceClip
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
@@ -102,11 +103,17 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
         weights_from(settings["weights"]),
         residual=bool(settings["residual"]),
         max_iterations=int(settings["max_iterations"]),
+        gp_method=str(settings.get("gp_method", "lbfgs")),
+        estimator=str(settings.get("estimator", "gp")),  # "mls": §4.4 (conf/edits/mls.yaml)
     )
+    # §7.1 mirrors the training data; off unless the config says so (ours: the stages'
+    # results so far are unmirrored)
+    mirror = subject_mirror(data.subject) if settings.get("mirror", False) else None
     start = time.perf_counter()
-    model.fit(pairs, data.scale)
+    model.fit(pairs, data.scale, mirror=mirror)
     seconds = time.perf_counter() - start
-    info = {"fit_s": seconds, "training_frames": int(sum(s.track.n_frames for s in data.train))}
+    frames = int(sum(s.track.n_frames for s in data.train))
+    info = {"fit_s": seconds, "training_frames": frames * (2 if mirror else 1)}
     for which in ("kinematic", "acceleration"):
         gp = getattr(model, f"{which}_gp_")
         info[which] = {

@@ -48,6 +48,7 @@ class Subject:
     positions: Callable[[TargetTrack], np.ndarray]
     channels: RigChannels | None = None  # rig mode
     skeleton: Skeleton | None = None  # skeleton mode
+    joint_names: tuple[str, ...] = ()  # the names of positions(track)'s joints
 
     def relative_cm(self, track: TargetTrack) -> np.ndarray:
         """Joint positions relative to the root, world-oriented, cm."""
@@ -79,7 +80,9 @@ def rig_subject(
     joints = _feature_joints(
         names, [n for n in names if not any(d in n for d in _DETAIL)], heading_joints
     )
-    return Subject(rig.name, "rig", joints, 1.0, positions, channels=channels)
+    return Subject(
+        rig.name, "rig", joints, 1.0, positions, channels=channels, joint_names=tuple(names)
+    )
 
 
 def rig_clip(rig, channels: RigChannels, clip_name: str, seed: int) -> TargetTrack:
@@ -110,7 +113,15 @@ def skeleton_subject(
     def positions(track: TargetTrack) -> np.ndarray:
         return skeleton_positions(track, skeleton) * cm_per_unit
 
-    return Subject(name, "skeleton", joints, cm_per_unit, positions, skeleton=skeleton)
+    return Subject(
+        name,
+        "skeleton",
+        joints,
+        cm_per_unit,
+        positions,
+        skeleton=skeleton,
+        joint_names=tuple(names),
+    )
 
 
 def skeleton_clip(subject: Subject, path: str | Path) -> TargetTrack:
