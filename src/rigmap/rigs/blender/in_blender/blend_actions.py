@@ -99,7 +99,10 @@ def _slot_for(action, rig):
     for slot in slots:
         if slot.identifier == "OB" + rig.name:
             return slot
-    if len(slots) == 1:
+    # an action nobody uses (kept by a fake user) with one slot; a slot that animates
+    # other objects is theirs
+    free = [s for s in slots if not [u for u in s.users() if u != rig]]
+    if len(slots) == 1 and free:
         return slots[0]
     return None
 
