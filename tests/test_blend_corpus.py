@@ -14,6 +14,7 @@ import hashlib
 import math
 import re
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,35 +149,49 @@ def test_imported_corpus_matches_the_actions_own_fcurves_at_every_frame(hero, he
     assert all(k.in_handle is not None for c in walk.curves.values() for k in c.keys)
 
 
-def test_used_controls_soft_ranges_and_the_rig_config_evaluate_the_corpus(hero, tmp_path):
-    from rigmap.rigs import load
-
+def test_used_controls_and_soft_ranges_come_from_the_keys(hero):
     keyed = {c for clip in hero.clips for c in clip.curves}
     assert set(hero.used) == keyed and "torso.tx" in keyed
     assert any(c.endswith(".IK_FK") for c in hero.used)  # custom properties (IK/FK switches)
     for name in hero.used:
         low, high = hero.soft_ranges[name]
         values = np.concatenate([c.curves[name].values for c in hero.clips if name in c.curves])
-        assert (
-            low
-            <= min(values.min(), hero.defaults[name])
-            <= max(values.max(), hero.defaults[name])
-            <= high
-        )
+        values = np.append(values, hero.defaults[name])
+        assert low <= values.min() <= values.max() <= high
     switch = next(c for c in hero.used if c.endswith(".IK_FK"))
     assert 0.0 <= hero.soft_ranges[switch][0] and hero.soft_ranges[switch][1] <= 1.0  # hard range
-    folder = hero.write(tmp_path / "corpus")
-    with load({**hero.rig_config(), "workers": 1}) as rig:
-        assert rig.name == hero.rig_name and rig.used_controls == hero.used
-        corpus = Corpus.read(
-            folder / "train.parquet", rig=rig.name, control_names=rig.used_controls
-        )
+
+
+def test_the_animate_stage_and_rig_blend_file_read_the_imported_corpus(hero, hero_blend, tmp_path):
+    """conf/rig/blend_file.yaml with rig.path and rig.armature: the animate stage's hook
+    writes the corpus, every other stage's rig (rig_from_config) reads it back."""
+    from omegaconf import OmegaConf
+
+    from rigmap.animation.corpus_files import read_corpus_split
+    from rigmap.rigs.blender.blend_corpus import write_blend_corpora
+    from rigmap.stage.inputs import rig_from_config
+    from rigmap.store import Layout
+
+    conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "rig" / "blend_file.yaml")
+    conf.path, conf.armature, conf.workers = str(hero_blend), "rig", 1
+    del conf["_overrides_"]
+    options = OmegaConf.to_container(conf, resolve=True)
+    layout = Layout(data=tmp_path / "data")
+    before = sha256(hero_blend)
+    written = write_blend_corpora(options, options["corpus"]["actions"], layout)
+    assert written == [layout.corpus("blend_file:hero", s) for s in ("train", "test")]
+    with rig_from_config(conf) as rig:
+        assert rig.name == "blend_file:hero" and rig.used_controls == hero.used
+        train = read_corpus_split(rig, layout, "train")
+        test = read_corpus_split(rig, layout, "test")
         used = rig.controls.used_indices
         np.testing.assert_allclose(
             rig.controls.lower[used], [hero.soft_ranges[c][0] for c in hero.used]
         )
-        pose = rig.pose(_full(rig, corpus, rows=[0, 40]))
+        pose = rig.pose(_full(rig, train, rows=[0, 40]))
+    assert test.clip_names == hero.test_names and train.clip_names == hero.train_names
     assert np.isfinite(pose.positions).all()
+    assert sha256(hero_blend) == before
 
 
 def _full(rig, corpus, rows):

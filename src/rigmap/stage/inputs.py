@@ -28,7 +28,12 @@ def rig_from_config(rig_cfg: DictConfig):
     from rigmap.rigs import load
 
     options = OmegaConf.to_container(rig_cfg, resolve=True)
-    options.pop("corpus", None)
+    corpus = options.pop("corpus", None) or {}
+    if options.get("name") == "blend_file" and corpus.get("actions") is not None:
+        # a user's .blend whose actions are the corpus: the controls they key are the used ones
+        from rigmap.rigs.blender.blend_corpus import imported_rig_options
+
+        options.update(imported_rig_options(options, corpus["actions"]))
     return load(options)
 
 

@@ -640,3 +640,89 @@ def write_actions_blend(
             },
         )
     return {k: v for k, v in info.items() if k != "ok"}
+
+
+# --- the pipeline: rig=blend_file with rig.corpus.actions -------------------------------
+#: options of ``rig.corpus.actions`` (the rest of ``rig`` are the BlenderRig's own)
+ACTION_OPTIONS = (
+    "include",
+    "test_clips",
+    "extreme_test_clips",
+    "soft_range_margin",
+    "check_determinism",
+)
+#: BlenderRig options the import needs to see the same controls
+SESSION_KEYS = (
+    "armature",
+    "cog_bone",
+    "joints",
+    "control_bones",
+    "exclude_bones",
+    "euler_order",
+    "length_scale",
+    "up_axis",
+    "translate_range",
+    "scale_range",
+    "use_scripts",
+    "blender",
+    "used",
+)
+SUMMARY_FORMAT = 1
+
+
+def import_options(rig_options: Mapping, actions: Mapping | None) -> dict:
+    """:func:`import_blend_corpus` keywords from a ``blend_file`` rig config and its
+    ``corpus.actions`` mapping."""
+    actions = dict(actions or {})
+    unknown = sorted(set(actions) - set(ACTION_OPTIONS))
+    if unknown:
+        raise BlendCorpusError(
+            f"rig.corpus.actions: unknown keys {unknown}; expected {list(ACTION_OPTIONS)}"
+        )
+    if not rig_options.get("path"):
+        raise BlendCorpusError("rig 'blend_file' needs rig.path=/path/to/file.blend")
+    kwargs = {k: rig_options[k] for k in SESSION_KEYS if rig_options.get(k) is not None}
+    kwargs["actions"] = actions.pop("include", None) or "*"
+    kwargs.update({k: v for k, v in actions.items() if v is not None})
+    return {"path": str(Path(rig_options["path"]).expanduser().resolve()), **kwargs}
+
+
+def write_blend_corpora(rig_options: Mapping, actions: Mapping | None, layout) -> list[Path]:
+    """The ``animate`` stage of a ``blend_file`` rig: its actions into
+    ``data/<rig>/corpus/{train,test}.parquet`` (and the rig options the import chose)."""
+    kwargs = import_options(rig_options, actions)
+    result = import_blend_corpus(**kwargs)
+    folder = result.write_to_layout(layout)
+    _write_summary(kwargs, result)
+    return [folder / "train.parquet", folder / "test.parquet"]
+
+
+def imported_rig_options(rig_options: Mapping, actions: Mapping | None) -> dict:
+    """``used`` and ``soft_ranges`` (and the armature and COG the import chose) for a
+    ``blend_file`` rig whose corpus comes from its actions: from the cache the ``animate``
+    stage left (keyed by the file's bytes and the options), importing again if missing."""
+    kwargs = import_options(rig_options, actions)
+    from rigmap.rigs.blender.cache import read_json
+
+    summary = read_json(_summary_path(kwargs))
+    if summary is None:
+        summary = _write_summary(kwargs, import_blend_corpus(**kwargs))
+    options = {k: summary[k] for k in ("used", "soft_ranges", "armature", "cog_bone")}
+    return {k: v for k, v in options.items() if rig_options.get(k) is None}
+
+
+def _summary_path(kwargs: Mapping) -> Path:
+    key = json.dumps(
+        [SUMMARY_FORMAT, _sha256(Path(kwargs["path"])), dict(kwargs)], sort_keys=True, default=str
+    )
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    return cache_dir() / "blend_import" / f"{Path(kwargs['path']).stem}-{digest}.json"
+
+
+def _write_summary(kwargs: Mapping, result: BlendCorpus) -> dict:
+    from rigmap.rigs.blender.cache import write_json_atomic
+
+    config = result.rig_config()
+    summary = {k: config[k] for k in ("used", "soft_ranges", "armature", "cog_bone")}
+    write_json_atomic(_summary_path(kwargs), summary)
+    return summary
