@@ -687,13 +687,27 @@ def import_options(rig_options: Mapping, actions: Mapping | None) -> dict:
     return {"path": str(Path(rig_options["path"]).expanduser().resolve()), **kwargs}
 
 
-def write_blend_corpora(rig_options: Mapping, actions: Mapping | None, layout) -> list[Path]:
+def write_blend_corpora(
+    rig_options: Mapping, actions: Mapping | None, layout, *, log=print
+) -> list[Path]:
     """The ``animate`` stage of a ``blend_file`` rig: its actions into
     ``data/<rig>/corpus/{train,test}.parquet`` (and the rig options the import chose)."""
     kwargs = import_options(rig_options, actions)
     result = import_blend_corpus(**kwargs)
     folder = result.write_to_layout(layout)
     _write_summary(kwargs, result)
+    for note in result.notes:
+        log(f"{result.rig_name}: {note}")
+    for split, names in (("train", result.train_names), ("test", result.test_names)):
+        clips = [c for c in result.clips if c.name in names]
+        baked = sum(len(result.baked.get(n, {})) for n in names)
+        log(
+            f"{result.rig_name} {split}: {len(clips)} actions {names[:6]}, "
+            f"{sum(c.n_frames for c in clips)} frames at {result.fps} fps, "
+            f"{sum(c.key_count for c in clips)} keys ({baked} curves baked), "
+            f"{len(result.used)} used controls -> {folder / f'{split}.parquet'}"
+        )
+    log(f"{result.rig_name}: read {result.path.name} in {result.seconds['total']:.1f} s")
     return [folder / "train.parquet", folder / "test.parquet"]
 
 
