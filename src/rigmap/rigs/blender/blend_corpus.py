@@ -240,17 +240,7 @@ def import_blend_corpus(
     from rigmap.rigs.blender.pool import WorkerPool
 
     started = time.perf_counter()
-    path = Path(path).expanduser().resolve()
-    if not path.is_file():
-        raise BlendCorpusError(f"blend file {path} does not exist")
-    if path.suffix != ".blend":
-        raise BlendCorpusError(f"{path}: expected a .blend file")
-    if not (isinstance(extreme_test_clips, int) and extreme_test_clips >= 1):
-        raise BlendCorpusError(
-            f"extreme_test_clips must be an integer >= 1, got {extreme_test_clips!r}"
-        )
-    if not (math.isfinite(soft_range_margin) and soft_range_margin >= 0):
-        raise BlendCorpusError(f"soft_range_margin must be >= 0, got {soft_range_margin!r}")
+    path = _checked_path(path, extreme_test_clips, soft_range_margin)
     sha = _sha256(path)
     options = session_options(
         path,
@@ -302,6 +292,23 @@ def import_blend_corpus(
     return result
 
 
+def _checked_path(path, extreme_test_clips, soft_range_margin) -> Path:
+    path = Path(path).expanduser().resolve()
+    if not path.is_file():
+        raise BlendCorpusError(f"blend file {path} does not exist")
+    if path.suffix != ".blend":
+        raise BlendCorpusError(f"{path}: expected a .blend file")
+    if isinstance(extreme_test_clips, bool) or not (
+        isinstance(extreme_test_clips, int) and extreme_test_clips >= 1
+    ):
+        raise BlendCorpusError(
+            f"extreme_test_clips must be an integer >= 1, got {extreme_test_clips!r}"
+        )
+    if not (math.isfinite(soft_range_margin) and soft_range_margin >= 0):
+        raise BlendCorpusError(f"soft_range_margin must be >= 0, got {soft_range_margin!r}")
+    return path
+
+
 def _reworded(error: WorkerError, path: Path) -> BlendCorpusError:
     """The worker's message without its wrapping, naming the file once."""
     detail = str(error).split(": ", 1)[-1]  # "Blender worker failed on 'op': Type: message"
@@ -326,13 +333,7 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
     where = f"{path}: armature {info['armature']!r}"
     controls = {c["name"]: c for c in info["controls"]}
     names = [c["name"] for c in info["controls"]]
-    fps = float(info["fps"])
-    whole = round(fps)
-    if abs(fps - whole) > 1e-6 or whole not in CLIP_FPS:
-        raise BlendCorpusError(
-            f"{path}: the scene plays at {fps:g} fps; rigmap's clips are "
-            f"{' or '.join(map(str, CLIP_FPS))} fps"
-        )
+    whole = _clip_fps(info, path)
     if not info["all_actions"]:
         raise BlendCheckError(
             [
@@ -347,6 +348,46 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
                 f"{info['armature']!r}; actions: {info['all_actions']}"
             ]
         )
+    clips, blender_values, baked, notes = _clips(info, path, controls, options, whole)
+    used_names = _used(clips, names, used, path, notes, where)
+    problems = [*_one_frame_controls(clips, used_names, where), *info["frame_dependence"]]
+    if problems:
+        raise BlendCheckError(problems)
+    defaults = {n: float(controls[n]["default"]) for n in names}
+    ranges = _soft_ranges(clips, used_names, controls, info["limits"], margin)
+    test = _test_split(clips, used_names, defaults, ranges, test_clips, extreme, where)
+    return BlendCorpus(
+        path=path,
+        armature=info["armature"],
+        rig_name=rig_name,
+        fps=whole,
+        clips=clips,
+        test_names=test,
+        used=used_names,
+        defaults=defaults,
+        soft_ranges=ranges,
+        session_options=options,
+        blender_values=blender_values,
+        notes=notes,
+        baked=baked,
+        sha256=sha,
+    )
+
+
+def _clip_fps(info, path) -> int:
+    fps = float(info["fps"])
+    whole = round(fps)
+    if abs(fps - whole) > 1e-6 or whole not in CLIP_FPS:
+        raise BlendCorpusError(
+            f"{path}: the scene plays at {fps:g} fps; rigmap's clips are "
+            f"{' or '.join(map(str, CLIP_FPS))} fps"
+        )
+    return whole
+
+
+def _clips(info, path, controls, options, fps):
+    """The actions as clips (deform-only actions are problems), Blender's values, bakes, notes."""
+    where = f"{path}: armature {info['armature']!r}"
     problems, notes = [], []
     scale = float(options["length_scale"])
     clips, blender_values, baked = [], {}, {}
@@ -379,7 +420,7 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
         try:
             clip = Clip(
                 name,
-                whole,
+                fps,
                 curves,
                 start=action["start"],
                 end=action["end"],
@@ -392,18 +433,18 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
     if problems:
         raise BlendCheckError(problems)
     if not clips:
-        raise BlendCheckError(
-            [
-                f"{where}: none of the actions {[a['name'] for a in info['actions']]}"
-                " keys a control of the armature"
-            ]
-        )
+        actions = [a["name"] for a in info["actions"]]
+        raise BlendCheckError([f"{where}: none of the actions {actions} keys a control of it"])
+    return clips, blender_values, baked, notes
+
+
+def _used(clips, names, used, path, notes, where) -> list[str]:
+    """The keyed controls, or those the ``used`` globs pick (curves on others dropped)."""
     keyed = [n for n in names if any(n in c.curves for c in clips)]
     if used is None:
-        used_names = keyed
-    else:
-        flags = select_names(names, used, f"{path.name} used")
-        used_names = [n for n, flag in zip(names, flags, strict=True) if flag]
+        return keyed
+    flags = select_names(names, used, f"{path.name} used")
+    used_names = [n for n, flag in zip(names, flags, strict=True) if flag]
     dropped = [n for n in keyed if n not in used_names]
     if dropped:
         notes.append(f"keyed controls left out by the used globs (held at rest): {dropped[:10]}")
@@ -413,7 +454,12 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
     empty = [c.name for c in clips if not c.curves]
     if empty:
         raise BlendCorpusError(f"{where}: actions {empty} key none of the used controls")
-    # controls keyed in only one frame: they never move within a clip
+    return used_names
+
+
+def _one_frame_controls(clips, used_names, where) -> list[str]:
+    """Used controls keyed in only one frame wherever keyed: they never move within a clip."""
+    problems = []
     for control in used_names:
         keyed_in = [(c.name, c.curves[control]) for c in clips if control in c.curves]
         if keyed_in and all(len(curve) == 1 for _, curve in keyed_in):
@@ -425,28 +471,7 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
                 "moves within a clip, so the corpus cannot show what it does; key it in more "
                 "frames, or leave it out with rig.used exclude"
             )
-    problems.extend(info["frame_dependence"])
-    if problems:
-        raise BlendCheckError(problems)
-    defaults = {n: float(controls[n]["default"]) for n in names}
-    ranges = _soft_ranges(clips, used_names, controls, info["limits"], margin)
-    test = _test_split(clips, used_names, defaults, ranges, test_clips, extreme, where)
-    return BlendCorpus(
-        path=path,
-        armature=info["armature"],
-        rig_name=rig_name,
-        fps=whole,
-        clips=clips,
-        test_names=test,
-        used=used_names,
-        defaults=defaults,
-        soft_ranges=ranges,
-        session_options=options,
-        blender_values=blender_values,
-        notes=notes,
-        baked=baked,
-        sha256=sha,
-    )
+    return problems
 
 
 def _curve(curve, control, factor, frames, reference, action, path):

@@ -178,57 +178,7 @@ def read_actions(session: RigSession, pattern: str) -> dict:
         if slot is None:
             skipped.append({"action": name, "why": "no slot for an armature object"})
             continue
-        start, end = _frame_range(action)
-        frames = list(range(start, end + 1))
-        curves, ignored, quaternions = [], [], {}
-        for fcurve in _fcurves(action, slot):
-            if fcurve.mute or not len(fcurve.keyframe_points):
-                continue
-            parsed = _parse(fcurve.data_path)
-            where = f"{fcurve.data_path}[{fcurve.array_index}]"
-            if parsed is None:
-                ignored.append({"curve": where, "why": "not a pose-bone channel"})
-                continue
-            bone, attribute, prop = parsed
-            if attribute in ("rotation_quaternion", "rotation_axis_angle"):
-                quaternions.setdefault((bone, attribute), {})[fcurve.array_index] = fcurve
-                continue
-            if attribute is not None:
-                control = by_channel.get((bone, attribute, fcurve.array_index))
-            elif prop is not None:
-                control = by_channel.get((bone, None, prop))
-            else:
-                control = None
-            if control is None:
-                why = "deform bone" if bone in deform else "not a control of the rig"
-                ignored.append({"curve": where, "bone": bone, "why": why})
-                continue
-            curves.append(
-                {
-                    "control": control["name"],
-                    "keys": _keys(fcurve),
-                    "bake": _bake_reason(fcurve),
-                    "samples": [float(fcurve.evaluate(f)) for f in frames],
-                }
-            )
-        for (bone, attribute), parts in quaternions.items():
-            baked = _bake_rotation(session, bone, attribute, parts, frames, by_channel)
-            if baked is None:
-                why = "deform bone" if bone in deform else "not a control of the rig"
-                ignored.append(
-                    {"curve": f'pose.bones["{bone}"].{attribute}', "bone": bone, "why": why}
-                )
-            curves.extend(baked or [])
-        actions.append(
-            {
-                "name": name,
-                "start": start,
-                "end": end,
-                "curves": curves,
-                "ignored": ignored,
-                "keyed_bones": sorted({c["bone"] for c in ignored if "bone" in c}),
-            }
-        )
+        actions.append(_read_action(session, action, slot, by_channel, deform))
     scene = bpy.context.scene
     return {
         "path": path,
@@ -243,6 +193,49 @@ def read_actions(session: RigSession, pattern: str) -> dict:
         "deform_bones": sorted(deform),
         "joint_names": session.joint_names,
     }
+
+
+def _read_action(session, action, slot, by_channel: dict, deform: set) -> dict:
+    start, end = _frame_range(action)
+    frames = list(range(start, end + 1))
+    curves, ignored, quaternions = [], [], {}
+    for fcurve in _fcurves(action, slot):
+        if fcurve.mute or not len(fcurve.keyframe_points):
+            continue
+        parsed = _parse(fcurve.data_path)
+        where = f"{fcurve.data_path}[{fcurve.array_index}]"
+        if parsed is None:
+            ignored.append({"curve": where, "why": "not a pose-bone channel"})
+            continue
+        bone, attribute, prop = parsed
+        if attribute in ("rotation_quaternion", "rotation_axis_angle"):
+            quaternions.setdefault((bone, attribute), {})[fcurve.array_index] = fcurve
+            continue
+        if attribute is not None:
+            control = by_channel.get((bone, attribute, fcurve.array_index))
+        elif prop is not None:
+            control = by_channel.get((bone, None, prop))
+        else:
+            control = None
+        if control is None:
+            why = "deform bone" if bone in deform else "not a control of the rig"
+            ignored.append({"curve": where, "bone": bone, "why": why})
+            continue
+        curves.append(
+            {
+                "control": control["name"],
+                "keys": _keys(fcurve),
+                "bake": _bake_reason(fcurve),
+                "samples": [float(fcurve.evaluate(f)) for f in frames],
+            }
+        )
+    for (bone, attribute), parts in quaternions.items():
+        baked = _bake_rotation(session, bone, attribute, parts, frames, by_channel)
+        if baked is None:
+            why = "deform bone" if bone in deform else "not a control of the rig"
+            ignored.append({"curve": f'pose.bones["{bone}"].{attribute}', "bone": bone, "why": why})
+        curves.extend(baked or [])
+    return {"name": action.name, "start": start, "end": end, "curves": curves, "ignored": ignored}
 
 
 def _bake_rotation(session, bone, attribute, parts, frames, by_channel):
