@@ -103,7 +103,10 @@ def run_learn(
 
 
 def add_learn_command(commands) -> None:
-    """``rigmap learn PATH.blend [--armature NAME] [--until STAGE] [--dry] [KEY=VALUE ...]``."""
+    """``rigmap learn [--armature NAME] [--until STAGE] [--dry] PATH.blend [KEY=VALUE ...]``
+
+    (options before the file: argparse takes the positionals in one run)
+    """
     learn = commands.add_parser(
         "learn",
         help="the whole pipeline on your own .blend: its actions as the corpus, then fit and "
