@@ -178,7 +178,7 @@ def test_the_animate_stage_and_rig_blend_file_read_the_imported_corpus(hero, her
     options = OmegaConf.to_container(conf, resolve=True)
     layout = Layout(data=tmp_path / "data")
     before = sha256(hero_blend)
-    written = write_blend_corpora(options, options["corpus"]["actions"], layout)
+    written = write_blend_corpora(options, options["actions"], layout)
     assert written == [layout.corpus("blend_file:hero", s) for s in ("train", "test")]
     with rig_from_config(conf) as rig:
         assert rig.name == "blend_file:hero" and rig.used_controls == hero.used
@@ -275,6 +275,11 @@ def test_each_check_names_the_file_armature_and_action(bad_files, name, options,
     with pytest.raises(BlendCheckError, match=message):
         import_blend_corpus(path, **options)
     assert sha256(path) == before
+
+
+def test_python_drivers_that_do_not_run_are_noted(bad_files):
+    imported = import_blend_corpus(bad_files / "random_driver.blend", check_determinism=False)
+    assert any("1 Python driver(s) on 'Rig' do not run" in note for note in imported.notes)
 
 
 def test_a_chosen_armature_skips_the_other_armatures_actions(bad_files):

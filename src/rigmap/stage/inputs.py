@@ -28,12 +28,7 @@ def rig_from_config(rig_cfg: DictConfig):
     from rigmap.rigs import load
 
     options = OmegaConf.to_container(rig_cfg, resolve=True)
-    corpus = options.pop("corpus", None) or {}
-    if options.get("name") == "blend_file" and corpus.get("actions") is not None:
-        # a user's .blend whose actions are the corpus: the controls they key are the used ones
-        from rigmap.rigs.blender.blend_corpus import imported_rig_options
-
-        options.update(imported_rig_options(options, corpus["actions"]))
+    options.pop("corpus", None)
     return load(options)
 
 

@@ -349,6 +349,12 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
             ]
         )
     clips, blender_values, baked, notes = _clips(info, path, controls, options, whole)
+    python_drivers = info.get("python_drivers", 0)
+    if python_drivers and not options["use_scripts"]:
+        notes.append(
+            f"{python_drivers} Python driver(s) on {info['armature']!r} do not run without "
+            "use_scripts=true: the rig is evaluated without them"
+        )
     used_names = _used(clips, names, used, path, notes, where)
     problems = [*_one_frame_controls(clips, used_names, where), *info["frame_dependence"]]
     if problems:
@@ -667,8 +673,8 @@ def write_actions_blend(
     return {k: v for k, v in info.items() if k != "ok"}
 
 
-# --- the pipeline: rig=blend_file with rig.corpus.actions -------------------------------
-#: options of ``rig.corpus.actions`` (the rest of ``rig`` are the BlenderRig's own)
+# --- the pipeline: rig=blend_file with rig.actions -------------------------------
+#: options of ``rig.actions`` (the rest of ``rig`` are the BlenderRig's own)
 ACTION_OPTIONS = (
     "include",
     "test_clips",
@@ -697,12 +703,12 @@ SUMMARY_FORMAT = 1
 
 def import_options(rig_options: Mapping, actions: Mapping | None) -> dict:
     """:func:`import_blend_corpus` keywords from a ``blend_file`` rig config and its
-    ``corpus.actions`` mapping."""
+    ``actions`` mapping."""
     actions = dict(actions or {})
     unknown = sorted(set(actions) - set(ACTION_OPTIONS))
     if unknown:
         raise BlendCorpusError(
-            f"rig.corpus.actions: unknown keys {unknown}; expected {list(ACTION_OPTIONS)}"
+            f"rig.actions: unknown keys {unknown}; expected {list(ACTION_OPTIONS)}"
         )
     if not rig_options.get("path"):
         raise BlendCorpusError("rig 'blend_file' needs rig.path=/path/to/file.blend")

@@ -192,6 +192,7 @@ def read_actions(session: RigSession, pattern: str) -> dict:
         "controls": session.controls,
         "deform_bones": sorted(deform),
         "joint_names": session.joint_names,
+        "python_drivers": session.description()["stats"]["python_drivers"],
     }
 
 
