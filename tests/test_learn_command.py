@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from rigmap.cli import _parser
+from rigmap.cli import _parser, compose_config
 from rigmap.learn import STAGES, learn_commands, run_learn
 
 PROJECT = Path(__file__).resolve().parents[1]
@@ -21,7 +21,9 @@ def blend(tmp_path):
 
 
 def test_every_stage_runs_on_rig_blend_file_with_the_overrides(blend):
-    commands = learn_commands(blend, armature="rig", overrides=["seed=3"], project=PROJECT)
+    commands = learn_commands(
+        blend, armature="rig", overrides=["seed=3"], project=PROJECT, compose=compose_config
+    )
     assert [name for name, _ in commands] == list(STAGES)  # one sampler, one kernel (Table 1)
     for _, argv in commands:
         assert argv[2:5] == ["rig=blend_file", f"rig.path={blend.resolve()}", "rig.armature=rig"]
@@ -35,17 +37,19 @@ def test_every_stage_runs_on_rig_blend_file_with_the_overrides(blend):
 
 def test_until_stops_after_a_stage_and_bad_input_is_named(blend, tmp_path):
     out = io.StringIO()
-    report = run_learn(blend, project=PROJECT, until="pose", dry=True, out=out)
+    report = run_learn(
+        blend, project=PROJECT, compose=compose_config, until="pose", dry=True, out=out
+    )
     lines = out.getvalue().splitlines()
     assert [line.split(":")[1].strip() for line in lines] == ["animate", "pose"]
     assert report["stages"] == [] and "rig.armature" not in out.getvalue()  # the only armature
     with pytest.raises(ValueError, match="--until must be one of"):
-        run_learn(blend, project=PROJECT, until="nope", dry=True, out=out)
+        run_learn(blend, project=PROJECT, compose=compose_config, until="nope", dry=True, out=out)
     with pytest.raises(FileNotFoundError, match=r"no \.blend file at"):
-        learn_commands(tmp_path / "missing.blend", project=PROJECT)
+        learn_commands(tmp_path / "missing.blend", project=PROJECT, compose=compose_config)
     (tmp_path / "rig.fbx").write_bytes(b"")
     with pytest.raises(ValueError, match=r"expected a \.blend file"):
-        learn_commands(tmp_path / "rig.fbx", project=PROJECT)
+        learn_commands(tmp_path / "rig.fbx", project=PROJECT, compose=compose_config)
 
 
 def test_the_cli_parses_options_then_the_file_and_overrides(blend):

@@ -41,8 +41,9 @@ def _parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_map,
                 _add_edits,
-                _add_reproduce, add_learn_command):  # fmt: skip
+                _add_reproduce):  # fmt: skip
         add(commands)
+    add_learn_command(commands, compose_config, find_config_dir)
     return parser
 
 

@@ -34,11 +34,14 @@ def learn_commands(
     armature: str | None = None,
     overrides: list[str] | tuple[str, ...] = (),
     project: Path,
+    compose,
     python: str = sys.executable,
 ) -> list[tuple[str, list[str]]]:
-    """``(stage, argv)`` of every stage, in the order they must run."""
-    from rigmap.cli import compose_config
+    """``(stage, argv)`` of every stage, in the order they must run.
 
+    ``compose(overrides, config_dir)`` is the Hydra composition (:func:`rigmap.cli.compose_config`)
+    that names the pipeline's Blender samplers and kernels.
+    """
     blend = Path(blend).expanduser().resolve()
     if not blend.is_file():
         raise FileNotFoundError(f"no .blend file at {blend}")
@@ -46,7 +49,7 @@ def learn_commands(
         raise ValueError(f"{blend}: expected a .blend file")
     rig = rig_overrides(blend, armature)
     extra = list(overrides)
-    cfg = compose_config([*rig, *extra], project / "conf")
+    cfg = compose([*rig, *extra], project / "conf")
     samplers = list(cfg.pipeline.blender_samplers)
     kernels = list(cfg.pipeline.blender_kernels)
 
@@ -70,6 +73,7 @@ def run_learn(
     armature: str | None = None,
     overrides=(),
     project: Path,
+    compose,
     until: str | None = None,
     dry: bool = False,
     out=sys.stdout,
@@ -77,7 +81,9 @@ def run_learn(
     """Run the stages (up to and including ``until``); ``{"stages": [{stage, seconds}]}``."""
     if until is not None and until not in STAGES:
         raise ValueError(f"--until must be one of {list(STAGES)}, got {until!r}")
-    commands = learn_commands(blend, armature=armature, overrides=overrides, project=project)
+    commands = learn_commands(
+        blend, armature=armature, overrides=overrides, project=project, compose=compose
+    )
     if until is not None:
         last = max(i for i, (name, _) in enumerate(commands) if name == until)
         commands = commands[: last + 1]
@@ -102,7 +108,7 @@ def run_learn(
     return report
 
 
-def add_learn_command(commands) -> None:
+def add_learn_command(commands, compose, find_config_dir) -> None:
     """``rigmap learn [--armature NAME] [--until STAGE] [--dry] PATH.blend [KEY=VALUE ...]``
 
     (options before the file: argparse takes the positionals in one run)
@@ -128,18 +134,17 @@ def add_learn_command(commands) -> None:
         default=None,
         help="the repository (folder with conf/ and pipelines/; default: found from here up)",
     )
-    learn.set_defaults(run=_learn)
+    learn.set_defaults(run=lambda args: _learn(args, compose, find_config_dir))
 
 
-def _learn(args) -> int:
-    from rigmap.cli import find_config_dir
-
+def _learn(args, compose, find_config_dir) -> int:
     project = (args.project or find_config_dir(None).parent).resolve()
     run_learn(
         args.blend,
         armature=args.armature,
         overrides=args.overrides,
         project=project,
+        compose=compose,
         until=args.until,
         dry=args.dry,
     )
