@@ -36,11 +36,14 @@ def _parser() -> argparse.ArgumentParser:
         prog="rigmap",
         description="Learning inverse rig mappings: joint positions -> animation-rig controls.",
     )
+    from rigmap.learn import add_learn_command
+
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_map,
                 _add_edits,
                 _add_reproduce):  # fmt: skip
         add(commands)
+    add_learn_command(commands, compose_config, find_config_dir)
     return parser
 
 

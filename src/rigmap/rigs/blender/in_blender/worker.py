@@ -157,6 +157,27 @@ class Worker:
         )
         return {}, {"controls": controls}
 
+    def op_read_actions(self, args, arrays):
+        from blend_actions import frame_dependence, open_session, read_actions
+
+        self.session = None
+        self.session = open_session(args["options"])
+        info = read_actions(self.session, args.get("actions", "*"))
+        info["frame_dependence"] = frame_dependence(self.session)
+        animation = self.session.rig.animation_data
+        if animation is not None:  # later requests evaluate controls, not the keys
+            animation.action = None
+            animation.use_nla = False
+        return info, {}
+
+    def op_write_actions(self, args, arrays):
+        from blend_actions import write_actions
+        from keyframes import save_blend
+
+        info = write_actions(self._session(), args["clips"], args.get("fps"))
+        save_blend(args["out_path"])
+        return info, {}
+
     def op_generate_rigify(self, args, arrays):
         from rigify_generate import generate
 
