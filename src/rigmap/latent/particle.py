@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from rigmap.latent.errors import LatentInputError
 
@@ -95,8 +96,7 @@ class LatentField:
         K = _rbf(self.X, self.X, self.variance, self.lengthscale2) + g.white_variance * np.eye(
             len(self.X)
         )
-        self.K_inv = np.linalg.inv(K)
-        self.K_inv = 0.5 * (self.K_inv + self.K_inv.T)
+        self.L = np.linalg.cholesky(K)  # solves, not an inverse: K is ill-conditioned
         alpha = g._alpha.numpy()  # K⁻¹ Y (N, d)
         pca = model.pca
         self.B = alpha @ pca.components_  # (N, D): scaled controls per kernel weight
@@ -112,15 +112,16 @@ class LatentField:
         return self.variance * np.exp(-0.5 * d2 / self.lengthscale2)
 
     def confidence(self, x: np.ndarray) -> float:
-        k = self.kernel_row(x)
-        return float(k @ self.K_inv @ k) / self.variance
+        v = solve_triangular(self.L, self.kernel_row(x), lower=True)
+        return float(v @ v) / self.variance
 
     def confidence_and_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """``c(x) = kᵀK⁻¹k / σ²_rbf`` and ``∇c = −2/(σ²_rbf l²) Σ_i k_i u_i (x − x_i)``,
-        ``u = K⁻¹k``."""
+        ``u = K⁻¹k`` (two triangular solves, quadratic in the training size)."""
         k = self.kernel_row(x)
-        u = self.K_inv @ k
-        c = float(k @ u) / self.variance
+        v = solve_triangular(self.L, k, lower=True)
+        u = solve_triangular(self.L.T, v, lower=False)
+        c = float(v @ v) / self.variance
         grad = -2.0 / (self.variance * self.lengthscale2) * ((k * u) @ (x - self.X))
         return c, grad
 

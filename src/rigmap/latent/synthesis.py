@@ -9,7 +9,7 @@ frame's used-control values (Eq 8's mean → PCA → unscale → clamp to the ra
   (edge cost ``‖x_i − x_j‖^p``, ours: the paper's ``‖·‖^{−p}`` is the connectivity
   graph's affinity; as a path cost its inverse is what keeps hops short), resampled
   to a constant speed; done when the particle has settled within ``r`` of the target
-  (its distance plus the wall's stopping distance ``‖v‖/α``, ours), or times out;
+  (and is slow enough for the wall to hold it, ours), or times out;
 - :class:`Idle` — the path held at one point for a number of frames (the current
   path point by default, or a take's frame);
 - :class:`Transition` — to another model: along the fewest-hops route of models, for
@@ -202,7 +202,9 @@ class Controller:
 
     def run(self, commands, *, tail: int = 0) -> np.ndarray:
         """Submit ``commands`` and step until all are done, then ``tail`` more frames;
-        the controls of every frame ``(F, C)``."""
+        the controls of every frame ``(F, C)``. A command is found finished on the step
+        after its last frame, so the run ends with one idle frame past the last
+        command (it is the controller's next frame, kept so runs join up)."""
         for command in commands:
             self.submit(command)
         frames = []
@@ -315,11 +317,11 @@ class Controller:
             particle.radius = old_radius
 
     def _settled(self, target, reach) -> bool:
-        """Within ``reach`` of ``target`` counting the distance the wall needs to stop the
-        particle, ``‖v‖/α`` (ours), so what follows starts from rest inside the radius."""
-        p = self.particle
-        stop = float(np.linalg.norm(p.v)) / self.settings.particle.alpha
-        return bool(np.linalg.norm(p.x - target) + stop <= reach)
+        """Within ``reach`` of ``target`` and slow enough for the wall's shell to stop it,
+        ``‖v‖ ≤ α (1 − shell) reach`` (ours), so what follows starts inside the radius."""
+        p, s = self.particle, self.settings.particle
+        slow = float(np.linalg.norm(p.v)) <= s.alpha * (1.0 - s.shell) * reach
+        return bool(slow and np.linalg.norm(p.x - target) <= reach)
 
     # --- IDLE --------------------------------------------------------------------
     def _idle(self, command: Idle) -> Iterator[np.ndarray]:
