@@ -191,3 +191,42 @@ def test_commands_naming_unknown_models_or_segments_are_errors(fitted):
     c.submit(Play("roar 0"))  # after the transition, roar's segments are the ones named
     with pytest.raises(LatentInputError, match="in model 'roar'"):
         c.submit(Play("happy 0"))
+
+
+def test_a_yaml_script_runs_like_its_commands(fitted, tmp_path):
+    from rigmap.latent.scripts import read_script
+
+    path = tmp_path / "shot.yaml"
+    path.write_text(
+        "start: happy\n"
+        "commands:\n"
+        "  - move: {take: happy 1, frame: 20}\n"
+        "  - idle: {frames: 12}\n"
+        "  - transition: {model: neutral}\n"
+        "  - play: {take: neutral 0}\n"
+    )
+    start, commands = read_script(path)
+    assert start == "happy"
+    assert commands == [
+        Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0"),
+    ]  # fmt: skip
+    a = controller(fitted, seed=3, start=start).run(commands)
+    b = controller(fitted, seed=3).run(
+        [Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0")]
+    )
+    np.testing.assert_array_equal(a, b)
+
+
+def test_bad_scripts_are_errors_naming_the_command(tmp_path):
+    from rigmap.latent.scripts import parse_script, read_script
+
+    with pytest.raises(LatentInputError, match="command 2: unknown command 'dance'"):
+        parse_script({"commands": [{"idle": {"frames": 3}}, {"dance": {}}]})
+    with pytest.raises(LatentInputError, match=r"command 1: idle takes .*'speed'"):
+        parse_script({"commands": [{"idle": {"frames": 3, "speed": 2}}]})
+    with pytest.raises(LatentInputError, match="'commands'"):
+        parse_script({"start": "happy"})
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("commands: [\n")
+    with pytest.raises(LatentInputError, match=r"bad\.yaml"):
+        read_script(bad)
