@@ -230,3 +230,16 @@ def test_bad_scripts_are_errors_naming_the_command(tmp_path):
     bad.write_text("commands: [\n")
     with pytest.raises(LatentInputError, match=r"bad\.yaml"):
         read_script(bad)
+
+
+def test_the_shipped_example_script_parses():
+    from pathlib import Path
+
+    from rigmap.latent.scripts import read_script
+
+    path = Path(__file__).resolve().parents[1] / "conf/latent/scripts/roar_after_idle.yaml"
+    start, commands = read_script(path)
+    assert start == "happy"
+    assert [type(c).__name__ for c in commands] == [
+        "Move", "Idle", "Transition", "Idle", "Transition", "Play", "Idle",
+    ]  # fmt: skip
