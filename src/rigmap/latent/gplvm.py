@@ -87,7 +87,8 @@ def diffusion_log_kernel(X: torch.Tensor, beta: float, power: float, eps: float)
     non-negative, so the Taylor series of ``exp(βA)`` has no cancellation and every entry,
     however small, keeps its relative accuracy and a finite log; ``torch.linalg.matrix_exp``
     on ``βH`` (negative diagonal) would lose the small entries. Scaling and squaring keeps
-    the series short: ``‖βA / 2^s‖ ≤ 1/2`` (the spectral radius of ``A`` is 1).
+    the series short: ``‖βA / 2^s‖ ≤ 1/2`` (the spectral radius of ``A`` is 1); the
+    series itself is evaluated by Paterson–Stockmeyer (:func:`_exp_series`).
     """
     n = len(X)
     d2 = (X[:, None, :] - X[None, :, :]).pow(2).sum(-1)
@@ -96,13 +97,31 @@ def diffusion_log_kernel(X: torch.Tensor, beta: float, power: float, eps: float)
     A = r[:, None] * W * r[None, :]
     squarings = max(0, math.ceil(math.log2(2.0 * beta)))
     M = (beta / 2**squarings) * A
-    eye = torch.eye(n, dtype=X.dtype)
-    E = eye
-    for k in range(14, 0, -1):  # Horner: I + M/1 (I + M/2 (… )); 0.5^15/15! ≈ 2e-17
-        E = eye + (M @ E) / k
+    E = _exp_series(M)
     for _ in range(squarings):
         E = E @ E
     return torch.log(E) - beta
+
+
+def _exp_series(M: torch.Tensor) -> torch.Tensor:
+    """``Σ_{k≤15} M^k / k!`` for ``‖M‖ ≤ 1/2`` (tail ``0.5^16/16! ≈ 7e-19``) by
+    Paterson–Stockmeyer: ``M², M³, M⁴``, then Horner in ``M⁴`` over blocks of four
+    terms — 6 matrix products instead of Horner's 15 (and half the backward pass:
+    this is what made the connectivity prior ~90 % of the fit). Every coefficient
+    and every entry of ``M`` is non-negative, so no term cancels another."""
+    eye = torch.eye(len(M), dtype=M.dtype)
+    M2 = M @ M
+    powers = (eye, M, M2, M2 @ M)
+    M4 = M2 @ M2
+    c = [1.0 / math.factorial(k) for k in range(16)]
+
+    def block(j: int) -> torch.Tensor:
+        return sum(c[4 * j + i] * powers[i] for i in range(4))
+
+    E = block(3)
+    for j in (2, 1, 0):
+        E = block(j) + E @ M4
+    return E
 
 
 class GPLVM:

@@ -1,0 +1,301 @@
+"""Latent synthesis on the face's expression library (Bailey et al. 2016 §5–6); prints JSON.
+
+One latent model per label of the quick library (8 labels × 3 takes, ~150 frames a
+label; scaling → PCA (8 components, ours: scaled face controls reach 85 % with 1–3
+because the jaw moves the most vertices) → 3-D GPLVM), then:
+
+- **fit**: seconds, frames and L-BFGS iterations per model;
+- **matching points** per model pair (both directions merged): how many, their spread
+  in the source latent space, and the match distance (largest vertex distance of the
+  two poses, cm), with the threshold;
+- **controller speed**: a looping script of MOVE / IDLE / TRANSITION / PLAY commands,
+  the face's whole mesh (3 362 vertices) evaluated from each frame's controls as a
+  renderer would; sustained frames/s (frames over wall time) and the p50/p99 frame
+  time (step + mesh) in ms, torch on 1 thread of the 2 cores (ours: one pose is too
+  small to split; on a loaded machine a second thread made the mesh 11–17 ms instead
+  of 1 ms) (goal ≥ 240 fps);
+- **transition smoothness** on every ordered pair: ours (TRANSITION from a seeded
+  training frame of the source, 12-frame blend) against the motion graph's lowest-
+  distance transition between the two sets' takes (Kovar; 12-frame window and blend).
+  Peak vertex acceleration and jerk (per frame, the largest over vertices; finite
+  differences at 24 fps, cm/s² and cm/s³) in the frames around the switch (12 before
+  the blend to 12 after it), divided by the 95th percentile of the same per-frame
+  value over the two sets' training takes. Also the fraction of source frames a
+  transition can start from: ours measured by running TRANSITION from sampled frames
+  (success rate), the graph's the share of source frames that carry a transition
+  below a threshold (per-frame RMS vertex distance over the window, ours: 0.1, 0.2 and
+  0.4 cm; Kovar leaves the threshold to the user).
+
+Metrics are rigmap's own (the paper reports none); wall-clock on a shared machine,
+load average printed.
+
+    .venv/bin/python benchmarks/synthesis.py [--frames 2400] [--labels happy roar …]
+        [--cache models.pkl] [--skip-transitions]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import pickle
+import sys
+import time
+
+import numpy as np
+import torch
+
+from rigmap.animation.library.face_expressions import LABELS
+from rigmap.latent.library import face_expression_sets, fit_models
+from rigmap.latent.motion_graph import (
+    WINDOW,
+    blend_transition,
+    find_transitions,
+    surface_features,
+)
+from rigmap.latent.synthesis import Controller, Idle, Move, Play, Transition
+from rigmap.latent.transitions import match_models
+from rigmap.rigs import load
+
+FPS = 24.0
+GRAPH_THRESHOLDS_CM = (0.1, 0.2, 0.4)  # ours: per-frame RMS vertex distance over a window
+
+
+def per_frame_peaks(rig, P) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the largest vertex acceleration (cm/s²) and jerk (cm/s³)."""
+    V = np.asarray(rig.mesh(rig.expand_used(P)))
+    acc = np.linalg.norm(np.diff(V, 2, axis=0), axis=-1).max(-1) * FPS**2
+    jerk = np.linalg.norm(np.diff(V, 3, axis=0), axis=-1).max(-1) * FPS**3
+    return acc, jerk
+
+
+def training_p95(peaks, labels) -> tuple[float, float]:
+    """95th percentiles of the per-frame peaks over the labels' training takes."""
+    acc = np.concatenate([a for label in labels for a, _ in peaks[label]])
+    jerk = np.concatenate([j for label in labels for _, j in peaks[label]])
+    return float(np.percentile(acc, 95)), float(np.percentile(jerk, 95))
+
+
+def window_peaks(rig, P, start: int, blend: int) -> tuple[float, float]:
+    lo, hi = max(0, start - blend), min(len(P), start + 2 * blend + 3)
+    acc, jerk = per_frame_peaks(rig, P[lo:hi])
+    return float(acc.max()), float(jerk.max())
+
+
+def speed_script(rng, fitted, labels, n: int):
+    """A looping command script (names only valid for the model each runs in)."""
+    model = labels[0]
+    commands = []
+    for k in range(n):
+        kind = k % 4
+        names = fitted.sets[model].names
+        if kind == 0:
+            take = names[int(rng.integers(len(names)))]
+            frame = int(rng.integers(len(fitted.sets[model].take(take))))
+            commands.append(Move(take=take, frame=frame, path="graph" if k % 8 == 0 else "line"))
+        elif kind == 1:
+            commands.append(Idle(int(rng.integers(12, 48))))
+        elif kind == 2:
+            model = labels[int(rng.integers(len(labels)))]
+            commands.append(Transition(model))
+        else:
+            names = fitted.sets[model].names
+            commands.append(Play(names[int(rng.integers(len(names)))]))
+    return commands
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--frames", type=int, default=2400)
+    parser.add_argument("--labels", nargs="*", default=list(LABELS))
+    parser.add_argument("--n-pca", type=int, default=8)
+    parser.add_argument("--starts", type=int, default=4, help="TRANSITION starts per pair")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="torch threads (1: a one-pose mesh is too small "
+        "to split, and a second thread waits on a shared machine: 1 ms → 11–17 ms measured)",
+    )
+    parser.add_argument("--cache", help="pickle of the fitted models to reuse (fit once)")
+    parser.add_argument("--skip-transitions", action="store_true")
+    args = parser.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    rig = load("face")
+    labels = list(args.labels)
+    out: dict = {"load_average": [round(x, 2) for x in os.getloadavg()], "labels": labels}
+
+    cached = None
+    if args.cache and os.path.exists(args.cache):
+        with open(args.cache, "rb") as f:
+            cached = pickle.load(f)
+        if cached["key"] != (labels, args.n_pca, args.seed):
+            cached = None
+    if cached is None:
+        sets = face_expression_sets(rig, labels=labels, seed=args.seed)
+        fitted = fit_models(rig, sets, n_pca=args.n_pca)
+    else:
+        sets, fitted = cached["sets"], cached["fitted"]
+        out["fit_from_cache"] = args.cache
+    out["fit"] = {
+        label: {
+            "frames": sets[label].n_frames,
+            "takes": len(sets[label].names),
+            "pca_dims": int(m.pca.n_components_),
+            "seconds": round(fitted.fit_seconds[label], 2),
+            "lbfgs_iterations": m.gplvm.iterations,
+        }
+        for label, m in fitted.models.items()
+    }
+    out["fit_seconds_total"] = round(sum(fitted.fit_seconds.values()), 1)
+
+    start = time.perf_counter()
+    table = match_models(rig, fitted.models)
+    match_seconds = time.perf_counter() - start
+    if args.cache and cached is None:
+        with open(args.cache, "wb") as f:
+            pickle.dump({"key": (labels, args.n_pca, args.seed), "sets": sets, "fitted": fitted}, f)
+    pairs = {}
+    for a, b in itertools.combinations(labels, 2):
+        m = table.pair(a, b)
+        pairs[f"{a}-{b}"] = {
+            "points": len(m),
+            "spread_latent": round(m.spread(), 3),
+            "distance_cm_median": round(float(np.median(m.distance_cm)), 4) if len(m) else None,
+            "distance_cm_min": round(float(m.distance_cm.min()), 4) if len(m) else None,
+        }
+    counts = [p["points"] for p in pairs.values()]
+    out["matching"] = {
+        "threshold_cm": table.threshold_cm,
+        "seconds": round(match_seconds, 2),
+        "points_min": int(min(counts)),
+        "points_median": float(np.median(counts)),
+        "points_max": int(max(counts)),
+        "pairs_without_points": [k for k, p in pairs.items() if p["points"] == 0],
+        "pairs": pairs,
+    }
+
+    # --- controller speed with the mesh every frame ------------------------------------
+    rng = np.random.default_rng(args.seed)
+    ctrl = Controller(fitted.models, start=labels[0], takes=sets, transitions=table, seed=args.seed)
+    script = iter(speed_script(rng, fitted, labels, 10_000))
+    times = np.zeros(args.frames)
+    mesh_times = np.zeros(args.frames)
+    for _ in range(48):  # warm-up
+        rig.mesh(rig.expand_used(ctrl.step()[None]))
+    wall = time.perf_counter()
+    for k in range(args.frames):
+        t0 = time.perf_counter()
+        if not ctrl.busy:
+            ctrl.submit(next(script))
+        controls = ctrl.step()
+        t1 = time.perf_counter()
+        rig.mesh(rig.expand_used(controls[None]))
+        t2 = time.perf_counter()
+        times[k], mesh_times[k] = t2 - t0, t2 - t1
+    wall = time.perf_counter() - wall
+    kinds = {}
+    for entry in ctrl.log:
+        name = type(entry.command).__name__.upper()
+        rec = kinds.setdefault(name, {"count": 0, "success": 0, "frames": []})
+        rec["count"] += 1
+        rec["success"] += int(entry.success)
+        rec["frames"].append(entry.frames)
+    out["controller"] = {
+        "frames": args.frames,
+        "torch_threads": torch.get_num_threads(),
+        "fps_sustained": round(args.frames / wall, 1),
+        "frame_ms_p50": round(1e3 * float(np.percentile(times, 50)), 3),
+        "frame_ms_p99": round(1e3 * float(np.percentile(times, 99)), 3),
+        "frame_ms_max": round(1e3 * float(times.max()), 3),
+        "mesh_ms_p50": round(1e3 * float(np.percentile(mesh_times, 50)), 3),
+        "commands": {
+            k: {
+                "count": v["count"],
+                "success_rate": round(v["success"] / v["count"], 3),
+                "frames_median": float(np.median(v["frames"])),
+            }
+            for k, v in kinds.items()
+        },
+    }
+
+    if args.skip_transitions:
+        json.dump(out, sys.stdout, indent=1)
+        print()
+        return
+    # --- transition smoothness: ours against the motion graph --------------------------
+    features = {
+        label: {n: surface_features(rig, v) for n, v in zip(s.names, s.takes, strict=True)}
+        for label, s in sets.items()
+    }
+    n_vertices = rig.n_vertices
+    peaks = {label: [per_frame_peaks(rig, t) for t in s.takes] for label, s in sets.items()}
+    records = {}
+    for a, b in itertools.permutations(labels, 2):
+        p95_acc, p95_jerk = training_p95(peaks, (a, b))
+        ours_acc, ours_jerk, successes = [], [], 0
+        for s in range(args.starts):
+            r = np.random.default_rng([args.seed, s, labels.index(a), labels.index(b)])
+            take = sets[a].names[int(r.integers(len(sets[a].names)))]
+            frame = int(r.integers(len(sets[a].take(take))))
+            c = Controller(
+                fitted.models, start=a, takes=sets, transitions=table, seed=s,
+                start_point=fitted.models[a].latent[sets[a].rows(take)[frame]],
+            )  # fmt: skip
+            P = c.run([Transition(b, idle_frames=2 * WINDOW)])
+            entry = c.log[-1]
+            successes += int(entry.success)
+            for switch in entry.switches:
+                acc, jerk = window_peaks(rig, P, switch, c.settings.blend_frames)
+                ours_acc.append(acc / p95_acc)
+                ours_jerk.append(jerk / p95_jerk)
+        found = find_transitions(features[a], features[b], threshold=np.inf)
+        source_frames = sum(len(v) for v in sets[a].takes)
+        rec = {
+            "ours_peak_acc_rel_p95": round(float(np.max(ours_acc)), 3) if ours_acc else None,
+            "ours_peak_jerk_rel_p95": round(float(np.max(ours_jerk)), 3) if ours_jerk else None,
+            "ours_start_success": round(successes / args.starts, 3),
+        }
+        for cm in GRAPH_THRESHOLDS_CM:
+            limit = WINDOW * n_vertices * cm**2
+            starts = {(t.source, t.i) for t in found if t.distance <= limit}
+            rec[f"graph_start_fraction_{cm}cm"] = round(len(starts) / source_frames, 3)
+        if found:
+            best = found[0]
+            P, at = blend_transition(
+                sets[a].take(best.source), sets[b].take(best.target), best.i, best.j
+            )
+            acc, jerk = window_peaks(rig, P, at, WINDOW)
+            rec.update(
+                graph_peak_acc_rel_p95=round(acc / p95_acc, 3),
+                graph_peak_jerk_rel_p95=round(jerk / p95_jerk, 3),
+                graph_best_rms_cm=round(float(np.sqrt(best.distance / (WINDOW * n_vertices))), 4),
+            )
+        records[f"{a}->{b}"] = rec
+
+    def summary(key):
+        values = [r[key] for r in records.values() if r.get(key) is not None]
+        return {"median": float(np.median(values)), "max": float(np.max(values))}
+
+    out["transitions"] = {
+        "summary": {
+            key: summary(key)
+            for key in (
+                "ours_peak_acc_rel_p95",
+                "graph_peak_acc_rel_p95",
+                "ours_peak_jerk_rel_p95",
+                "graph_peak_jerk_rel_p95",
+                "ours_start_success",
+                *(f"graph_start_fraction_{cm}cm" for cm in GRAPH_THRESHOLDS_CM),
+            )
+        },
+        "pairs": records,
+    }
+    json.dump(out, sys.stdout, indent=1)
+    print()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,170 @@
+"""Labelled training sets and one latent model per label (Bailey et al. 2016, §5, §6).
+
+A :class:`Take` is one clip's used-control values with its label; :func:`labelled_sets`
+groups takes by label and checks them (every take labelled, every label with enough
+frames); :func:`fit_models` fits a :class:`~rigmap.latent.LatentModel` per label, each
+take one segment of its dynamics prior. :func:`face_expression_sets` builds the face's
+labelled expression library (:mod:`rigmap.animation.library.face_expressions`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rigmap.latent.errors import LatentInputError
+from rigmap.latent.gplvm import GPLVMSettings
+from rigmap.latent.model import LatentModel
+
+MIN_LABEL_FRAMES = 24  # ours: one second at 24 fps; fewer cannot show an expression's range
+
+
+@dataclass(frozen=True)
+class Take:
+    label: str | None
+    name: str
+    values: np.ndarray  # (F, C_used)
+
+
+@dataclass
+class LabelledSet:
+    """One label's takes, in order; rows of ``values`` are the takes one after another."""
+
+    label: str
+    names: list[str]
+    takes: list[np.ndarray]
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.vstack(self.takes)
+
+    @property
+    def segments(self) -> np.ndarray:
+        return np.concatenate(
+            [
+                np.full(len(v), name, dtype=object)
+                for name, v in zip(self.names, self.takes, strict=True)
+            ]
+        )
+
+    @property
+    def n_frames(self) -> int:
+        return sum(len(v) for v in self.takes)
+
+    def take(self, name: str) -> np.ndarray:
+        if name not in self.names:
+            raise LatentInputError(
+                f"set {self.label!r} has no take named {name!r}; takes: {self.names}"
+            )
+        return self.takes[self.names.index(name)]
+
+    def rows(self, name: str) -> np.ndarray:
+        """Row indices of one take in ``values``."""
+        starts = np.cumsum([0] + [len(v) for v in self.takes])
+        k = self.names.index(name)
+        return np.arange(starts[k], starts[k + 1])
+
+
+def labelled_sets(
+    takes: Sequence[Take], *, n_controls: int, min_frames: int = MIN_LABEL_FRAMES
+) -> dict[str, LabelledSet]:
+    """Group takes by label (in order of first appearance), checking every take.
+
+    Errors name the take: an unlabelled take, a take of the wrong width or with
+    non-finite values, a repeated take name, and a label whose takes hold fewer than
+    ``min_frames`` frames together."""
+    sets: dict[str, LabelledSet] = {}
+    seen: set[str] = set()
+    for take in takes:
+        if take.label is None or not str(take.label).strip():
+            raise LatentInputError(
+                f"clip {take.name!r} has no label; every training clip needs one "
+                f"(e.g. happy, grumpy, neutral)"
+            )
+        if take.name in seen:
+            raise LatentInputError(f"two takes are named {take.name!r}; take names must be unique")
+        seen.add(take.name)
+        values = np.asarray(take.values, dtype=np.float64)
+        if values.ndim != 2 or values.shape[1] != n_controls:
+            raise LatentInputError(
+                f"clip {take.name!r} (label {take.label!r}): expected (frames, {n_controls}) "
+                f"control values, got shape {values.shape}"
+            )
+        if not np.isfinite(values).all():
+            row = int(np.argwhere(~np.isfinite(values))[0, 0])
+            raise LatentInputError(
+                f"clip {take.name!r} (label {take.label!r}) has non-finite values at frame {row}"
+            )
+        entry = sets.setdefault(take.label, LabelledSet(take.label, [], []))
+        entry.names.append(take.name)
+        entry.takes.append(values)
+    if not sets:
+        raise LatentInputError("no labelled takes were given")
+    short = {label: s.n_frames for label, s in sets.items() if s.n_frames < min_frames}
+    if short:
+        raise LatentInputError(
+            f"labels with fewer than {min_frames} frames: "
+            + ", ".join(f"{label!r} has {n}" for label, n in short.items())
+        )
+    return sets
+
+
+def labels_of_clips(clip_names: Sequence[str], labels: Mapping[str, str]) -> list[str]:
+    """The label of every clip by name; an unlabelled clip is an error naming it."""
+    missing = [name for name in clip_names if not labels.get(name)]
+    if missing:
+        raise LatentInputError(f"clips without a label: {missing}; label every training clip")
+    return [labels[name] for name in clip_names]
+
+
+@dataclass
+class FittedModels:
+    """A latent model per label, their sets and fit seconds."""
+
+    models: dict[str, LatentModel]
+    sets: dict[str, LabelledSet]
+    fit_seconds: dict[str, float] = field(default_factory=dict)
+
+    def model(self, label: str) -> LatentModel:
+        if label not in self.models:
+            raise LatentInputError(f"no model named {label!r}; models: {sorted(self.models)}")
+        return self.models[label]
+
+
+def fit_models(
+    rig,
+    sets: Mapping[str, LabelledSet],
+    *,
+    fps: float = 24.0,
+    settings: GPLVMSettings | None = None,
+    variance: float = 0.85,
+    n_pca: int | None = None,
+) -> FittedModels:
+    """One latent model per labelled set (§5: a GPLVM per expression)."""
+    models, seconds = {}, {}
+    for label, entry in sets.items():
+        start = time.perf_counter()
+        models[label] = LatentModel.fit(
+            rig, entry.values, entry.segments, fps=fps, settings=settings, variance=variance,
+            n_pca=n_pca,
+        )  # fmt: skip
+        seconds[label] = time.perf_counter() - start
+    return FittedModels(models, dict(sets), seconds)
+
+
+def face_expression_sets(
+    rig, *, seed: int = 0, size: str = "quick", labels=None, takes: int | None = None,
+    heldout: bool = False,
+) -> dict[str, LabelledSet]:  # fmt: skip
+    """The face's expression library as labelled sets (training, or held out)."""
+    from rigmap.animation.library import face_expressions as fx
+
+    chosen = fx.LABELS if labels is None else tuple(labels)
+    built = fx.build_takes(seed=seed, size=size, labels=chosen, takes=takes, heldout=heldout)
+    return labelled_sets(
+        [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
+        n_controls=len(rig.controls.used_indices),
+    )

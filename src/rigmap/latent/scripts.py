@@ -1,0 +1,74 @@
+"""Command scripts for offline animation (Bailey et al. 2016, §5.3, §6: "scripted animations").
+
+A script is YAML: the model to start in, then a list of commands, each a mapping with
+one key naming the command::
+
+    start: happy
+    commands:
+      - move: {take: happy 1, frame: 20}
+      - idle: {frames: 48}
+      - move: {point: [0.1, -0.4, 0.2], path: graph}
+      - transition: {model: roar}
+      - play: {take: roar 0}
+
+Errors name the script and the command's position; names of models and takes are
+checked when the commands are submitted to a :class:`~rigmap.latent.synthesis.Controller`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import fields
+from pathlib import Path
+
+import yaml
+
+from rigmap.latent.errors import LatentInputError
+from rigmap.latent.synthesis import Idle, Move, Play, Transition
+
+COMMANDS = {"move": Move, "idle": Idle, "transition": Transition, "play": Play}
+
+
+def parse_script(data, *, source: str = "script") -> tuple[str | None, list]:
+    """``(start model or None, commands)`` from a parsed YAML mapping."""
+    if not isinstance(data, dict) or "commands" not in data:
+        raise LatentInputError(f"{source}: expected a mapping with a 'commands' list")
+    unknown = set(data) - {"start", "commands"}
+    if unknown:
+        raise LatentInputError(f"{source}: unknown keys {sorted(unknown)}")
+    items = data["commands"]
+    if not isinstance(items, list) or not items:
+        raise LatentInputError(f"{source}: 'commands' must be a non-empty list")
+    commands = []
+    for k, item in enumerate(items):
+        where = f"{source}: command {k + 1}"
+        if not isinstance(item, dict) or len(item) != 1:
+            raise LatentInputError(
+                f"{where}: each command is a one-key mapping, one of {sorted(COMMANDS)}"
+            )
+        ((name, args),) = item.items()
+        kind = COMMANDS.get(str(name).lower())
+        if kind is None:
+            raise LatentInputError(f"{where}: unknown command {name!r}; one of {sorted(COMMANDS)}")
+        args = args if isinstance(args, dict) else {}
+        allowed = {f.name for f in fields(kind)}
+        bad = set(args) - allowed
+        if bad:
+            raise LatentInputError(f"{where}: {name} takes {sorted(allowed)}, got {sorted(bad)}")
+        if "point" in args and args["point"] is not None:
+            args = {**args, "point": tuple(float(v) for v in args["point"])}
+        try:
+            commands.append(kind(**args))
+        except TypeError as error:
+            raise LatentInputError(f"{where}: {error}") from None
+    start = data.get("start")
+    return (None if start is None else str(start)), commands
+
+
+def read_script(path: str | os.PathLike) -> tuple[str | None, list]:
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise LatentInputError(f"cannot read command script {path}: {error}") from None
+    return parse_script(data, source=str(path))
