@@ -42,8 +42,9 @@ METHODS = (
 
 #: today's refinement, and issue #16's (the conf/refine defaults)
 VARIANTS = {
-    "old": {"solver": "svd"},
-    "new": {"solver": "cholesky", "differences": "forward"},
+    "old": {"solver": "svd", "threads": None},
+    "today": {"solver": "cholesky", "differences": "forward", "threads": None},
+    "new": {"solver": "cholesky", "differences": "forward", "sparsity": "coloured"},
     "reuse": {"solver": "cholesky", "differences": "forward", "share_every": 4},
 }
 
