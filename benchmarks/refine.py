@@ -30,7 +30,8 @@ over ``old`` and ``today``.
         [--frames-per-clip N] [--blender-frames-per-clip 12] [--repeats 1]
 
 Models: ``<models>/<rig>/gpr-none-multiquadric`` (with ``learned_jacobian/``)
-and ``<models>/<rig>/nn-none-none``, from pipelines/fit.py.
+and ``<models>/<rig>/nn-none-none`` (or the rig's one ``nn-<sampler>-none``), from
+pipelines/fit.py or a quick replication's ``models/``.
 """
 
 from __future__ import annotations
@@ -116,6 +117,16 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
     }
 
 
+def network_folder(folder: Path) -> Path:
+    """``nn-none-none``, or the rig's one network (the wolf's is ``nn-pca_gaussian-none``)."""
+    if (folder / "nn-none-none").is_dir():
+        return folder / "nn-none-none"
+    found = sorted(folder.glob("nn-*-none"))
+    if not found:
+        raise SystemExit(f"{folder}: no network model (nn-<sampler>-none) to refine from")
+    return found[0]
+
+
 def benchmark_rig(name: str, args) -> list[dict]:
     rig = load_rig(name, args.workers)
     try:
@@ -126,7 +137,7 @@ def benchmark_rig(name: str, args) -> list[dict]:
         }
         models = {
             "gpr": load_regressor(gpr_folder, rig=rig) if "gpr" in needs else None,
-            "nn": load_regressor(folder / "nn-none-none", rig=rig) if "nn" in needs else None,
+            "nn": load_regressor(network_folder(folder), rig=rig) if "nn" in needs else None,
             "learned": load_learned_jacobian(gpr_folder / "learned_jacobian", rig=rig)
             if "learned" in needs
             else None,

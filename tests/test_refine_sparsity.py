@@ -124,3 +124,19 @@ def test_learned_jacobian_predicts_only_its_non_zero_entries_and_matches_the_ful
     np.testing.assert_allclose(model.predict(queries), full, rtol=1e-12, atol=1e-12)
     assert not model.pattern()[:3, 2:].any() and model.pattern()[3:].all()
     assert (model.predict(queries)[:, :3, 2:] == 0).all()
+
+
+def test_refine_settings_read_sparsity_and_threads_and_name_a_bad_value():
+    from rigmap.evaluation import RefineSettings
+    from rigmap.evaluation.methods import EvaluationSetupError, get_method
+
+    method = get_method("nn_computed_jacobian")
+    config = {"name": "computed_jacobian", "jacobian": "finite_difference", "damping": "auto",
+              "tolerance": 1e-4, "max_iterations": 3, "sparsity": "coloured",
+              "threads": None}  # fmt: skip
+    settings = RefineSettings.from_config(config, method)
+    assert settings.sparsity == "coloured" and settings.threads is None
+    with pytest.raises(EvaluationSetupError, match=r"refine\.sparsity"):
+        RefineSettings.from_config({**config, "sparsity": "sparse"}, method)
+    with pytest.raises(EvaluationSetupError, match=r"refine\.threads"):
+        RefineSettings.from_config({**config, "threads": 0}, method)
