@@ -10,6 +10,7 @@ timing, warm-up and rig counting) in the same process, once per variant:
 - ``today``: the conf/refine defaults before colouring (batched Cholesky with the
   inverse-iteration λ, factorised once for a learned Jacobian; one-sided
   differences; torch's own threads);
+- ``today_one_thread``: ``today`` on one torch thread (what colouring alone gains);
 - ``new``: the conf/refine defaults (``today`` plus coloured differences —
   structurally independent controls perturbed in one rig evaluation,
   ``rigmap.refine.sparsity`` — and one torch thread);
@@ -58,6 +59,7 @@ METHODS = (
 VARIANTS = {
     "old": {"solver": "svd", "threads": None},
     "today": {"solver": "cholesky", "differences": "forward", "threads": None},
+    "today_one_thread": {"solver": "cholesky", "differences": "forward", "threads": 1},
     "new": {"solver": "cholesky", "differences": "forward", "sparsity": "coloured"},
     "reuse": {
         "solver": "cholesky",
