@@ -23,7 +23,7 @@ around it). A rig's own refine settings (conf/rig/<rig>.yaml
 ``evaluate.methods``: the Blender rigs' central differences) apply to every
 variant but ``old``. The JSON gives, per rig, method and variant: frames/s, rig
 evaluations per frame, joint error (cm²), ground-truth error, and the speed-up
-over ``old`` and ``today``.
+over ``old``, ``today`` and ``today_one_thread`` where they ran.
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
@@ -160,7 +160,7 @@ def benchmark_rig(name: str, args) -> list[dict]:
                     if variant not in best or row["fps"] > best[variant]["fps"]:
                         best[variant] = row
             for v in variants:
-                for base in ("old", "today"):
+                for base in ("old", "today", "today_one_thread"):
                     if base in best and v != base:
                         best[v][f"speedup_over_{base}"] = round(
                             best[v]["fps"] / best[base]["fps"], 2
