@@ -2,14 +2,28 @@
 
 Each refined method of Table 1 runs on a rig's test clips through the
 evaluation runner (``rigmap.evaluation.run_method``: the pipeline's own
-timing, warm-up and rig counting) twice in the same process: with today's
-settings (``old``: per-frame SVD for λ and the step, central differences
-recomputed for every frame at every iteration) and with issue #16's
-(``new``: batched Cholesky with the inverse-iteration λ, factorised once for
-a learned Jacobian; one-sided differences) and, for a computed Jacobian,
-``reuse`` (Jacobians on every 4th frame shared with the neighbours, a frame's
-own recomputed when its error stops falling). The machine may be
-shared, so every number carries the 1-minute load average around it.
+timing, warm-up and rig counting) in the same process, once per variant:
+
+- ``old``: the original refinement (per-frame SVD for λ and the step, central
+  differences for every control, recomputed for every frame at every iteration,
+  torch's own thread count);
+- ``today``: the conf/refine defaults before colouring (batched Cholesky with the
+  inverse-iteration λ, factorised once for a learned Jacobian; one-sided
+  differences; torch's own threads);
+- ``today_one_thread``: ``today`` on one torch thread (what colouring alone gains);
+- ``new``: the conf/refine defaults (``today`` plus coloured differences —
+  structurally independent controls perturbed in one rig evaluation,
+  ``rigmap.refine.sparsity`` — and one torch thread);
+- ``reuse`` (computed Jacobians only): ``new`` with Jacobians on every 4th frame
+  shared with the neighbours, a frame's own recomputed when its error stops falling.
+
+The variants alternate ``--repeats`` times and the fastest run of each is kept
+(the machine may be shared: every number carries the 1-minute load average
+around it). A rig's own refine settings (conf/rig/<rig>.yaml
+``evaluate.methods``: the Blender rigs' central differences) apply to every
+variant but ``old``. The JSON gives, per rig, method and variant: frames/s, rig
+evaluations per frame, joint error (cm²), ground-truth error, and the speed-up
+over ``old``, ``today`` and ``today_one_thread`` where they ran.
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
@@ -17,7 +31,8 @@ shared, so every number carries the 1-minute load average around it.
         [--frames-per-clip N] [--blender-frames-per-clip 12] [--repeats 1]
 
 Models: ``<models>/<rig>/gpr-none-multiquadric`` (with ``learned_jacobian/``)
-and ``<models>/<rig>/nn-none-none``, from pipelines/fit.py.
+and ``<models>/<rig>/nn-none-none`` (or the rig's one ``nn-<sampler>-none``), from
+pipelines/fit.py or a quick replication's ``models/``.
 """
 
 from __future__ import annotations
@@ -42,10 +57,26 @@ METHODS = (
 
 #: today's refinement, and issue #16's (the conf/refine defaults)
 VARIANTS = {
-    "old": {"solver": "svd"},
-    "new": {"solver": "cholesky", "differences": "forward"},
-    "reuse": {"solver": "cholesky", "differences": "forward", "share_every": 4},
+    "old": {"solver": "svd", "threads": None},
+    "today": {"solver": "cholesky", "differences": "forward", "threads": None},
+    "today_one_thread": {"solver": "cholesky", "differences": "forward", "threads": 1},
+    "new": {"solver": "cholesky", "differences": "forward", "sparsity": "coloured"},
+    "reuse": {
+        "solver": "cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "share_every": 4,
+    },
 }
+
+
+def rig_refine_overrides(name: str, method: str) -> dict:
+    """conf/rig/<name>.yaml's ``_overrides_.method.<method>.refine`` (e.g. central differences)."""
+    from omegaconf import OmegaConf
+
+    config = OmegaConf.to_container(OmegaConf.load(f"conf/rig/{name}.yaml"), resolve=False)
+    methods = (config.get("_overrides_") or {}).get("method") or {}
+    return dict((methods.get(method) or {}).get("refine") or {})
 
 
 def load_rig(name: str, workers: int):
@@ -61,7 +92,10 @@ def load_rig(name: str, workers: int):
 
 
 def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, iterations: int):
-    settings = RefineSettings(max_iterations=iterations, **VARIANTS[variant])
+    options = dict(VARIANTS[variant])
+    if variant != "old":
+        options.update(rig_refine_overrides(rig.name, method))
+    settings = RefineSettings(max_iterations=iterations, **options)
     regressor = models["gpr"] if method.startswith("gpr") else models["nn"]
     learned = models["learned"] if "learned" in method else None
     load_before = os.getloadavg()[0]
@@ -85,6 +119,16 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
     }
 
 
+def network_folder(folder: Path) -> Path:
+    """``nn-none-none``, or the rig's one network (the wolf's is ``nn-pca_gaussian-none``)."""
+    if (folder / "nn-none-none").is_dir():
+        return folder / "nn-none-none"
+    found = sorted(folder.glob("nn-*-none"))
+    if not found:
+        raise SystemExit(f"{folder}: no network model (nn-<sampler>-none) to refine from")
+    return found[0]
+
+
 def benchmark_rig(name: str, args) -> list[dict]:
     rig = load_rig(name, args.workers)
     try:
@@ -95,7 +139,7 @@ def benchmark_rig(name: str, args) -> list[dict]:
         }
         models = {
             "gpr": load_regressor(gpr_folder, rig=rig) if "gpr" in needs else None,
-            "nn": load_regressor(folder / "nn-none-none", rig=rig) if "nn" in needs else None,
+            "nn": load_regressor(network_folder(folder), rig=rig) if "nn" in needs else None,
             "learned": load_learned_jacobian(gpr_folder / "learned_jacobian", rig=rig)
             if "learned" in needs
             else None,
@@ -115,6 +159,12 @@ def benchmark_rig(name: str, args) -> list[dict]:
                     print(json.dumps(row), file=sys.stderr, flush=True)
                     if variant not in best or row["fps"] > best[variant]["fps"]:
                         best[variant] = row
+            for v in variants:
+                for base in ("old", "today", "today_one_thread"):
+                    if base in best and v != base:
+                        best[v][f"speedup_over_{base}"] = round(
+                            best[v]["fps"] / best[base]["fps"], 2
+                        )
             rows.extend(best[v] for v in variants)
         return rows
     finally:
@@ -129,7 +179,8 @@ def main() -> None:
     parser.add_argument("--models", type=Path, required=True)
     parser.add_argument("--rigs", nargs="+", default=["quadruped", "biped", "rigify_wolf"])
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
-    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--variants", nargs="+", default=["old", "today", "new"],
+                        choices=list(VARIANTS))  # fmt: skip
     parser.add_argument("--iterations", type=int, default=3, help="the quick experiment's cap")
     parser.add_argument("--workers", type=int, default=2, help="Blender workers")
     parser.add_argument("--frames-per-clip", type=int, default=None)

@@ -209,6 +209,8 @@ def test_refinement_lowers_the_joint_error_of_its_initial_guess(face_runs, refin
         "differences": "central",
         "share_every": 1,
         "jacobian_update": "recompute",
+        "sparsity": "dense",
+        "threads": 1,
     }
     assert extra["initial_joint_error"]["average"] == pytest.approx(guess_result.joint_error)
 

@@ -157,7 +157,10 @@ class RefineSettings:
     refined controls inside their soft ranges (see rigmap.refine, issue #7).
     ``solver`` (cholesky | svd), ``differences`` (central | forward),
     ``share_every`` and ``jacobian_update`` choose how the step is solved and how a
-    computed Jacobian is reused (``rigmap.refine.jacobian_reuse``, issue #16).
+    computed Jacobian is reused (``rigmap.refine.jacobian_reuse``, issue #16);
+    ``sparsity`` (dense | coloured) whether it differences structurally
+    independent controls together (``rigmap.refine.sparsity``); ``threads`` the
+    torch threads refinement runs on (``None``: torch's own setting).
     """
 
     damping: float | str = "auto"
@@ -169,6 +172,8 @@ class RefineSettings:
     differences: str = "central"
     share_every: int = 1
     jacobian_update: str = "recompute"
+    sparsity: str = "dense"
+    threads: int | None = 1
 
     def __post_init__(self) -> None:
         number = isinstance(self.damping, int | float) and np.isfinite(self.damping)
@@ -188,6 +193,10 @@ class RefineSettings:
             raise EvaluationSetupError(
                 f"refine.keep_in_range: expected true or false, got {self.keep_in_range!r}"
             )
+        if self.threads is not None and not (isinstance(self.threads, int) and self.threads >= 1):
+            raise EvaluationSetupError(
+                f"refine.threads: expected an integer >= 1 or null, got {self.threads!r}"
+            )
         if not (isinstance(self.share_every, int) and self.share_every >= 1):
             raise EvaluationSetupError(
                 f"refine.share_every: expected an integer >= 1, got {self.share_every!r}"
@@ -196,11 +205,12 @@ class RefineSettings:
 
     def _check_choices(self) -> None:
         """Each named option is one of its choices (``refine.<name>: expected one of …``)."""
-        from rigmap.refine import DIFFERENCES, SOLVERS
+        from rigmap.refine import DIFFERENCES, SOLVERS, SPARSITIES
         from rigmap.refine.jacobian_reuse import UPDATES
 
         choices = {"control_scale": CONTROL_SCALES, "solver": SOLVERS,
-                   "differences": DIFFERENCES, "jacobian_update": UPDATES}  # fmt: skip
+                   "differences": DIFFERENCES, "jacobian_update": UPDATES,
+                   "sparsity": SPARSITIES}  # fmt: skip
         for name, allowed in choices.items():
             value = getattr(self, name)
             if value not in allowed:
@@ -246,6 +256,8 @@ class RefineSettings:
             differences=str(config.get("differences", cls.differences)),
             share_every=config.get("share_every", cls.share_every),
             jacobian_update=str(config.get("jacobian_update", cls.jacobian_update)),
+            sparsity=str(config.get("sparsity", cls.sparsity)),
+            threads=config.get("threads", cls.threads),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -259,6 +271,8 @@ class RefineSettings:
             "differences": self.differences,
             "share_every": self.share_every,
             "jacobian_update": self.jacobian_update,
+            "sparsity": self.sparsity,
+            "threads": self.threads,
         }
 
 
@@ -608,7 +622,12 @@ class _Retargeter:
         if self.method.refine == "none":
             return Y_used, None
         if self.method.refine == "computed_jacobian":
-            source = ComputedJacobian(self.rig, self.method.jacobian, self.refine.differences)
+            source = ComputedJacobian(
+                self.rig,
+                self.method.jacobian,
+                self.refine.differences,
+                sparsity=self.refine.sparsity,
+            )
         else:  # predicted once per frame from its features: no rig evaluation
             features = self._features(clip, positions, cog, rotation)
             source = PredictedJacobian(self.learned_jacobian, features)
@@ -624,6 +643,7 @@ class _Retargeter:
             keep_in_range=self.refine.keep_in_range,
             solver=self.refine.solver,
             reuse=self.refine.reuse(),
+            threads=self.refine.threads,
         )
         return refined.Y_used, refined
 

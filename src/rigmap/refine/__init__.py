@@ -5,12 +5,20 @@ from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
 from rigmap.refine.jacobian import DIFFERENCES, JACOBIAN_METHODS, jacobian
 from rigmap.refine.jacobian_reuse import JacobianReuse
 from rigmap.refine.normal_equations import SOLVERS, Damping, damped_solver
-from rigmap.refine.sources import ComputedJacobian, JacobianSource, PredictedJacobian
+from rigmap.refine.sources import (
+    SPARSITIES,
+    ComputedJacobian,
+    JacobianSource,
+    PredictedJacobian,
+)
+from rigmap.refine.sparsity import ColumnColouring, rig_colouring
 
 __all__ = [
     "DIFFERENCES",
     "JACOBIAN_METHODS",
     "SOLVERS",
+    "SPARSITIES",
+    "ColumnColouring",
     "ComputedJacobian",
     "Damping",
     "JacobianReuse",
@@ -21,5 +29,6 @@ __all__ = [
     "damped_least_squares",
     "damped_solver",
     "jacobian",
+    "rig_colouring",
     "smallest_singular_value",
 ]

@@ -27,6 +27,7 @@ def jacobian(
     chunk: int | None = 64,
     differences: str = "central",
     columns=None,
+    colouring=None,
 ) -> np.ndarray:
     """``(N, 3J, C_used)`` Jacobians of the COG-relative joint positions at ``Y``.
 
@@ -38,7 +39,11 @@ def jacobian(
     poses go to the rig per ``evaluate`` call (``None``: all in one call, what
     a worker pool wants). ``columns`` (positions among the used controls; finite
     differences only) differences those controls alone and leaves the other columns 0:
-    for a caller that knows which controls can move its joints.
+    for a caller that knows which controls can move its joints. ``colouring`` (a
+    ``rigmap.refine.sparsity.ColumnColouring``) perturbs each colour's controls together —
+    one rig evaluation (forward, or two central) per colour instead of per control — and
+    reads each column off its own rows; entries outside the pattern are 0. With autodiff
+    it sends one tangent per colour instead of one per control.
     """
     Y = np.asarray(Y)
     squeeze = Y.ndim == 1
@@ -62,10 +67,22 @@ def jacobian(
         )
     if method != "finite_difference" and len(columns) != n_used:
         raise ValueError("jacobian: columns are for finite differences only")
+    if colouring is not None:
+        if len(columns) != n_used:
+            raise ValueError("jacobian: give columns or a colouring, not both")
+        if colouring.pattern.shape != (3 * rig.n_joints, n_used):
+            raise RigInputError(
+                f"jacobian of rig {rig.name!r}: the colouring's pattern has shape "
+                f"{colouring.pattern.shape}, expected ({3 * rig.n_joints}, {n_used})"
+            )
     if method == "finite_difference":
-        J = _finite_difference(rig, Y2, step, max(chunk, 1), differences == "central", columns)
+        central = differences == "central"
+        if colouring is not None:
+            J = _coloured_difference(rig, Y2, step, max(chunk, 1), central, colouring)
+        else:
+            J = _finite_difference(rig, Y2, step, max(chunk, 1), central, columns)
     elif method == "autodiff":
-        J = _autodiff(rig, Y2, chunk)
+        J = _autodiff(rig, Y2, chunk, colouring)
     else:
         raise ValueError(f"unknown Jacobian method {method!r}; choose one of {JACOBIAN_METHODS}")
     return J[0] if squeeze else J
@@ -75,10 +92,7 @@ def _finite_difference(
     rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool, columns: np.ndarray
 ) -> np.ndarray:
     dtype = np.float32 if Y.dtype == np.float32 else np.float64
-    # a float32 rig (Blender) loses a 1e-6 step in its rounding: on rigify_human the default
-    # step's forward-difference Jacobian was 59 % off (median column 86 %), 1e-3's 0.15 %
-    coarse = dtype == np.float32 or getattr(rig, "computes_in_float32", False)
-    h = step if step is not None else (1e-3 if coarse else 1e-6)
+    h = _step_of(rig, dtype, step)
     n_used = len(rig.controls.used_indices)
     moved = rig.controls.used_indices[columns]
     m = len(columns)
@@ -100,13 +114,50 @@ def _finite_difference(
     return J
 
 
+def _step_of(rig: Rig, dtype, step: float | None) -> float:
+    # a float32 rig (Blender) loses a 1e-6 step in its rounding: on rigify_human the default
+    # step's forward-difference Jacobian was 59 % off (median column 86 %), 1e-3's 0.15 %
+    coarse = dtype == np.float32 or getattr(rig, "computes_in_float32", False)
+    return step if step is not None else (1e-3 if coarse else 1e-6)
+
+
+def _coloured_difference(
+    rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool, colouring
+) -> np.ndarray:
+    """Finite differences with every colour's controls perturbed together (``sparsity``)."""
+    dtype = np.float32 if Y.dtype == np.float32 else np.float64
+    h = _step_of(rig, dtype, step)
+    n_used = len(rig.controls.used_indices)
+    g = colouring.n_colours
+    # (g, C): +h on each control of a colour
+    direction = np.zeros((g, rig.n_controls), dtype=dtype)
+    coloured = np.flatnonzero(colouring.colours >= 0)
+    direction[colouring.colours[coloured], rig.controls.used_indices[coloured]] = h
+    rows, cols = colouring.entries()
+    colour_of = colouring.colours[cols]
+    J = np.zeros((len(Y), 3 * rig.n_joints, n_used), dtype=dtype)
+    for start in range(0, len(Y), chunk):
+        Yc = Y[start : start + chunk].astype(dtype)
+        n = len(Yc)
+        base = Yc[:, None, :]
+        parts = [base + direction, base - direction] if central else [base + direction, base]
+        perturbed = np.concatenate(parts, axis=1)  # (n, 2g or g+1, C)
+        X = rig.evaluate(perturbed.reshape(n * perturbed.shape[1], -1)).reshape(n, -1, J.shape[1])
+        ahead = X[:, :g]
+        behind = X[:, g:] if central else X[:, g : g + 1]
+        width = 2 * h if central else h
+        difference = (ahead - behind) / width  # (n, g, R)
+        J[start : start + n, rows, cols] = difference[:, colour_of, rows]
+    return J
+
+
 # Autodiff batches every output (reverse) or input (forward) direction through the
 # whole rig at once; these bounds keep that under ~1 GB on the built-in rigs.
 AUTODIFF_POSES_PER_PASS = 8
 AUTODIFF_DIRECTIONS_PER_PASS = 32
 
 
-def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
+def _autodiff(rig: Rig, Y: np.ndarray, chunk: int, colouring=None) -> np.ndarray:
     if not rig.differentiable:
         raise ValueError(
             f"rig {rig.name!r} is not differentiable (it runs outside this process); "
@@ -115,14 +166,27 @@ def _autodiff(rig: Rig, Y: np.ndarray, chunk: int) -> np.ndarray:
     chunk = min(chunk, AUTODIFF_POSES_PER_PASS)
     # reverse mode costs one pass per output, forward mode one per input: pick the fewer
     n_used = len(rig.controls.used_indices)
+    if colouring is not None:  # one tangent per colour, then each column off its own rows
+        # as many dual rows per pass as dense forward mode's (ours: the memory bound)
+        chunk = max(chunk, AUTODIFF_POSES_PER_PASS * n_used // max(colouring.n_colours, 1))
+        rows, cols = colouring.entries()
+        colour_of = colouring.colours[cols]
+        J = np.zeros((len(Y), 3 * rig.n_joints, n_used), dtype=Y.dtype)
+        for start in range(0, len(Y), chunk):
+            compressed = _forward_dual(rig, Y[start : start + chunk], colouring.colours)
+            J[start : start + chunk, rows, cols] = compressed[:, rows, colour_of]
+        return J
     directional = _forward_dual if 3 * rig.n_joints > n_used else _reverse
     return np.concatenate(
         [directional(rig, Y[start : start + chunk]) for start in range(0, len(Y), chunk)]
     )
 
 
-def _forward_dual(rig: Rig, Y: np.ndarray) -> np.ndarray:
+def _forward_dual(rig: Rig, Y: np.ndarray, colours: np.ndarray | None = None) -> np.ndarray:
     """Forward mode as one batched pass of dual numbers: pose n, direction m is row n·M + m.
+
+    The directions are the used controls, or with ``colours`` (``(C_used,)``, -1 for
+    none) the sum of each colour's controls: ``(N, 3J, colours)`` compressed columns.
 
     ``torch.func.jacfwd`` vmaps the same pass and ran 5-6x slower on the built-in
     rigs (quadruped 500 against 87 ms per pose, biped 300 against 60; equal to the
@@ -133,11 +197,15 @@ def _forward_dual(rig: Rig, Y: np.ndarray) -> np.ndarray:
 
     dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
     used = torch.as_tensor(rig.controls.used_indices)
-    n, m = len(Y), len(used)
+    direction = torch.arange(len(used))
+    if colours is not None:
+        keep = torch.as_tensor(colours >= 0)
+        used, direction = used[keep], torch.as_tensor(colours)[keep]
+    n, m = len(Y), int(direction.max()) + 1 if len(direction) else 0
     full = torch.as_tensor(Y, dtype=dtype)
     primal = full.repeat_interleave(m, dim=0)  # a copy: make_dual refuses stride-0 views
     tangent = torch.zeros(n, m, full.shape[1], dtype=dtype)
-    tangent[:, torch.arange(m), used] = 1.0
+    tangent[:, direction, used] = 1.0
     with forward_ad.dual_level():
         x = rig.evaluate(forward_ad.make_dual(primal, tangent.reshape(n * m, -1)))
         dx = forward_ad.unpack_dual(x).tangent
