@@ -6,7 +6,8 @@ clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
 ``<paths.reports>/figures/results/``. A missing metrics file is an error that lists it.
 
 Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
-(what the evaluate stages ran), the network rows' sampler from ``sampler``; a ``report``
+(what the evaluate stages ran), the rigs of Table 2 and the kernel table from
+``pipeline.sweep_rigs``, the network rows' sampler from ``sampler``; a ``report``
 block, if the config has one, may set ``rigs``, ``excluded_methods``, ``clips`` (see
 rigmap.reports.settings.ReportSettings):
 
@@ -32,6 +33,9 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
         for key in ("methods", "samplers", "kernels", "clips"):
             if evaluate.get(key) is not None:
                 values[key] = list(evaluate[key])
+    pipeline = cfg.get("pipeline")
+    if pipeline is not None and pipeline.get("sweep_rigs") is not None:
+        values["sampler_rigs"] = list(pipeline.sweep_rigs)  # what the sweep stages ran
     if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
         values["nn_sampler"] = sampler_name(cfg.sampler)
     report = cfg.get("report")
