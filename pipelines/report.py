@@ -17,12 +17,17 @@ rigmap.reports.settings.ReportSettings):
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from pathlib import Path
+
+import yaml
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from rigmap.reports import ReportFiles, ReportSettings, build_report
 from rigmap.sampling import sampler_name
 from rigmap.stage import run_stage
 from rigmap.stage.inputs import layout_of
+
+PARAMS_FILE = Path("params.yaml")  # DVC runs the stage at the repository root
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
@@ -44,7 +49,25 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
     return ReportSettings.from_mapping(values)
 
 
+def with_pipeline_lists(cfg: DictConfig, params_file: Path = PARAMS_FILE) -> DictConfig:
+    """``cfg`` with params.yaml's ``pipeline`` lists when the stage config dropped them.
+
+    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs one of
+    its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``), and params.yaml is
+    where DVC recorded them (a param dependency of this stage).
+    """
+    if cfg.get("pipeline") is not None or not params_file.is_file():
+        return cfg
+    lists = (yaml.safe_load(params_file.read_text()) or {}).get("pipeline")
+    if lists is None:
+        return cfg
+    with open_dict(cfg):
+        cfg.pipeline = lists
+    return cfg
+
+
 def run(cfg: DictConfig) -> ReportFiles:
+    cfg = with_pipeline_lists(cfg)
     layout = layout_of(cfg)
     files = build_report(
         metrics_root=layout.metrics,
