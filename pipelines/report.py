@@ -6,7 +6,8 @@ clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
 ``<paths.reports>/figures/results/``. A missing metrics file is an error that lists it.
 
 Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
-(what the evaluate stages ran), the network rows' sampler from ``sampler``; a ``report``
+(what the evaluate stages ran), the rigs of Table 2 and the kernel table from
+``pipeline.sweep_rigs``, the network rows' sampler from ``sampler``; a ``report``
 block, if the config has one, may set ``rigs``, ``excluded_methods``, ``clips`` (see
 rigmap.reports.settings.ReportSettings):
 
@@ -16,12 +17,17 @@ rigmap.reports.settings.ReportSettings):
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from pathlib import Path
+
+import yaml
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from rigmap.reports import ReportFiles, ReportSettings, build_report
 from rigmap.sampling import sampler_name
 from rigmap.stage import run_stage
 from rigmap.stage.inputs import layout_of
+
+PARAMS_FILE = Path("params.yaml")  # DVC runs the stage at the repository root
 
 
 def report_settings(cfg: DictConfig) -> ReportSettings:
@@ -32,6 +38,9 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
         for key in ("methods", "samplers", "kernels", "clips"):
             if evaluate.get(key) is not None:
                 values[key] = list(evaluate[key])
+    pipeline = cfg.get("pipeline")
+    if pipeline is not None and pipeline.get("sweep_rigs") is not None:
+        values["sampler_rigs"] = list(pipeline.sweep_rigs)  # what the sweep stages ran
     if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
         values["nn_sampler"] = sampler_name(cfg.sampler)
     report = cfg.get("report")
@@ -40,7 +49,25 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
     return ReportSettings.from_mapping(values)
 
 
+def with_pipeline_lists(cfg: DictConfig, params_file: Path = PARAMS_FILE) -> DictConfig:
+    """``cfg`` with params.yaml's ``pipeline`` lists when the stage config dropped them.
+
+    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs one of
+    its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``), and params.yaml is
+    where DVC recorded them (a param dependency of this stage).
+    """
+    if cfg.get("pipeline") is not None or not params_file.is_file():
+        return cfg
+    lists = (yaml.safe_load(params_file.read_text()) or {}).get("pipeline")
+    if lists is None:
+        return cfg
+    with open_dict(cfg):
+        cfg.pipeline = lists
+    return cfg
+
+
 def run(cfg: DictConfig) -> ReportFiles:
+    cfg = with_pipeline_lists(cfg)
     layout = layout_of(cfg)
     files = build_report(
         metrics_root=layout.metrics,

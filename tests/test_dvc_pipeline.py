@@ -78,7 +78,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
     and their evaluations, the three edit-propagation stages,
     the mocap maps, the corpus and poses of the Blender rigs only mapped (rigify_human)
     and the two map_partial stages (issue 14)."""
-    rigs, blender = params["pipeline"]["rigs"], params["pipeline"]["blender_rigs"]
+    rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
     map_only = params["pipeline"]["blender_map_rigs"]
     kinds: dict[str, int] = {}
     for name in stages:
@@ -86,8 +86,8 @@ def test_the_planned_work_per_stage_kind(stages, params):
         kinds[kind] = kinds.get(kind, 0) + 1
     assert kinds == {
         "check_params": 1,
-        "animate": 5,
-        "pose": 5,
+        "animate": len(params["pipeline"]["rigs"]) + 1,
+        "pose": len(params["pipeline"]["rigs"]) + 1,
         "supersample": 6 * len(rigs) + 1,
         "fit_nn": 6 * len(rigs) + 1,
         "fit_gpr": 4 * len(rigs) + 1,
@@ -109,7 +109,10 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "animate_map": len(map_only),
         "pose_map": len(map_only),
     }
-    assert len(stages) == 112 + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only)
+    assert len(stages) == (
+        28 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only)
+    )  # fmt: skip
     assert len(blender) == 1
 
 
@@ -126,7 +129,15 @@ def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params)
 
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
-    for rig in params["pipeline"]["rigs"]:
+    """Every rig of the sweep family: each sampler and kernel; the other built-in rigs get
+    their corpus and poses only (Table 3)."""
+    assert set(params["pipeline"]["sweep_rigs"]) <= set(params["pipeline"]["rigs"])
+    assert set(params["pipeline"]["table1_rigs"]) <= set(params["pipeline"]["sweep_rigs"])
+    for rig in set(params["pipeline"]["rigs"]) - set(params["pipeline"]["sweep_rigs"]):
+        assert f"pose@{rig}" in stages
+        assert not [name for name in stages if name.endswith((f"@{rig}", f"@{rig}-gmm"))
+                    and not name.startswith(("animate@", "pose@"))]  # fmt: skip
+    for rig in params["pipeline"]["sweep_rigs"]:
         for sampler in available_samplers():
             supersample = stages[f"supersample@{rig}-{sampler}"]
             assert paths(supersample.outs) == [f"data/{rig}/samples/{sampler}.npz"]  # no chunks
@@ -171,7 +182,7 @@ def test_evaluations_declare_metrics_and_per_frame_plots(stages):
     assert len(metrics) == len(plots) == 12
     assert [Path(p).with_suffix(".csv").as_posix() for p in metrics] == plots
     assert "models/quadruped" in paths(evaluate.deps)
-    kernels = stages["evaluate_kernels@face"]
+    kernels = stages["evaluate_kernels@biped"]
     assert [Path(o.def_path).stem for o in kernels.outs if o.metric] == [
         f"gpr-{k}" for k in KERNELS
     ]
@@ -213,6 +224,9 @@ def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
     config = project / "conf" / "pipeline" / "default.yaml"
     rigs = "rigs: [quadruped, biped, face, squirrel"
     config.write_text(config.read_text().replace(rigs, f"{rigs}, toy_rig"))
+    quick = project / "conf" / "experiment" / "quick.yaml"  # the sweeps' rigs in the quick run
+    sweep = "sweep_rigs: [quadruped, biped"
+    quick.write_text(quick.read_text().replace(sweep, f"{sweep}, toy_rig"))
     evaluate = project / "conf" / "evaluate" / "default.yaml"
     evaluate.write_text(
         evaluate.read_text().replace("gmm, pca_gaussian]", "gmm, pca_gaussian, toy]")
@@ -227,7 +241,7 @@ def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
     stages = resolved_stages(project)
     assert (project / "dvc.yaml").read_text() == (ROOT / "dvc.yaml").read_text()
     assert paths(stages["supersample@quadruped-toy"].outs) == ["data/quadruped/samples/toy.npz"]
-    assert "sampler=toy" in stages["fit_nn@face-toy"].cmd
+    assert "sampler=toy" in stages["fit_nn@biped-toy"].cmd
     assert "conf/rig/toy_rig.yaml" in paths(stages["animate@toy_rig"].deps)
     assert "fit_gpr@toy_rig-linear" in stages and "supersample@toy_rig-toy" in stages
     assert "supersample_blender@rigify_wolf-toy" not in stages

@@ -507,7 +507,16 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
     assert settings.rigs == ("quadruped", "biped", "face", "squirrel", "rigify_wolf")
     # the evaluate stages: the matrix, and the Blender wolf's own (Table 1 only, no autodiff)
     assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf")
-    assert settings.sampler_rigs == ("quadruped", "biped", "face", "squirrel")
+    # the sweeps: experiment=quick's two rigs, the paper's four
+    assert settings.sampler_rigs == ("quadruped", "biped")
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        paper = compose(config_name="config", overrides=["experiment=paper"])
+    assert report_stage.report_settings(paper).sampler_rigs == (
+        "quadruped",
+        "biped",
+        "face",
+        "squirrel",
+    )
     assert "nn_autodiff_jacobian" not in settings.methods_for("rigify_wolf")
     assert "nn_joint_space" not in settings.methods_for("rigify_wolf")  # needs gradients
     assert "script" in settings.methods_for("rigify_wolf")
