@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -72,6 +73,61 @@ def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
     return _run([str(BIN / "dvc"), *args], project, check=True)
 
 
+def _start_queue_workers(project: Path, *, jobs: int) -> None:
+    """``dvc queue start`` with its output in a file, not a pipe.
+
+    DVC forks each worker from the command's own process, so a worker holds
+    the command's stdout and stderr open until it shuts down (a minute after
+    the queue empties, or never if it hangs): reading them through a pipe
+    would wait on the workers, not on the command."""
+    log = project / "queue-start.log"
+    env = {**os.environ, "PATH": f"{BIN}:{os.environ.get('PATH', '')}"}
+    with log.open("wb") as output:
+        started = subprocess.run(
+            [str(BIN / "dvc"), "queue", "start", "-j", str(jobs)],
+            cwd=project,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=output,
+            stderr=subprocess.STDOUT,
+            timeout=120,
+        )
+    assert started.returncode == 0, log.read_text()
+
+
+def _worker_pids(project: Path) -> list[int]:
+    """The queue workers' process ids, from the pid files DVC writes beside their logs."""
+    return [int(p.read_text()) for p in (project / ".dvc" / "tmp").rglob("dvc-exp-worker-*.pid")]
+
+
+def _worker_logs(project: Path) -> str:
+    logs = sorted((project / ".dvc" / "tmp").rglob("dvc-exp-worker-*.out"))
+    return "\n".join(f"--- {p.name}\n{p.read_text()[-2000:]}" for p in logs)
+
+
+def _stop_queue_workers(project: Path) -> None:
+    """End the workers now rather than after their idle timeout, so none outlives the test."""
+    for pid in _worker_pids(project):
+        try:
+            os.kill(pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(_alive(pid) for pid in _worker_pids(project)):
+        time.sleep(0.5)
+    for pid in _worker_pids(project):
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def test_dvc_queue_runs_a_two_point_sweep_in_parallel(tmp_path):
     """The README's `dvc exp run --queue -S …` then `dvc queue start -j 2`, on a one-stage
     project that composes the repository's conf/ (DVC's Hydra integration)."""
@@ -86,25 +142,33 @@ def test_dvc_queue_runs_a_two_point_sweep_in_parallel(tmp_path):
         "    outs: [n.txt]\n"
     )
     (project / ".gitignore").write_text("n.txt\n")
-    git = ["git", "-c", "user.name=rigmap-test", "-c", "user.email=test@localhost"]
     subprocess.run(["git", "init", "-q"], cwd=project, check=True)
+    # DVC commits each experiment and `exp apply` stashes: both need an identity,
+    # which a CI machine may not have globally.
+    for key, value in (("user.name", "rigmap-test"), ("user.email", "test@localhost")):
+        subprocess.run(["git", "config", key, value], cwd=project, check=True)
     _dvc(project, "init", "-q")
     _dvc(project, "config", "hydra.enabled", "true")
     write_params(project, [])
     subprocess.run(["git", "add", "-A"], cwd=project, check=True)
-    subprocess.run([*git, "commit", "-qm", "sweep"], cwd=project, check=True)
+    subprocess.run(["git", "commit", "-qm", "sweep"], cwd=project, check=True)
 
     for samples in (3, 5):
         _dvc(project, "exp", "run", "--queue", "-S", f"budget.samples={samples}", "-q")
-    _dvc(project, "queue", "start", "-j", "2")
-    deadline = time.monotonic() + 300
-    while True:
-        status = _dvc(project, "queue", "status").stdout
-        if not any(word in status for word in ("Queued", "Running")):
-            break
-        assert time.monotonic() < deadline, f"the queue did not finish:\n{status}"
-        time.sleep(2)
-    assert status.count("Success") == 2, status
+    try:
+        _start_queue_workers(project, jobs=2)
+        deadline = time.monotonic() + 300
+        while True:
+            status = _dvc(project, "queue", "status").stdout
+            if not any(word in status for word in ("Queued", "Running")):
+                break
+            assert time.monotonic() < deadline, (
+                f"the queue did not finish:\n{status}\n{_worker_logs(project)}"
+            )
+            time.sleep(2)
+    finally:
+        _stop_queue_workers(project)
+    assert status.count("Success") == 2, f"{status}\n{_worker_logs(project)}"
 
     shown = json.loads(_dvc(project, "exp", "show", "--json").stdout)
     runs = {
