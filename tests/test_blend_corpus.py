@@ -287,3 +287,56 @@ def test_a_chosen_armature_skips_the_other_armatures_actions(bad_files):
         import_blend_corpus(bad_files / "two_armatures.blend", armature="Hero")
     with pytest.raises(BlendCheckError, match=r"armature object 'Nobody' is missing"):
         import_blend_corpus(bad_files / "two_armatures.blend", armature="Nobody")
+
+
+def test_mapped_keys_go_into_a_copy_that_keeps_the_files_actions(hero, hero_blend, tmp_path):
+    """What ``rigmap map`` writes for ``rig=blend_file``: the user's file as it was, plus the
+    reduced keys as a new action on the controls the file's actions key; Blender, playing
+    the copy, poses the rig within the key reduction's stated joint tolerance."""
+    from omegaconf import OmegaConf
+
+    from rigmap.animation.corpus_files import read_corpus_split
+    from rigmap.map.blend_output import write_mapped_keys_blend
+    from rigmap.map.key_reduction import reduce_within_joint_tolerance
+    from rigmap.rigs.blender.blend_corpus import write_blend_corpora
+    from rigmap.rigs.blender.export import read_blend_animation
+    from rigmap.stage.inputs import rig_from_config
+    from rigmap.store import Layout
+
+    conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "rig" / "blend_file.yaml")
+    conf.path, conf.armature, conf.workers = str(hero_blend), "rig", 1
+    del conf["_overrides_"]
+    options = OmegaConf.to_container(conf, resolve=True)
+    layout = Layout(data=tmp_path / "data")
+    write_blend_corpora(options, options["actions"], layout)
+    before = sha256(hero_blend)
+    out = tmp_path / "mapped" / "hero_mapped.blend"
+    with rig_from_config(conf) as rig:
+        test = read_corpus_split(rig, layout, "test")
+        controls = _full(rig, test, rows=list(range(30)))
+        std = np.maximum(test.values().std(axis=0), 1e-3)
+        full_std = np.ones(len(rig.control_names))
+        full_std[rig.controls.used_indices] = std
+        keys = reduce_within_joint_tolerance(rig, controls, full_std, tolerance_cm=0.5)
+        assert keys.key_count < 0.5 * 30 * len(rig.used_controls)  # sparse
+        with pytest.raises(ValueError, match="copy, not the rig's own file"):
+            write_mapped_keys_blend(rig, keys, 24.0, hero_blend)
+        write_mapped_keys_blend(rig, keys, 24.0, out)
+        played, pose = read_blend_animation(rig, out)
+        expected = rig.pose(controls).positions
+    assert sha256(hero_blend) == before
+    assert sorted(p.name for p in out.parent.iterdir()) == ["hero_mapped.blend"]
+
+    original = run_bpy(READ_FCURVES, str(hero_blend), folder=tmp_path)
+    copy = run_bpy(READ_FCURVES, str(out), folder=tmp_path)
+    assert sorted(copy) == sorted([*original, "blend_file_hero_mapped"])
+    for name, action in original.items():  # the user's actions, curve for curve
+        assert copy[name]["curves"].keys() == action["curves"].keys()
+        for key, values in action["curves"].items():
+            np.testing.assert_allclose(copy[name]["curves"][key], values, atol=1e-7)
+    mapped = copy["blend_file_hero_mapped"]
+    assert (mapped["start"], mapped["end"]) == (0, 29)
+    assert {control_of(key)[0] for key in mapped["curves"]} == set(rig.used_controls)
+    assert list(played["frame"]) == list(range(30))
+    gap = np.linalg.norm(pose.positions - expected, axis=-1).max()
+    assert gap <= keys.max_joint_error_cm + 1e-3, (gap, keys.max_joint_error_cm)

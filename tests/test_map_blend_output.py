@@ -6,6 +6,7 @@ which lists every F-curve and its keys: the test compares them with the mapped v
 
 from __future__ import annotations
 
+import json
 import textwrap
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import pytest
 from blender_script import run_bpy
 from rigmap.map.blend_output import mapped_controls_table, write_mapped_blend
 from rigmap.rigs import load
+from rigmap.rigs.blender.export import read_blend_animation
 
 pytestmark = [pytest.mark.blender]
 
@@ -163,14 +165,29 @@ def test_rigmap_map_on_rigify_human_writes_its_keys_into_a_blend(human, tmp_path
         np.testing.assert_allclose(controls[switch], corpus[switch].median(), atol=1e-9)
     read = read_fcurves(clip.folder / "result.blend", tmp_path)
     assert read["frame_range"] == [0, 3] and read["fps"] == pytest.approx(30.0, abs=1e-3)
+    assert read["action"] == "rigify_human_mapped"
     assert len(read["curves"]) == len(human.used_controls)
-    values = {(path, index): np.asarray(keys)[:, 1] for path, index, _, keys in read["curves"]}
+    # the file holds the reduced keys of keys.json, not a key on every frame
+    keys = json.loads((clip.folder / "keys.json").read_text())["curves"]
+    written = {(path, index): np.asarray(points) for path, index, _, points in read["curves"]}
     for name in ("torso.tx", "foot_ik.L.ty", "upper_arm_fk.R.rx", "thigh_parent.L.IK_FK"):
-        bone, channel = name.rsplit(".", 1)
-        if human.controls[name].kind == "scalar":
-            key = (f'pose.bones["{bone}"]["{channel}"]', 0)
-        else:
-            attribute = {"t": "location", "r": "rotation_euler"}[channel[0]]
-            key = (f'pose.bones["{bone}"].{attribute}', "xyz".index(channel[1]))
         unit = 100.0 if human.controls[name].kind == "translate" else 1.0
-        np.testing.assert_allclose(values[key], controls[name] / unit, atol=1e-5, err_msg=name)
+        expected = np.array([[k["frame"], k["value"] / unit] for k in keys[name]])
+        np.testing.assert_allclose(written[_fcurve_key(human, name)], expected, atol=1e-5,
+                                   err_msg=name)  # fmt: skip
+    # played by Blender, the file poses the rig as controls.parquet does, within the
+    # joint tolerance the key reduction states in summary.json
+    played, pose = read_blend_animation(human, clip.folder / "result.blend")
+    assert list(played["frame"]) == [0, 1, 2, 3]
+    achieved = human.pose(controls[human.control_names].to_numpy()).positions
+    gap = np.linalg.norm(pose.positions - achieved, axis=-1).max()
+    assert gap <= clip.summary["key_tolerance_max_joint_error_cm"] + 1e-3
+
+
+def _fcurve_key(rig, name: str) -> tuple[str, int]:
+    """The F-curve ``(data_path, array_index)`` that holds control ``name``."""
+    bone, channel = name.rsplit(".", 1)
+    if rig.controls[name].kind == "scalar":
+        return f'pose.bones["{bone}"]["{channel}"]', 0
+    attribute = {"t": "location", "r": "rotation_euler"}[channel[0]]
+    return f'pose.bones["{bone}"].{attribute}', "xyz".index(channel[1])

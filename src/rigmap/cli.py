@@ -227,7 +227,8 @@ def _add_map(commands) -> None:
         "gives the controls; refinement and key reduction follow. Writes <out>/<clip>/ "
         "(default out: outputs/map/<rig>/): controls.parquet, frames.parquet (joint error cm, "
         "confidence), keys.json, result.bvh, summary.json, preview.png and preview.gif, and "
-        "result.blend for a Blender rig. Examples: rigmap map "
+        "result.blend for a Blender rig (a copy of the rig's file, its actions kept, with the "
+        "reduced keys as a new action). Examples: rigmap map "
         "input=../shared/mocap/cmu_131_01_walk.bvh rig=biped; rigmap map input=mocap_folder "
         "rig=biped out=mapped; rigmap map input=tracks.parquet map.unit=m map.source_fps=30 "
         "map.retarget=my_skeleton.yaml rig=biped.",

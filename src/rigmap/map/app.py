@@ -8,7 +8,7 @@ map's joints is obtained (:mod:`rigmap.map.subset_model`: cached in
 ``models/<rig>/map-<subset>/``, refitted when stale) and each clip is mapped
 (:func:`rigmap.map.clip.map_clip`) into ``<out>/<clip>/``, written whole or not at all:
 controls, per-frame error and confidence, keys, a BVH of the result, a summary, a
-preview, and for a Blender rig a ``.blend`` with keys on its controls.
+preview, and for a Blender rig a copy of its ``.blend`` with the reduced keys as an action.
 
 :func:`pose_from_config` poses the whole body from a few effector targets (paper Fig. 5;
 FaceIK from landmarks, Fig. 10) and draws the pose.
@@ -96,7 +96,7 @@ def map_one(rig, targets: MappedTargets, model: SubsetModel, settings: MapSettin
 
             write_preview(staging, rig, result)
         if is_blender_rig(rig):
-            write_blend(rig, result.controls, result.fps, staging / "result.blend")
+            write_blend(rig, result.keys, result.fps, staging / "result.blend")
 
     written = write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
     import json
@@ -111,11 +111,12 @@ def is_blender_rig(rig) -> bool:
     return isinstance(rig, BlenderRig)
 
 
-def write_blend(rig, controls: np.ndarray, fps: float, path: Path) -> None:
-    """The one call site of the ``.blend`` writer: keys on the rig's control bones."""
-    from rigmap.map.blend_output import write_mapped_blend  # the rigifymap branch's module
+def write_blend(rig, keys, fps: float, path: Path) -> None:
+    """The one call site of the ``.blend`` writer: a copy of the rig's file with the
+    mapping's reduced keys (``keys.json``) as a new action on its control bones."""
+    from rigmap.map.blend_output import write_mapped_keys_blend
 
-    write_mapped_blend(rig, controls, fps, path)
+    write_mapped_keys_blend(rig, keys, fps, path)
 
 
 def input_files(value) -> list[Path]:

@@ -44,7 +44,7 @@ from rigmap.animation.clip import CLIP_FPS, Clip
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.keyframes import FCurve, Key, KeyframeError
 from rigmap.errors import RigmapError
-from rigmap.rigs.blender.cache import cache_dir
+from rigmap.rigs.blender.cache import cache_dir, file_sha256
 from rigmap.rigs.blender.environment import find_blender
 from rigmap.rigs.blender.rig import RIGIFY_HELPER_BONES, _patterns, select_names
 from rigmap.rigs.blender.worker_process import WorkerError
@@ -241,7 +241,7 @@ def import_blend_corpus(
 
     started = time.perf_counter()
     path = _checked_path(path, extreme_test_clips, soft_range_margin)
-    sha = _sha256(path)
+    sha = file_sha256(path)
     options = session_options(
         path,
         armature=armature,
@@ -285,7 +285,7 @@ def import_blend_corpus(
             if problem:
                 raise BlendCheckError([problem])
             seconds["determinism"] = time.perf_counter() - started - sum(seconds.values())
-    if _sha256(path) != sha:  # the worker never saves; this says so
+    if file_sha256(path) != sha:  # the worker never saves; this says so
         raise BlendCorpusError(f"{path}: the file changed while it was read")
     seconds["total"] = time.perf_counter() - started
     result.seconds = seconds
@@ -319,14 +319,6 @@ def _reworded(error: WorkerError, path: Path) -> BlendCorpusError:
     if kind in ("BlendFileError", "SessionError"):
         return BlendCheckError([message])
     return BlendCorpusError(message)
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_name, margin):
@@ -603,6 +595,33 @@ def _determinism(pool, result: BlendCorpus, info) -> str | None:
     )
 
 
+def action_payload(name: str, start, end, curves: Mapping[str, FCurve]) -> dict:
+    """One action for the worker's ``write_actions``: every key of every control's curve
+    (frame, value, interpolation, handles or ``None``) in control units."""
+
+    def handle(point) -> list[float] | None:
+        return None if point is None else [float(h) for h in point]
+
+    return {
+        "name": name,
+        "start": start,
+        "end": end,
+        "curves": {
+            control: [
+                [
+                    float(k.frame),
+                    float(k.value),
+                    k.interpolation,
+                    handle(k.in_handle),
+                    handle(k.out_handle),
+                ]
+                for k in curve.keys
+            ]
+            for control, curve in curves.items()
+        },
+    }
+
+
 def write_actions_blend(
     blend_path: str | Path,
     clips: Sequence[Clip],
@@ -630,21 +649,7 @@ def write_actions_blend(
         raise BlendCorpusError(f"{out_path}: write the actions into a copy, not the original")
     if out_path.suffix != ".blend":
         raise BlendCorpusError(f"out_path must end in .blend, got {out_path.name!r}")
-    payload = []
-    for clip in clips:
-        curves = {}
-        for control, curve in clip.curves.items():
-            curves[control] = [
-                [
-                    float(k.frame),
-                    float(k.value),
-                    k.interpolation,
-                    None if k.in_handle is None else [float(h) for h in k.in_handle],
-                    None if k.out_handle is None else [float(h) for h in k.out_handle],
-                ]
-                for k in curve.keys
-            ]
-        payload.append({"name": clip.name, "start": clip.start, "end": clip.end, "curves": curves})
+    payload = [action_payload(clip.name, clip.start, clip.end, clip.curves) for clip in clips]
     options = {
         "path": str(blend_path),
         "armature": armature,
@@ -758,7 +763,9 @@ def imported_rig_options(rig_options: Mapping, actions: Mapping | None) -> dict:
 
 def _summary_path(kwargs: Mapping) -> Path:
     key = json.dumps(
-        [SUMMARY_FORMAT, _sha256(Path(kwargs["path"])), dict(kwargs)], sort_keys=True, default=str
+        [SUMMARY_FORMAT, file_sha256(Path(kwargs["path"])), dict(kwargs)],
+        sort_keys=True,
+        default=str,
     )
     digest = hashlib.sha256(key.encode()).hexdigest()[:24]
     return cache_dir() / "blend_import" / f"{Path(kwargs['path']).stem}-{digest}.json"

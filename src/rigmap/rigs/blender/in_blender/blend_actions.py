@@ -380,21 +380,30 @@ def frame_dependence(session: RigSession) -> list[str]:
 
 
 # --- writing (the test fixture: a user's file with keyed actions) ----------------------
-def write_actions(session: RigSession, clips: list[dict], fps: float | None) -> dict:
+def write_actions(
+    session: RigSession, clips: list[dict], fps: float | None, scene_range: bool = False
+) -> dict:
     """Key each clip as an action of its own (fake user, manual frame range) on the rig.
 
     ``clips``: ``{"name", "start", "end", "curves": {control: [[frame, value, interpolation,
-    in_handle or None, out_handle or None], ...]}}`` in control units (cm, radians). Keys
+    in_handle or None, out_handle or None], ...]}}`` in control units (cm, radians), and
+    optionally ``"handle_type"`` for the given handles (``FREE`` unless said; a mapping's
+    keys are ``ALIGNED``, so an edited handle keeps the curve smooth). Keys
     without handles get Blender's auto-clamped handles, as keys an animator sets. The last
-    clip stays assigned to the rig.
+    clip stays assigned to the rig; the action the rig had before (a user's file opened
+    with its animation) gets a fake user, so the saved copy still holds it. ``scene_range``
+    sets the scene's frame range to the last clip's.
     """
     from keyframes import data_path
 
     rig = session.rig
     by_name = {c["name"]: c for c in session.controls}
     animation = rig.animation_data_create()
+    if animation.action is not None:
+        animation.action.use_fake_user = True
     keys = 0
     for clip in clips:
+        given = clip.get("handle_type", "FREE")
         action = bpy.data.actions.new(clip["name"])
         action.use_fake_user = True  # kept in the file when no object uses it
         animation.action = action
@@ -416,7 +425,7 @@ def write_actions(session: RigSession, clips: list[dict], fps: float | None) -> 
                     if handle is None:
                         setattr(point, f"handle_{side}_type", "AUTO_CLAMPED")
                     else:
-                        setattr(point, f"handle_{side}_type", "FREE")
+                        setattr(point, f"handle_{side}_type", given)
                         setattr(point, f"handle_{side}", (handle[0], handle[1] * scale))
             fcurve.update()
             keys += len(clip_keys)
@@ -426,7 +435,9 @@ def write_actions(session: RigSession, clips: list[dict], fps: float | None) -> 
     if fps is not None:
         scene.render.fps = max(1, round(fps))
         scene.render.fps_base = scene.render.fps / fps
-    return {"actions": len(clips), "keys": keys}
+    if scene_range and clips:
+        scene.frame_start, scene.frame_end = clips[-1]["start"], clips[-1]["end"]
+    return {"actions": len(clips), "keys": keys, "file_actions": len(bpy.data.actions)}
 
 
 __all__ = [

@@ -174,7 +174,9 @@ class Worker:
         from blend_actions import write_actions
         from keyframes import save_blend
 
-        info = write_actions(self._session(), args["clips"], args.get("fps"))
+        info = write_actions(
+            self._session(), args["clips"], args.get("fps"), bool(args.get("scene_range"))
+        )
         save_blend(args["out_path"])
         return info, {}
 
