@@ -394,17 +394,24 @@ def fit_learned_jacobian(
 
     ``wanted`` is ``learned_jacobian_plan(regressor)``: the training rows (the GPR's support
     poses) and the unfitted learned Jacobian; it learns behind the mapping's placement.
+    The differences are central and coloured (:mod:`rigmap.refine.sparsity`: controls that
+    move disjoint joints perturbed in one rig evaluation, as refinement does): on 300
+    quadruped poses 6.1x faster than one control at a time and equal to 6e-11 relative
+    (1e-5 on the float32 Blender wolf, its rounding over the step).
     """
-    from rigmap.refine import jacobian
+    from rigmap.refine import jacobian, rig_colouring
 
     support, regressor = wanted
-    n_used = len(rig.used_controls)
+    colouring = rig_colouring(rig)
     log(
         f"  finite-difference Jacobians at {len(support)} support poses "
-        f"({2 * n_used} rig evaluations each)"
+        f"({2 * colouring.n_colours} rig evaluations each: central, {colouring.n_colours} "
+        f"colours for {len(rig.used_controls)} controls)"
     )
     clock = time.perf_counter()
-    jacobians = jacobian(rig, rig.expand_used(data.controls[support]), "finite_difference")
+    jacobians = jacobian(
+        rig, rig.expand_used(data.controls[support]), "finite_difference", colouring=colouring
+    )
     fd_seconds = time.perf_counter() - clock
     learned = JacobianMapping(regressor, mapping.placement)
     log(
@@ -430,6 +437,7 @@ def fit_learned_jacobian(
         "poses": len(support),
         "jacobian_shape": [int(jacobians.shape[1]), int(jacobians.shape[2])],
         "method": "finite_difference",
+        "colours": colouring.n_colours,
         "length_scale": float(learned.length_scale_),
         "relative_error_at_support": relative,
         "seconds": {"finite_differences": fd_seconds, "fit": fit_seconds},
