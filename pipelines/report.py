@@ -7,7 +7,8 @@ clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
 
 Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
 (what the evaluate stages ran), the rigs of Table 2 and the kernel table from
-``pipeline.sweep_rigs``, the network rows' sampler from ``sampler``; a ``report``
+``pipeline.sweep_rigs``, users' own .blend files (Tables 1 and 3) from
+``pipeline.blend_file_rigs``, the network rows' sampler from ``sampler``; a ``report``
 block, if the config has one, may set ``rigs``, ``excluded_methods``, ``clips`` (see
 rigmap.reports.settings.ReportSettings):
 
@@ -41,6 +42,8 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
     pipeline = cfg.get("pipeline")
     if pipeline is not None and pipeline.get("sweep_rigs") is not None:
         values["sampler_rigs"] = list(pipeline.sweep_rigs)  # what the sweep stages ran
+    if pipeline is not None and pipeline.get("blend_file_rigs") is not None:
+        values["blend_file_rigs"] = list(pipeline.blend_file_rigs)  # the *_blend_file stages
     if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
         values["nn_sampler"] = sampler_name(cfg.sampler)
     report = cfg.get("report")
@@ -52,9 +55,10 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
 def with_pipeline_lists(cfg: DictConfig, params_file: Path = PARAMS_FILE) -> DictConfig:
     """``cfg`` with params.yaml's ``pipeline`` lists when the stage config dropped them.
 
-    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs one of
-    its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``), and params.yaml is
-    where DVC recorded them (a param dependency of this stage).
+    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs two of
+    its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``) and the users' files
+    (``pipeline.blend_file_rigs``), and params.yaml is where DVC recorded them (param
+    dependencies of this stage: ``dvc exp run -S`` changes them there, not in conf/).
     """
     if cfg.get("pipeline") is not None or not params_file.is_file():
         return cfg

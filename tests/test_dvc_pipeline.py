@@ -108,12 +108,35 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "map_partial": 2,
         "animate_map": len(map_only),
         "pose_map": len(map_only),
+        # a user's .blend (issue #19): the file, then its corpus to Table 1
+        "blend_fixture": 1,
+        **{f"{kind}_blend_file": 1 for kind in BLEND_FILE_STAGES},
     }
     assert len(stages) == (
         28 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
-        + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only)
+        + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
     )  # fmt: skip
     assert len(blender) == 1
+
+
+BLEND_FILE_STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
+
+
+def test_a_users_blend_runs_every_stage_through_rig_blend_file(stages, params):
+    """The *_blend_file stages know the fixture only by its path (rig=blend_file rig.path=...),
+    write under its name, and the report reads their rows (pipeline.blend_file_rigs)."""
+    fixture = "data/blend_fixture/hero.blend"
+    assert paths(stages["blend_fixture"].outs) == [fixture]
+    assert params["pipeline"]["blend_file_rigs"] == ["blend_file:hero"]
+    for kind in BLEND_FILE_STAGES:
+        stage = stages[f"{kind}_blend_file"]
+        assert f"rig=blend_file rig.path={fixture} rig.armature=rig" in stage.cmd, kind
+        assert fixture in paths(stage.deps), kind
+    assert paths(stages["animate_blend_file"].outs) == ["data/blend_file:hero/corpus"]
+    metrics = paths(o for o in stages["evaluate_blend_file"].outs if o.metric)
+    assert len(metrics) == 7 and all(
+        m.startswith("metrics/blend_file:hero/methods/") for m in metrics
+    )
 
 
 def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params):

@@ -504,9 +504,16 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
         cfg = compose(config_name="config", overrides=["sampler=gmm"])
     settings = report_stage.report_settings(cfg)
     assert settings.nn_sampler == "gmm"
-    assert settings.rigs == ("quadruped", "biped", "face", "squirrel", "rigify_wolf")
-    # the evaluate stages: the matrix, and the Blender wolf's own (Table 1 only, no autodiff)
-    assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf")
+    assert settings.rigs == (
+        "quadruped", "biped", "face", "squirrel", "rigify_wolf", "blend_file:hero"
+    )  # fmt: skip
+    # the evaluate stages: the matrix, the Blender wolf's own (Table 1 only, no autodiff), and
+    # the user's .blend of the *_blend_file stages (pipeline.blend_file_rigs)
+    assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf", "blend_file:hero")
+    assert settings.methods_for("blend_file:hero") == (
+        "gpr", "gpr_learned_jacobian", "gpr_computed_jacobian", "nn", "nn_computed_jacobian",
+        "nn_learned_jacobian", "mean",
+    )  # fmt: skip
     # the sweeps: experiment=quick's two rigs, the paper's four
     assert settings.sampler_rigs == ("quadruped", "biped")
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
@@ -632,3 +639,12 @@ def test_reproduce_params_only_writes_params_and_runs_nothing(tmp_path, capsys):
     assert "warning: no stage in dvc.yaml interpolates any of these values" in output
     assert "seed: 3" in (project / "params.yaml").read_text()
     assert not (project / "n.txt").exists()
+
+
+def test_a_users_blend_file_must_be_named_after_the_file():
+    with pytest.raises(ValueError, match="blend_file:<file stem>"):
+        ReportSettings(blend_file_rigs=("hero",))
+    settings = ReportSettings(blend_file_rigs=("blend_file:hero",))
+    assert settings.rigs[-1] == "blend_file:hero" and "script" not in settings.methods_for(
+        "blend_file:hero"
+    )

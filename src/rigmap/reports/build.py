@@ -12,6 +12,8 @@ the index links them when they exist.
 
 from __future__ import annotations
 
+import functools
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,9 +54,22 @@ class ReportFiles:
     notes: list[str] = field(default_factory=list)
 
 
-def _load_rig(name: str):
+def file_stem(rig: str) -> str:
+    """A rig name fit for a file name and a link (``blend_file:hero`` -> ``blend_file_hero``)."""
+    return rig.replace(":", "_")
+
+
+def _load_rig(name: str, data_root: Path | None = None):
+    """A rig by name; a user's .blend (``blend_file:<stem>``) from the options its corpus
+    import recorded (``<data>/<rig>/corpus/blend_import.json``: file, controls, ranges)."""
     from rigmap.rigs import load
 
+    if data_root is not None:
+        from rigmap.rigs.blender.blend_corpus import IMPORT_FILE
+
+        imported = Path(data_root) / name / "corpus" / IMPORT_FILE
+        if imported.is_file():
+            return load(json.loads(imported.read_text())["rig_config"])
     return load(name)
 
 
@@ -64,7 +79,7 @@ def build_report(
     data_root: str | Path,
     reports_root: str | Path,
     settings: ReportSettings | None = None,
-    load_rig: Callable[[str], object] = _load_rig,
+    load_rig: Callable[[str], object] | None = None,
 ) -> ReportFiles:
     """Read every metrics file the settings expect, then write tables, figures and the index.
 
@@ -74,10 +89,14 @@ def build_report(
     settings = settings or ReportSettings()
     metrics_root, data_root, reports_root = map(Path, (metrics_root, data_root, reports_root))
     tree = load_metrics(metrics_root, data_root, settings)
-    facts = [
-        rig_facts(load_rig(rig), data_root / rig / "corpus" / "train.parquet")
-        for rig in settings.rigs
-    ]
+    load_rig = load_rig or functools.partial(_load_rig, data_root=data_root)
+    facts = []
+    for name in settings.rigs:
+        rig = load_rig(name)
+        try:
+            facts.append(rig_facts(rig, data_root / name / "corpus" / "train.parquet"))
+        finally:
+            getattr(rig, "close", lambda: None)()  # a Blender rig's workers
     for metrics in tree.values():  # read every per-frame CSV before writing anything
         for method in settings.methods_for(metrics.rig):
             metrics.methods[method].per_frame()
@@ -98,7 +117,7 @@ def build_report(
     figures_folder = reports_root / RESULT_FIGURES_FOLDER
     method_tree = {rig: tree[rig] for rig in settings.method_rigs}
     figures = [
-        per_frame_figure(tree[rig], settings, figures_folder / f"per_frame_{rig}.png")
+        per_frame_figure(tree[rig], settings, figures_folder / f"per_frame_{file_stem(rig)}.png")
         for rig in settings.method_rigs
     ]
     figures.append(time_figure(method_tree, settings, figures_folder / "time_per_method.png"))

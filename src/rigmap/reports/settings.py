@@ -6,7 +6,8 @@ experiment does not run (the Script baseline exists only for rigs with a
 retarget script; autodiff only for differentiable rigs) are listed in
 ``excluded_methods`` and left out on purpose. The Blender wolf's quick budget
 runs Table 1 and Table 3 only: it is not among the ``sampler_rigs`` (Table 2
-and the kernel table).
+and the kernel table). So do a user's own files (``blend_file_rigs``, named
+``blend_file:<stem>``): their rows join Table 1 and Table 3 under the file's name.
 """
 
 from __future__ import annotations
@@ -31,6 +32,12 @@ DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
     "squirrel": ("script",),
     "rigify_wolf": ("nn_autodiff_jacobian", *JOINT_SPACE_METHODS),
 }
+#: a user's .blend (rig=blend_file) has no retarget script, no autodiff, no joint-space network
+BLEND_FILE_EXCLUDED_METHODS: tuple[str, ...] = (
+    "script",
+    "nn_autodiff_jacobian",
+    *JOINT_SPACE_METHODS,
+)
 #: rigs whose pipeline compares methods only (Table 1) — no sampler or kernel sweeps
 METHODS_ONLY_RIGS: tuple[str, ...] = ("rigify_wolf",)
 
@@ -46,7 +53,9 @@ class ReportSettings:
     sampler whose network the Table 1 rows ``nn*`` use (their files are
     ``methods/<method>-<nn_sampler>.json``; GPR and Script rows use ``none``).
     ``clips`` restricts the expected test clips (``None``: every clip of the rig's
-    test corpus).
+    test corpus). ``blend_file_rigs`` (``blend_file:<stem>``, from
+    ``pipeline.blend_file_rigs``) are users' own files: added to ``rigs`` and
+    ``method_rigs``, with ``BLEND_FILE_EXCLUDED_METHODS`` left out.
     """
 
     rigs: tuple[str, ...] = tuple(r.key for r in RIGS)
@@ -60,8 +69,23 @@ class ReportSettings:
         default_factory=lambda: dict(DEFAULT_EXCLUDED_METHODS)
     )
     clips: tuple[str, ...] | None = None
+    blend_file_rigs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        own = tuple(str(r) for r in self.blend_file_rigs)
+        bad = [r for r in own if not r.startswith("blend_file:")]
+        if bad:
+            raise ValueError(f"report settings: blend_file_rigs {bad} must be named "
+                             "blend_file:<file stem> (the rig=blend_file name)")  # fmt: skip
+        object.__setattr__(self, "blend_file_rigs", own)
+        extra = [r for r in own if r not in self.rigs]
+        object.__setattr__(self, "rigs", (*self.rigs, *extra))
+        methods = tuple(self.method_rigs)
+        object.__setattr__(self, "method_rigs", (*methods, *[r for r in own if r not in methods]))
+        excluded = dict(self.excluded_methods)
+        for rig in own:
+            excluded.setdefault(rig, BLEND_FILE_EXCLUDED_METHODS)
+        object.__setattr__(self, "excluded_methods", excluded)
         for name in ("rigs", "methods", "samplers", "kernels"):
             values = tuple(str(v) for v in getattr(self, name))
             if not values:
@@ -134,6 +158,7 @@ class ReportSettings:
             "samplers",
             "kernels",
             "clips",
+            "blend_file_rigs",
         ):
             if values.get(name) is not None:
                 values[name] = _as_tuple(values[name], name)

@@ -376,6 +376,9 @@ def kernels_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
 
 
 # --------------------------------------------------------------------------- Table 3
+BLEND_FILE_PREFIX = "blend_file:"  # the name rig=blend_file gives a user's file
+
+
 def rigs_table(facts: Sequence[RigFacts]) -> Table:
     """Table 3: training frames, rig DOFs (all and used) and joint DOFs per character."""
     columns = [Column("Character", numeric=False)]
@@ -432,12 +435,20 @@ def rigs_table(facts: Sequence[RigFacts]) -> Table:
         "Joint DOFs: 3 × joints (3 × mesh vertices for mesh rigs).",
     ]
     blender = [rig_label(f.rig) for f in facts if f.backend == "blender"]
+    own = [rig_label(f.rig) for f in facts if f.rig.startswith(BLEND_FILE_PREFIX)]
     if blender:
         notes.append(
             f"{', '.join(blender)}: Blender rigs (not in the paper). Rig DOFs count every "
             "transform channel of the control bones and every custom property, face and paw "
             "digits included; Joint DOFs are 3 × the deform-bone heads the rig's config keeps "
-            "(without the face and the paw digits)."
+            "(the built-in Rigify rigs without the face and the paw digits"
+            + (f"; {', '.join(own)}: every deform bone" if own else "")
+            + ")."
+        )
+    if own:
+        notes.append(
+            f"{', '.join(own)}: a user's own .blend (rig=blend_file), named after the file; its "
+            "corpus is the file's actions and its used controls the ones they key."
         )
     return Table(
         name="table3_rigs",
