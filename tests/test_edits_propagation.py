@@ -163,3 +163,36 @@ def test_the_cli_fits_applies_and_scores_an_edit(tmp_path, capsys):
                                        "both_without_regularisers", "full"}  # fmt: skip
     assert (tmp_path / "models/biped/edits/arms_forward_walking.npz").is_file()
     assert "metrics/biped/edits/summary.json" in capsys.readouterr().out
+
+
+def test_both_gps_fit_on_one_blas_thread_while_they_run_side_by_side(biped, monkeypatch):
+    """The two GPs fit in two threads; threadpoolctl's BLAS limit is process-wide, so a fit
+    that ended first used to restore the default limit under the other one mid-fit, whose
+    remaining BLAS calls then ran threaded (and its optimum changed in the last digits from
+    run to run). Every objective evaluation of both fits must see one BLAS thread."""
+    from threadpoolctl import threadpool_info
+
+    from rigmap.edits.gp import SharedGP
+
+    seen = []
+    objective = SharedGP._objective
+
+    def counted(self, theta):
+        seen.append({p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"})
+        return objective(self, theta)
+
+    monkeypatch.setattr(SharedGP, "_objective", counted)
+    _, subject, clips = biped
+    scale = ChannelScale.fit(list(clips.values()))
+    forward = edit("arms_forward_walking", "rig")
+    train = [subject.source(clips[(name, 0)]) for name in ("Walk", "Idle")]
+    first = EditModel(subject.joints, residual=True).fit(
+        [(s, forward.apply(s.track)) for s in train], scale
+    )
+    second = EditModel(subject.joints, residual=True).fit(
+        [(s, forward.apply(s.track)) for s in train], scale
+    )
+    assert len(seen) > 20 and all(threads == {1} for threads in seen)
+    for a, b in ((first.kinematic_gp_, second.kinematic_gp_),
+                 (first.acceleration_gp_, second.acceleration_gp_)):  # fmt: skip
+        assert (a.length_scale_, a.signal_, a.noise_) == (b.length_scale_, b.signal_, b.noise_)

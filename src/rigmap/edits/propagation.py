@@ -23,6 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from rigmap.edits.combine import Weights, accelerations, combine
 from rigmap.edits.features import acceleration_features, kinematic_features
@@ -135,14 +136,21 @@ class EditModel:
         center = not self.residual  # an offset's prior is no edit
         data = ((np.vstack(xk), np.vstack(yk)), (np.vstack(xa), np.vstack(ya)))
         # the two fits are independent: one thread each (LAPACK releases the GIL), so a
-        # 2-core machine fits both in the time of the slower
+        # 2-core machine fits both in the time of the slower. BLAS is held at one thread
+        # around both: threadpoolctl's limit is process-wide, so a fit that ended first
+        # restored the default under the other one mid-fit, which then ran some BLAS calls
+        # threaded; its rounding, and on an ill-conditioned fit its optimum, changed from
+        # run to run (arm_swing's acceleration GP: length scale 22.7883799659080 or ...108)
         starts = [None, None]
         if warm_start and hasattr(self, "kinematic_gp_") and self.estimator == "gp":
             starts = [
                 {"length_scale": gp.length_scale_, "signal": gp.signal_, "noise": gp.noise_}
                 for gp in (self.kinematic_gp_, self.acceleration_gp_)
             ]
-        with ThreadPoolExecutor(max_workers=2) as pool:
+        with (
+            threadpool_limits(limits=1, user_api="blas"),
+            ThreadPoolExecutor(max_workers=2) as pool,
+        ):
             fits = [
                 pool.submit(self._estimator(center).fit, X, Y, initial=start)
                 for (X, Y), start in zip(data, starts, strict=True)
