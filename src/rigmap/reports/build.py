@@ -73,6 +73,18 @@ def _load_rig(name: str, data_root: Path | None = None):
     return load(name)
 
 
+def every_rigs_facts(rigs, data_root: Path, load_rig: Callable[[str], object]) -> list:
+    """Table 3's numbers of each rig, from the rig and its train corpus (workers closed)."""
+    facts = []
+    for name in rigs:
+        rig = load_rig(name)
+        try:
+            facts.append(rig_facts(rig, data_root / name / "corpus" / "train.parquet"))
+        finally:
+            getattr(rig, "close", lambda: None)()  # a Blender rig's workers
+    return facts
+
+
 def build_report(
     *,
     metrics_root: str | Path,
@@ -89,14 +101,9 @@ def build_report(
     settings = settings or ReportSettings()
     metrics_root, data_root, reports_root = map(Path, (metrics_root, data_root, reports_root))
     tree = load_metrics(metrics_root, data_root, settings)
-    load_rig = load_rig or functools.partial(_load_rig, data_root=data_root)
-    facts = []
-    for name in settings.rigs:
-        rig = load_rig(name)
-        try:
-            facts.append(rig_facts(rig, data_root / name / "corpus" / "train.parquet"))
-        finally:
-            getattr(rig, "close", lambda: None)()  # a Blender rig's workers
+    facts = every_rigs_facts(
+        settings.rigs, data_root, load_rig or functools.partial(_load_rig, data_root=data_root)
+    )
     for metrics in tree.values():  # read every per-frame CSV before writing anything
         for method in settings.methods_for(metrics.rig):
             metrics.methods[method].per_frame()
