@@ -96,14 +96,19 @@ def test_a_zero_edit_propagates_as_the_source(biped):
     np.testing.assert_allclose(model.apply(subject.source(wave)).values, wave.values, atol=1e-9)
 
 
-def test_arms_forward_carries_to_a_held_out_walk_and_leaves_a_stand_alone(biped, tmp_path):
-    _, subject, clips = biped
+def arms_forward_examples(subject, clips):
+    """``(scale, edit, pairs)``: arms_forward_walking on the seed-0 Walk and Idle, the
+    artist's examples of the biped tests."""
     scale = ChannelScale.fit(list(clips.values()))
     forward = edit("arms_forward_walking", "rig")
     train = [subject.source(clips[(name, 0)]) for name in ("Walk", "Idle")]
-    model = EditModel(subject.joints, residual=True).fit(
-        [(s, forward.apply(s.track)) for s in train], scale
-    )
+    return scale, forward, [(s, forward.apply(s.track)) for s in train]
+
+
+def test_arms_forward_carries_to_a_held_out_walk_and_leaves_a_stand_alone(biped, tmp_path):
+    _, subject, clips = biped
+    scale, forward, pairs = arms_forward_examples(subject, clips)
+    model = EditModel(subject.joints, residual=True).fit(pairs, scale)
     walk, idle = clips[("Walk", 1)], clips[("Idle", 1)]
     walked = score_clip(walk, forward.apply(walk), model.apply(subject.source(walk)), scale,
                         subject.relative_cm).summary()  # fmt: skip
@@ -183,15 +188,9 @@ def test_both_gps_fit_on_one_blas_thread_while_they_run_side_by_side(biped, monk
 
     monkeypatch.setattr(SharedGP, "_objective", counted)
     _, subject, clips = biped
-    scale = ChannelScale.fit(list(clips.values()))
-    forward = edit("arms_forward_walking", "rig")
-    train = [subject.source(clips[(name, 0)]) for name in ("Walk", "Idle")]
-    first = EditModel(subject.joints, residual=True).fit(
-        [(s, forward.apply(s.track)) for s in train], scale
-    )
-    second = EditModel(subject.joints, residual=True).fit(
-        [(s, forward.apply(s.track)) for s in train], scale
-    )
+    scale, _, pairs = arms_forward_examples(subject, clips)
+    first = EditModel(subject.joints, residual=True).fit(pairs, scale)
+    second = EditModel(subject.joints, residual=True).fit(pairs, scale)
     assert len(seen) > 20 and all(threads == {1} for threads in seen)
     for a, b in ((first.kinematic_gp_, second.kinematic_gp_),
                  (first.acceleration_gp_, second.acceleration_gp_)):  # fmt: skip
