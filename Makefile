@@ -27,8 +27,9 @@ blender:
 
 # The main job: the quick replication of the paper's tables (dvc repro; reports/index.html).
 # It needs both environments: the wolf's stages evaluate a Rigify rig in Blender workers.
+# --jobs 2: independent stages two at a time; the ones that time methods run alone.
 reproduce: setup blender
-	$(BIN)/rigmap reproduce
+	$(BIN)/rigmap reproduce --jobs 2
 
 # Share outputs through the default DVC remote (.dvc/config: <clone>/../rigmap-dvc-remote):
 # `make push` after a run, `make pull` in another clone instead of recomputing.

@@ -304,6 +304,16 @@ def _add_reproduce(commands) -> None:
         "--keep-going", action="store_true", help="run independent stages after a failure"
     )
     reproduce.add_argument(
+        "-j",
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="run up to N independent stages at once, each as its own `dvc repro --single-item`"
+        " (stages marked meta.runs_alone in dvc.yaml, the ones that time methods, run alone; "
+        "default 1: one `dvc repro`)",
+    )
+    reproduce.add_argument(
         "--params-only",
         action="store_true",
         help="only write params.yaml (then run dvc repro / dvc exp run yourself)",
@@ -574,6 +584,7 @@ def _reproduce(args) -> int:
         force=args.force,
         keep_going=args.keep_going,
         params_only=args.params_only,
+        jobs=args.jobs,
     )
     return run_reproduce(plan)
 

@@ -11,7 +11,10 @@
    unchanged).
    Before it, a preflight (:mod:`rigmap.preflight`) checks in seconds what the stages
    will need: the Blender environment, the tracking server, writable output folders.
-3. At the end it prints where ``index.html`` is.
+3. ``--jobs N`` (``make reproduce`` uses 2): the pending stages run side by side instead,
+   each as its own ``dvc repro --single-item`` (:mod:`rigmap.stage_jobs`); the stages that
+   time methods run alone, so their frames per second are not shared with another stage.
+4. At the end it prints where ``index.html`` is.
 
 Parameter values are checked before params.yaml is written (:mod:`rigmap.params_checks`),
 and a dry run killed by SIGTERM, SIGHUP or Ctrl-C still puts the old params.yaml back.
@@ -42,6 +45,7 @@ from rigmap.pipeline_params import (
     write_params,
 )
 from rigmap.preflight import check_pipeline_needs
+from rigmap.stage_jobs import families_running_alone, plan_stages, run_side_by_side
 from rigmap.store import write_text_atomic
 
 # how DVC says a stage starts, or is restored from its run cache instead of running
@@ -51,12 +55,12 @@ STAGE_STARTS = (
 )
 PREFIX = "[rigmap reproduce]"
 
-#: Pin the CPU code paths of torch's MKL (BLAS) and ATen kernels. Without it each machine
-#: picks its widest (AVX-512 on one, AVX2 on another), and float32 network training rounds
-#: differently: measured here, another MKL path changed the quick network's predictions by
-#: 2.6e-6 after 8 epochs, which refinement and long clips grow into per-cent differences.
-#: AVX2 is what the AMD EPYC machines already run, bit for bit (measured: same weights,
-#: same time); a value already in the environment wins.
+#: Ask torch's MKL (BLAS) and ATen kernels for their AVX2 code paths, so that machines
+#: which honour it round float32 training alike (another MKL path changed the quick
+#: network's predictions by 2.6e-6 after 8 epochs, which refinement grows into per-cent
+#: differences). Measured: MKL on AMD EPYC (Zen 5) ignores MKL_CBWR=AVX2 (mkl_cbwr_get
+#: reports AUTO); MKL_CBWR=COMPATIBLE pins it but costs 3.4x per matrix product, so network
+#: rows may still differ by 1-4 % across such hosts. A value already in the environment wins.
 CPU_CODE_PATHS = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2"}
 
 
@@ -70,6 +74,8 @@ class ReproducePlan:
     env: dict[str, str]
     dry: bool
     params_only: bool = False
+    jobs: int = 1
+    keep_going: bool = False
 
     @property
     def count_stages(self) -> bool:
@@ -89,13 +95,17 @@ def plan_reproduce(
     force: bool = False,
     keep_going: bool = False,
     params_only: bool = False,
+    jobs: int = 1,
     python: str | Path | None = None,
     environ: dict[str, str] | None = None,
 ) -> ReproducePlan:
     """Check the arguments and build the ``dvc repro`` command and its environment.
 
     ``params_only``: write params.yaml and stop (for ``dvc repro`` / ``dvc exp run`` by hand).
+    ``jobs``: run up to this many independent stages at once (:mod:`rigmap.stage_jobs`).
     """
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ParamsError(f"--jobs {jobs!r}: expected a whole number of stages at a time, >= 1")
     root = find_project_root(project)
     overrides = tuple(check_overrides(overrides, root / "conf"))
     for target in targets:
@@ -125,7 +135,9 @@ def plan_reproduce(
         command.append("--force")
     if keep_going:
         command.append("--keep-going")
-    return ReproducePlan(root, overrides, tuple(command), environ, dry, params_only)
+    return ReproducePlan(
+        root, overrides, tuple(command), environ, dry, params_only, jobs, keep_going
+    )
 
 
 def count_stages(plan: ReproducePlan) -> int | None:
@@ -135,6 +147,14 @@ def count_stages(plan: ReproducePlan) -> int | None:
     fresh clone: it stops at the first stage whose inputs do not exist yet). Restricted to
     the targets and what they depend on; ``None`` when DVC cannot say.
     """
+    found = pending_stages(plan)
+    return None if found is None else len(found[0])
+
+
+def pending_stages(
+    plan: ReproducePlan,
+) -> tuple[set[str], list[tuple[str, str]], list[str]] | None:
+    """The stages that may run (as :func:`count_stages` counts them), DVC's edges and nodes."""
     dvc = plan.command[0]
     targets = [c for c in plan.command[2:] if not c.startswith("-")]
     force = "--force" in plan.command
@@ -144,7 +164,7 @@ def count_stages(plan: ReproducePlan) -> int | None:
             [[dvc, "dag", "--dot"], *([] if force else [[dvc, "status", "--json"]])], plan
         )
         dag = outputs[0]
-        nodes = {_stage_name(n) for n in _DOT_NODE.findall(dag)}
+        nodes = [_stage_name(n) for n in _DOT_NODE.findall(dag)]
         edges = [(_stage_name(a), _stage_name(b)) for a, b in _DOT_EDGE.findall(dag)]
         changed = set(nodes) if force else {_stage_name(n) for n in json.loads(outputs[1])}
     except (OSError, ValueError, subprocess.CalledProcessError):
@@ -154,13 +174,13 @@ def count_stages(plan: ReproducePlan) -> int | None:
     for a, b in edges:
         downstream.setdefault(a, set()).add(b)
         upstream.setdefault(b, set()).add(a)
-    may_run = _closure(changed & nodes, downstream)
+    may_run = _closure(changed & set(nodes), downstream)
     if targets:
         scope = _closure({t for t in targets if t in nodes}, upstream)
         if len(scope) == 0:
             return None  # a target DVC names differently (a dvc.yaml path, a glob)
         may_run &= scope
-    return len(may_run)
+    return may_run, edges, nodes
 
 
 _DOT_NODE = re.compile(r'^"([^"]+)";$', re.MULTILINE)
@@ -275,7 +295,10 @@ def _run(plan: ReproducePlan, update, out: TextIO) -> int:
         print(f"{PREFIX} {total} stage(s) changed or downstream of a change", file=out, flush=True)
     print(f"{PREFIX} {' '.join(plan.command[1:])} (PATH starts with {plan.bin_dir})", file=out)
     out.flush()
-    code = _stream(plan, out, total)
+    if plan.jobs > 1 and not plan.dry:
+        code = _run_side_by_side(plan, out)
+    else:
+        code = _stream(plan, out, total)
     index = plan.project / str(update.params.get("paths", {}).get("reports", "reports"))
     index = index / "index.html"
     if code != 0:
@@ -328,6 +351,39 @@ def _stream(plan: ReproducePlan, out: TextIO, total: int | None) -> int:
     return code
 
 
+def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
+    """``--jobs N``: the pending stages as separate single-stage ``dvc repro`` processes."""
+    found = pending_stages(plan)
+    if found is None:
+        print(f"{PREFIX} DVC cannot list the pending stages; running them in turn", file=out)
+        return _stream(plan, out, None)
+    pending, edges, nodes = found
+    alone = families_running_alone(plan.project / "dvc.yaml")
+    stages = plan_stages(pending, edges, nodes, alone)
+    print(
+        f"{PREFIX} {len(stages.order)} stage(s), up to {plan.jobs} at a time "
+        f"({len(stages.alone)} of them alone: {', '.join(sorted(alone)) or 'none'})",
+        file=out,
+        flush=True,
+    )
+    dvc, force = plan.command[0], ["--force"] if "--force" in plan.command else []
+    clock = StageClock()
+    began = time.perf_counter()
+    code = run_side_by_side(
+        stages,
+        lambda stage: [dvc, "--wait-for-lock", "repro", "--single-item", *force, stage],
+        jobs=plan.jobs,
+        cwd=plan.project,
+        env=plan.env,
+        out=out,
+        keep_going=plan.keep_going,
+        on_finish=clock.record,
+        prefix=PREFIX,
+    )
+    out.write(clock.summary(wall_seconds=time.perf_counter() - began))
+    return code
+
+
 class StageClock:
     """Wall time per stage, from one stage's start to the next one's (DVC runs them in turn).
 
@@ -353,7 +409,11 @@ class StageClock:
         self.seconds[stage] = time.perf_counter() - began
         return self.seconds[stage]
 
-    def summary(self, slowest: int = 10) -> str:
+    def record(self, stage: str, seconds: float) -> None:
+        """A stage timed elsewhere (``--jobs``: each runs in its own process)."""
+        self.seconds[stage] = seconds
+
+    def summary(self, slowest: int = 10, wall_seconds: float | None = None) -> str:
         if not self.seconds:
             return ""
         families: dict[str, float] = {}
@@ -361,7 +421,8 @@ class StageClock:
             family = stage.split("@", 1)[0]
             families[family] = families.get(family, 0.0) + seconds
         total = sum(self.seconds.values())
-        lines = [f"{PREFIX} {len(self.seconds)} stage(s) ran in {total:.0f} s; slowest:"]
+        wall = "" if wall_seconds is None else f" of stage time in {wall_seconds:.0f} s wall"
+        lines = [f"{PREFIX} {len(self.seconds)} stage(s) ran in {total:.0f} s{wall}; slowest:"]
         for stage, seconds in sorted(self.seconds.items(), key=lambda kv: -kv[1])[:slowest]:
             lines.append(f"{PREFIX}   {seconds:7.1f} s  {stage}")
         lines.append(f"{PREFIX} by stage family:")
