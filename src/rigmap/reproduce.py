@@ -360,9 +360,9 @@ def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
     pending, edges, nodes = found
     alone = families_running_alone(plan.project / "dvc.yaml")
     stages = plan_stages(pending, edges, nodes, alone)
+    alone_note = f", {len(stages.alone)} of them alone" if stages.alone else ""
     print(
-        f"{PREFIX} {len(stages.order)} stage(s), up to {plan.jobs} at a time "
-        f"({len(stages.alone)} of them alone: {', '.join(sorted(alone)) or 'none'})",
+        f"{PREFIX} {len(stages.order)} stage(s), up to {plan.jobs} at a time{alone_note}",
         file=out,
         flush=True,
     )
