@@ -335,7 +335,10 @@ class RayWorkerPool:
                 submit(slot)
         except BaseException:
             for ref in in_flight:
-                ray.cancel(ref)
+                try:
+                    ray.cancel(ref)
+                except Exception:  # already finished, or its actor is gone
+                    pass
             raise
         return {key: np.concatenate([r[key] for r in results]) for key in results[0]}
 
