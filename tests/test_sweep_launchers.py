@@ -1,5 +1,5 @@
 """Sweeps: rigmap's Optuna sweeper (killed and resumed, one MLflow parent with a child per
-trial on PostgreSQL) and the submitit launcher run by submitit's local executor.
+trial on PostgreSQL), resumed through the submitit launcher with submitit's local executor.
 
 Trials are the real ``pipelines/tune.py`` trials of the quadruped's joint-space network,
 shrunk to a couple of seconds each.
@@ -48,7 +48,9 @@ def children(client, parent_id: str):
     )
 
 
-def test_optuna_sweep_killed_mid_trial_resumes_to_n_trials(pg_tracking_server, tmp_path):
+def test_optuna_sweep_killed_mid_trial_resumes_through_submitit(pg_tracking_server, tmp_path):
+    """Killed (SIGKILL) while trial 1 runs under the basic launcher; the same sweep resumed
+    with submitit's local executor, the two trials left running as two submitit jobs."""
     import optuna
     from mlflow import MlflowClient
 
@@ -66,8 +68,10 @@ def test_optuna_sweep_killed_mid_trial_resumes_to_n_trials(pg_tracking_server, t
             break
     sweep.wait(timeout=60)
     assert sweep.returncode == -signal.SIGKILL, "".join(seen)[-3000:]
-    resumed = subprocess.run(command, cwd=REPO, env=clean_env(), capture_output=True, text=True,
-                             timeout=600)  # fmt: skip
+    submitit = ["hydra/launcher=submitit_local", "hydra.sweeper.n_jobs=2",
+                "hydra.launcher.timeout_min=10"]  # fmt: skip
+    resumed = subprocess.run([*command, *submitit], cwd=REPO, env=clean_env(),
+                             capture_output=True, text=True, timeout=600)  # fmt: skip
     assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
     assert "was cut off by a kill: retried" in resumed.stdout + resumed.stderr
 
@@ -87,24 +91,9 @@ def test_optuna_sweep_killed_mid_trial_resumes_to_n_trials(pg_tracking_server, t
         t.value for t in study.trials if t.state.name == "COMPLETE"
     )
     assert (tmp_path / "sweep" / "optimization_results.yaml").is_file()
-
-
-def test_submitit_local_launcher_runs_the_trials_as_jobs(tmp_path):
-    import optuna
-
-    store = f"sqlite:///{tmp_path / 'mlruns.db'}"
-    done = subprocess.run(
-        tune_command(tmp_path, store, "hydra/launcher=submitit_local", "hydra.sweeper.n_trials=2",
-                     "hydra.sweeper.n_jobs=2", "hydra.launcher.timeout_min=10",
-                     "hydra.sweeper.study_name=submitit"),
-        cwd=REPO, env=clean_env(), capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    study = optuna.load_study(study_name="submitit", storage=f"sqlite:///{tmp_path / 'optuna.db'}")
-    assert [t.state.name for t in study.trials] == ["COMPLETE", "COMPLETE"]
+    # the resumed trials ran as submitit jobs, each with its own log
     job_logs = list((tmp_path / "sweep" / ".submitit").glob("*/*_log.out"))
-    assert len(job_logs) == 2  # each trial ran as a submitit job of its own
-    assert all("trial: joint error" in log.read_text() for log in job_logs)
+    assert len(job_logs) == 2 and all("trial: joint error" in p.read_text() for p in job_logs)
 
 
 def test_slurm_launcher_config_and_sweeper_space_compose():

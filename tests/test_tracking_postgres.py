@@ -74,9 +74,9 @@ def test_postgresql_not_running_is_a_clear_error():
         Tracker.open(uri)
 
 
-def test_tracking_config_takes_the_system_metrics_interval(tmp_path):
+def test_tracking_config_takes_the_system_metrics_interval(pg_tracking_server, tmp_path):
     tracker = Tracker.from_config(
-        {"uri": f"sqlite:///{tmp_path}/m.db", "system_metrics_interval_s": 2}, root=tmp_path
+        {"uri": pg_tracking_server.uri, "system_metrics_interval_s": 2}, root=tmp_path
     )
     assert tracker.system_metrics_interval_s == 2.0
     with pytest.raises(ValueError, match="unknown fields \\['system_metrics'\\]"):
