@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender reproduce push pull demo test lint format benchmark clean
+.PHONY: setup blender postgres tracking-server reproduce push pull demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -25,6 +25,17 @@ $(STAMP): pyproject.toml
 blender:
 	bash scripts/setup_blender_env.sh
 
+# PostgreSQL (initdb, pg_ctl) for the MLflow tracking server on a real database
+# (scripts/tracking_server.sh); installed from Debian's packages when missing (needs root).
+postgres:
+	@ls /usr/lib/postgresql/*/bin/pg_ctl >/dev/null 2>&1 || command -v pg_ctl >/dev/null 2>&1 \
+	  || { [ "$$(id -u)" = 0 ] && DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql; } \
+	  || { echo "PostgreSQL is missing: apt-get install postgresql (as root)" >&2; exit 1; }
+
+# MLflow on PostgreSQL on this machine (then: tracking=server, or MLFLOW_TRACKING_URI).
+tracking-server: setup postgres
+	bash scripts/tracking_server.sh start
+
 # The main job: the quick replication of the paper's tables (dvc repro; reports/index.html).
 # It needs both environments: the wolf's stages evaluate a Rigify rig in Blender workers.
 # --jobs 2: independent stages two at a time; the ones that time methods run alone.
@@ -34,9 +45,11 @@ reproduce: setup blender
 # Share outputs through the default DVC remote (.dvc/config: <clone>/../rigmap-dvc-remote):
 # `make push` after a run, `make pull` in another clone instead of recomputing.
 push: setup
+	$(BIN)/python -m rigmap.dvc_remote check push
 	PATH=$(BIN):$$PATH $(BIN)/dvc push
 
 pull: setup
+	$(BIN)/python -m rigmap.dvc_remote check pull
 	PATH=$(BIN):$$PATH $(BIN)/dvc pull
 
 # A first look without running the pipeline: describe and render the built-in rigs.
@@ -46,8 +59,9 @@ demo: setup
 	$(BIN)/rigmap rigs render quadruped --out reports/figures/rigs/quadruped.png
 	$(BIN)/rigmap rigs render biped --out reports/figures/rigs/biped.png
 
-# The Blender backend's tests need .venv-blender too: nothing is skipped for a missing env.
-test: setup blender
+# The Blender backend's tests need .venv-blender too, the tracking tests PostgreSQL:
+# nothing is skipped for a missing environment.
+test: setup blender postgres
 	$(BIN)/python -m pytest -q
 
 lint: setup

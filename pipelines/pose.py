@@ -19,7 +19,7 @@ from rigmap.stage.inputs import layout_of, rig_from_config
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> list[Path]:
-    rig = rig_from_config(cfg.rig)
+    rig = rig_from_config(cfg.rig, cfg.get("executor"))
     return pose_corpora(rig, layout_of(cfg), batch_size=int(cfg.pose.batch_size), progress=progress)
 
 

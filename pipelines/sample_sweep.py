@@ -26,7 +26,9 @@ __all__ = ["run", "sample_counts"]
 
 
 def run(cfg: DictConfig) -> list[Path]:
-    with rig_from_config(cfg.rig) as rig:  # a DCC rig's worker processes end with the sweep
+    with rig_from_config(
+        cfg.rig, cfg.get("executor")
+    ) as rig:  # a DCC rig's worker processes end with the sweep
         return sample_sweep(
             rig,
             layout_of(cfg),

@@ -28,7 +28,7 @@ from rigmap.stage.inputs import layout_of, rig_from_config, sampler_from_config,
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
-    rig = rig_from_config(cfg.rig)
+    rig = rig_from_config(cfg.rig, cfg.get("executor"))
     layout = layout_of(cfg)
     corpus = read_corpus_split(rig, layout, "train")
     started = time.perf_counter()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -123,3 +124,40 @@ def mlflow_server(tmp_path_factory):
                 continue
             break
         log.close()
+
+
+# ------------------------------------------------------- mlflow server on PostgreSQL (the script)
+@pytest.fixture(scope="session")
+def pg_tracking_server():
+    """``http://127.0.0.1:<port>`` of `scripts/tracking_server.sh start`: a fresh PostgreSQL
+    cluster and mlflow server on free ports, in a folder the `postgres` user can enter
+    (pytest's own temporary folders are private to root); stopped and removed at the end."""
+    import os
+    import shutil
+    import socket
+    import subprocess
+    import tempfile
+
+    def free_port() -> int:
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            return sock.getsockname()[1]
+
+    folder = tempfile.mkdtemp(prefix="rigmap-pg-")
+    os.chmod(folder, 0o755)
+    script = Path(__file__).resolve().parents[1] / "scripts" / "tracking_server.sh"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    env.update(RIGMAP_TRACKING_DIR=folder, RIGMAP_PG_PORT=str(free_port()),
+               RIGMAP_MLFLOW_PORT=str(free_port()))  # fmt: skip
+    started = subprocess.run(
+        ["bash", str(script), "start"], env=env, capture_output=True, text=True, timeout=300
+    )
+    try:
+        if started.returncode != 0:
+            raise RuntimeError(f"tracking_server.sh start failed: {started.stderr[-3000:]}")
+        uri = started.stdout.strip().splitlines()[-1].split("=", 1)[1]
+        backend = started.stdout.split("backend: ", 1)[1].split()[0]
+        yield SimpleNamespace(uri=uri, backend=backend, folder=Path(folder), env=env)
+    finally:
+        subprocess.run(["bash", str(script), "stop"], env=env, capture_output=True, timeout=120)
+        shutil.rmtree(folder, ignore_errors=True)

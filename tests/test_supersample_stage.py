@@ -134,7 +134,7 @@ class SlowRig:
         return self._rig.pose(Y)
 
 real = stage_inputs.rig_from_config
-stage_inputs.rig_from_config = lambda rig_cfg: SlowRig(real(rig_cfg))  # what the stage imports
+stage_inputs.rig_from_config = lambda *args: SlowRig(real(*args))  # what the stage imports
 sys.argv = [{stage!r}, *{overrides!r}]
 runpy.run_path({stage!r}, run_name="__main__")
 """

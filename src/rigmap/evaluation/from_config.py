@@ -34,6 +34,10 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
     catalog = method_catalog(config["method"])
     layout = Layout.from_paths(config["paths"])
     rig = rig_from_mapping(config["rig"])
+    if config.get("executor") is not None:
+        from rigmap.stage.inputs import use_executor
+
+        use_executor(rig, dict(config["executor"]))
     log = None
     if settings.log_to_mlflow:
         from rigmap.evaluation.mlflow_runs import EvaluationLog

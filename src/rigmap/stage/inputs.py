@@ -23,13 +23,32 @@ def layout_of(cfg: DictConfig) -> Layout:
     return Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
 
 
-def rig_from_config(rig_cfg: DictConfig):
-    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's)."""
+def rig_from_config(rig_cfg: DictConfig, executor: DictConfig | None = None):
+    """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's),
+    evaluated on the ``executor`` group's engine (``local`` or ``ray``)."""
     from rigmap.rigs import load
 
     options = OmegaConf.to_container(rig_cfg, resolve=True)
     options.pop("corpus", None)
-    return load(options)
+    rig = load(options)
+    if executor is not None:
+        use_executor(rig, OmegaConf.to_container(executor, resolve=True))
+    return rig
+
+
+def use_executor(rig, executor: dict | None):
+    """Switch a Blender rig to ``executor``; ``local`` suits every rig, ``ray`` Blender rigs."""
+    from rigmap.errors import RigmapError
+
+    kind = (executor or {}).get("kind", "local")
+    if hasattr(rig, "use_executor"):
+        rig.use_executor(executor)
+    elif kind != "local":
+        raise RigmapError(
+            f"executor={kind} evaluates Blender rigs (rigify_human, rigify_wolf, blend_file) on "
+            f"workers; rig {rig.name!r} is evaluated in this process: use executor=local"
+        )
+    return rig
 
 
 def corpus_fps(rig_cfg: DictConfig) -> int:

@@ -6,6 +6,7 @@
 stores a fitted mapping as a pyfunc model registered as ``rigmap-<rig>-<regressor>``.
 """
 
+from rigmap.tracking.champion import CHAMPION, champion_uri, promote_if_better
 from rigmap.tracking.keys import TrackingKeyError, flatten_config, method_metrics, safe_name
 from rigmap.tracking.pyfunc_model import (
     InverseMappingModel,
@@ -36,6 +37,7 @@ from rigmap.tracking.store import (
 )
 
 __all__ = [
+    "CHAMPION",
     "InverseMappingModel",
     "LoggedMapping",
     "MappingLoggingError",
@@ -48,6 +50,7 @@ __all__ = [
     "UntrustedModelError",
     "allow_mapping_class",
     "allowed_mapping_classes",
+    "champion_uri",
     "check_reachable",
     "default_tracking_uri",
     "experiment_name",
@@ -57,6 +60,7 @@ __all__ = [
     "log_inverse_mapping",
     "log_method_run",
     "method_metrics",
+    "promote_if_better",
     "registered_model_name",
     "resolve_tracking_uri",
     "safe_name",

@@ -32,6 +32,7 @@ from mlflow.utils.mlflow_tags import MLFLOW_PARENT_RUN_ID, MLFLOW_RUN_NAME
 
 from rigmap.evaluation.metrics import MethodResult, write_text_atomically
 from rigmap.tracking import artifacts
+from rigmap.tracking.champion import CHAMPION_METRIC, promote_if_better
 from rigmap.tracking.keys import (
     MAX_TAG_VALUE_LENGTH,
     flatten_config,
@@ -69,8 +70,10 @@ class Tracker:
         root: Path,
         experiment_prefix: str = EXPERIMENT_PREFIX,
         register_models: bool = True,
+        system_metrics_interval_s: float | None = None,
     ):
         self.uri = uri
+        self.system_metrics_interval_s = system_metrics_interval_s
         self.experiment_prefix = experiment_prefix
         self.register_models = register_models
         self.root = root
@@ -85,6 +88,7 @@ class Tracker:
         probe_timeout_s: float = DEFAULT_PROBE_TIMEOUT_S,
         experiment_prefix: str = EXPERIMENT_PREFIX,
         register_models: bool = True,
+        system_metrics_interval_s: float | None = None,
     ) -> Tracker:
         """Resolve the URI (argument > ``$MLFLOW_TRACKING_URI`` > local store) and check it."""
         project = Path(root).resolve() if root is not None else find_project_root()
@@ -97,26 +101,28 @@ class Tracker:
             root=project,
             experiment_prefix=experiment_prefix,
             register_models=register_models,
+            system_metrics_interval_s=system_metrics_interval_s,
         )
 
     @classmethod
     def from_config(cls, config: Mapping | None, *, root: str | os.PathLike | None = None):
         """From the Hydra ``tracking`` group (see conf/tracking/local.yaml for the fields)."""
         config = dict(config or {})
-        unknown = sorted(
-            set(config) - {"uri", "probe_timeout_s", "experiment_prefix", "register_models"}
-        )
+        known = {"uri", "probe_timeout_s", "experiment_prefix", "register_models",
+                 "system_metrics_interval_s"}  # fmt: skip
+        unknown = sorted(set(config) - known)
         if unknown:
             raise ValueError(
-                f"tracking config: unknown fields {unknown}; expected uri, probe_timeout_s, "
-                "experiment_prefix, register_models"
+                f"tracking config: unknown fields {unknown}; expected {', '.join(sorted(known))}"
             )
+        interval = config.get("system_metrics_interval_s")
         return cls.open(
             config.get("uri"),
             root=root,
             probe_timeout_s=float(config.get("probe_timeout_s", DEFAULT_PROBE_TIMEOUT_S)),
             experiment_prefix=str(config.get("experiment_prefix", EXPERIMENT_PREFIX)),
             register_models=bool(config.get("register_models", True)),
+            system_metrics_interval_s=None if interval is None else float(interval),
         )
 
     def experiment_id(self, rig: str) -> str:
@@ -156,8 +162,22 @@ class ParentRun:
     children: list[str] = field(default_factory=list)
 
     _previous_sigterm: Any = field(default=None, repr=False)
+    _monitor: Any = field(default=None, repr=False)
+
+    def start_system_metrics(self, interval_s: float) -> None:
+        """CPU, memory, disk and network as ``system/*`` metrics every ``interval_s`` (MLflow's
+        monitor, psutil), until the run ends."""
+        from mlflow.system_metrics.system_metrics_monitor import SystemMetricsMonitor
+
+        self._monitor = SystemMetricsMonitor(
+            self.run_id, sampling_interval=interval_s, tracking_uri=self.tracker.uri
+        )
+        self._monitor.start()
 
     def end(self, status: str = "FINISHED") -> None:
+        if self._monitor is not None:
+            self._monitor.finish()  # flushes the samples taken so far
+            self._monitor = None
         self.tracker.client.set_terminated(self.run_id, status=status)
 
     def __enter__(self) -> ParentRun:
@@ -202,6 +222,8 @@ def start_parent_run(
     )
     parent = ParentRun(tracker, rig, run.info.run_id, experiment)
     try:
+        if tracker.system_metrics_interval_s:
+            parent.start_system_metrics(tracker.system_metrics_interval_s)
         if config is not None:
             _log_params(tracker.client, parent.run_id, flatten_config(config))
     except BaseException:
@@ -298,6 +320,10 @@ def log_method_run(
                 code_paths=model.code_paths,
                 input_example=model.input_example,
             )
+            if logged.registered_name is not None and CHAMPION_METRIC in metrics:
+                promote_if_better(
+                    client, logged.registered_name, logged.version, metrics[CHAMPION_METRIC]
+                )
     except BaseException:
         client.set_terminated(run_id, status=RunStatus.to_string(RunStatus.FAILED))
         raise

@@ -124,6 +124,26 @@ def check_reachable(uri: str, timeout_s: float = DEFAULT_PROBE_TIMEOUT_S) -> Non
             _check_writable_folder(Path(path).parent, uri)
     elif scheme in ("", "file"):
         _check_writable_folder(Path(urlsplit(uri).path or uri), uri)
+    elif scheme.startswith("postgresql"):
+        _probe_database(uri, timeout_s)
+
+
+def _probe_database(uri: str, timeout_s: float) -> None:
+    """A PostgreSQL store (``postgresql+psycopg2://user@host:port/db``) must accept a TCP
+    connection within ``timeout_s``; the error names the address and how to start one."""
+    parts = urlsplit(uri)
+    host, port = parts.hostname or "127.0.0.1", parts.port or 5432
+    try:
+        with socket.create_connection((host, port), timeout=min(timeout_s, MAX_PROBE_TIMEOUT_S)):
+            pass
+    except OSError as error:
+        raise TrackingUnavailableError(
+            f"MLflow tracking store {parts.scheme}://{host}:{port}{parts.path} is unusable: "
+            f"PostgreSQL at {host}:{port} does not accept connections "
+            f"({_connection_failure(error, timeout_s)}). Start it with "
+            "`bash scripts/tracking_server.sh start` (PostgreSQL + mlflow server; then use "
+            "tracking=server), or leave tracking.uri null for the local store."
+        ) from None
 
 
 def _probe_server(uri: str, timeout_s: float) -> None:

@@ -124,6 +124,36 @@ def _control_table(controls: list[dict], used, soft_ranges, name: str) -> Contro
     )
 
 
+EXECUTORS = ("local", "ray")
+
+
+def executor_options(executor, name: str) -> dict:
+    """``{"kind": "local"|"ray", ...}`` from ``None``, a kind, or a mapping (``conf/executor``).
+
+    ``ray`` keys: ``address`` (null: ``RAY_ADDRESS`` or a new local head; ``auto``; host:port)
+    and ``actors`` (null: the rig's ``workers``, else one per core).
+    """
+    if executor is None:
+        return {"kind": "local"}
+    options = {"kind": executor} if isinstance(executor, str) else dict(executor)
+    kind = options.get("kind")
+    if kind not in EXECUTORS:
+        raise RigInputError(
+            f"rig {name!r}: executor kind must be one of {list(EXECUTORS)}, got {kind!r}"
+        )
+    known = {"kind"} | ({"address", "actors"} if kind == "ray" else set())
+    unknown = set(options) - known
+    if unknown:
+        raise RigInputError(
+            f"rig {name!r}: executor {kind!r} takes {sorted(known)}, not {sorted(unknown)}"
+        )
+    actors = options.get("actors")
+    if actors is not None and (isinstance(actors, bool) or not isinstance(actors, int)
+                               or actors < 1):  # fmt: skip
+        raise RigInputError(f"rig {name!r}: executor actors must be >= 1, got {actors!r}")
+    return options
+
+
 class BlenderRig(Rig):
     """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
 
@@ -156,6 +186,7 @@ class BlenderRig(Rig):
         pin_cpus: bool | str = "auto",
         blender: str | None = None,
         retarget: list[dict] | None = None,
+        executor: str | Mapping | None = None,
         description: str = "",
     ):
         path = Path(path).expanduser().resolve()
@@ -192,6 +223,7 @@ class BlenderRig(Rig):
         self.chunk_rows = int(chunk_rows)
         self.pin_cpus = pin_cpus
         self.retarget_mapping = list(retarget or [])
+        self.executor = executor_options(executor, name)
         self._pool: WorkerPool | None = None
 
         try:  # a rig that fails to build leaves no worker behind
@@ -226,8 +258,31 @@ class BlenderRig(Rig):
     def pool(self) -> WorkerPool:
         """The rig's workers, started on first use."""
         if self._pool is None:
-            self._pool = self.make_pool(self.session_options, workers=self.workers)
+            if self.executor["kind"] == "ray":
+                self._pool = self.make_ray_pool()
+            else:
+                self._pool = self.make_pool(self.session_options, workers=self.workers)
         return self._pool
+
+    def use_executor(self, executor) -> None:
+        """Evaluate on ``executor`` from now on (``conf/executor``); running workers are stopped."""
+        options = executor_options(executor, self.name)
+        if options != self.executor:
+            self.close()
+            self.executor = options
+
+    def make_ray_pool(self):
+        """The rig's evaluation workers as Ray actors, each holding the loaded .blend."""
+        from rigmap.rigs.blender.ray_pool import RayWorkerPool
+
+        return RayWorkerPool(
+            self._argv,
+            setup=[("load", {"options": self.session_options})],
+            actors=int(self.executor.get("actors") or self.workers or default_worker_count()),
+            address=self.executor.get("address"),
+            timeout=self.timeout,
+            log_dir=cache_dir() / "logs",
+        )
 
     def make_pool(self, session_options: dict, *, workers: int | None) -> WorkerPool:
         return WorkerPool(
