@@ -159,12 +159,17 @@ class Controller:
             )
         return self.fields[model].X[rows[frame]]
 
-    def _model_after_queue(self) -> str:
+    def model_after_queue(self) -> str:
+        """The model the next submitted command will run in: after the active command
+        and every queued one (a TRANSITION under way counts as done)."""
         model = self.model
-        for command in self.queue:
+        active = [self._entry.command] if self._entry is not None else []
+        for command in (*active, *self.queue):
             if isinstance(command, Transition):
                 model = command.model
         return model
+
+    _model_after_queue = model_after_queue
 
     def submit(self, command: Command) -> None:
         """Queue a command; names are checked now against the model it will run in."""
