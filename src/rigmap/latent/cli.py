@@ -58,7 +58,8 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         "frame: 20}`, `- idle: {frames: 48}`, `- transition: {model: roar}`, `- play: {take: "
         "roar 0}`) with the models of `rigmap synth fit` and `match`, 24 frames a second, "
         "and writes one row per frame (frame, one column per used control). Unknown models "
-        "or takes are errors naming them.",
+        "or takes are errors naming them. Example: rigmap synth run roar_after_idle rig=face "
+        "--out shot.parquet (overrides right after the script, options after them).",
     )  # fmt: skip
     run.add_argument("script", help="a script name (conf/latent/scripts/) or a .yaml path")
     run.add_argument("--out", type=Path, required=True, help="controls parquet to write")
@@ -71,7 +72,8 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         "between two seeded random players; each event (a move, a threat, a win, a loss, a "
         "draw) submits an emotion's commands (TRANSITION to it, PLAY one of its takes) to the "
         "real-time controller, which is stepped once per frame at 24 fps. Prints the events, "
-        "the frames and the controller's frames per second and p99 frame time.",
+        "the frames and the controller's frames per second and p99 frame time. Example: "
+        "rigmap synth demo rig=face --games 2 --out demo.parquet.",
     )  # fmt: skip
     demo.add_argument("--games", type=int, default=1, help="games to play (default 1)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the players and the particle")

@@ -381,7 +381,9 @@ class Controller:
         fps = self.settings.particle.fps
         field_m = self.fields[self.model]
         for k in range(len(X)):
-            v = (X[k] - X[k - 1]) * fps if k else np.zeros_like(X[0])
+            # at rest on the first and last frame (ours: takes start and end near rest, and
+            # a take's last velocity would carry the particle out of what follows' radius)
+            v = (X[k] - X[k - 1]) * fps if 0 < k < len(X) - 1 else np.zeros_like(X[0])
             self.particle.place(X[k], v)
             self.anchor = X[k].copy()
             yield field_m.controls(X[k])
