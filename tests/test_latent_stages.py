@@ -21,6 +21,7 @@ from rigmap.cli import main
 from rigmap.latent import runs
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.stage import run_step, step_metrics
+from rigmap.reports.latent_tables import latent_figures, latent_tables
 from rigmap.rigs import load
 from rigmap.store import Layout
 
@@ -140,9 +141,14 @@ def test_evaluate_writes_every_measurement_and_fig_2(project):
     assert repeats["runs"] == 2 and 0 < repeats["pairwise_rms_cm_min"] < 1.0
     assert (tmp / "reports/figures/latent_face.png").stat().st_size > 10_000
     metrics = step_metrics("evaluate", summary, 1.0)
-    assert (
-        metrics["heldout_surface_rms_cm.q2"] == summary["heldout_surface_rms_cm_by_latent_dim"]["2"]
-    )
+    by_dim = summary["heldout_surface_rms_cm_by_latent_dim"]
+    assert metrics["heldout_surface_rms_cm.q2"] == by_dim["2"]
+    # the report's tables and Fig 2, which say the metrics are rigmap's own
+    tables = {t.name: t for t in latent_tables(tmp / "metrics")}
+    assert len(tables) == 7 and all("rigmap's own" in t.notes[0] for t in tables.values())
+    assert [row[1] for row in tables["table_latent_suites"].rows] == list(suites["command"])
+    (figure,) = latent_figures(tmp / "reports/figures")
+    assert figure.path.name == "latent_face.png" and "connectivity prior" in figure.caption
 
 
 def test_synth_run_writes_controls_and_names_bad_commands(project, tmp_path, capsys):
