@@ -140,7 +140,9 @@ def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_pape
     assert paths(match.outs) == ["models/face/latent/match"]
     assert "models/face/latent/fit" in paths(match.deps)
     assert paths(synth.outs) == ["data/face/latent"]
-    assert {"models/face/latent/fit", "models/face/latent/match"} <= set(paths(evaluate.deps))
+    assert {"models/face/latent/fit", "models/face/latent/match", "data/face/latent"} <= set(
+        paths(evaluate.deps)
+    )  # the seed repeats are the synthesize stage's runs
     assert [o.def_path for o in evaluate.outs if o.metric] == ["metrics/face/latent/summary.json"]
     assert "reports/figures/latent_face.png" in paths(evaluate.outs)
     paper = yaml.safe_load(compose_params(ROOT / "conf", ["experiment=paper"]))["latent"]

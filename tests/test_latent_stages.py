@@ -104,14 +104,14 @@ def test_synthesize_plays_each_script_per_seed_into_controls_parquet(project):
     run_step(compose(tmp, "+latent_step=synthesize", f"latent.scripts=[{script}]"))
     folder = tmp / "data/face/latent"
     rig = load("face")
-    runs_ = [pd.read_parquet(folder / f"{script}-seed{s}.parquet") for s in (0, 1)]
+    runs_ = [pd.read_parquet(folder / f"two_labels-seed{s}.parquet") for s in (0, 1)]
     for table in runs_:
         assert list(table.columns) == ["frame", *rig.used_controls]
         assert len(table) > 12 + 24 and np.isfinite(table.to_numpy()).all()
     log = json.loads((folder / "log.json").read_text())
-    commands = [row["command"] for row in log[f"{script}-seed0"]]
+    commands = [row["command"] for row in log["two_labels-seed0"]]
     assert commands == ["MOVE", "IDLE", "TRANSITION", "PLAY"]
-    assert all(row["success"] for row in log[f"{script}-seed0"])
+    assert all(row["success"] for row in log["two_labels-seed0"])
     n = min(len(t) for t in runs_)
     differ = np.abs(runs_[0].to_numpy()[:n, 1:] - runs_[1].to_numpy()[:n, 1:]).max()
     assert 0 < differ < 1.0  # another seed's random force: a little different, same shot
@@ -137,7 +137,7 @@ def test_evaluate_writes_every_measurement_and_fig_2(project):
     assert suites["success_rate"].between(0, 1).all() and (suites["count"] == 2).all()
     smooth = pd.read_csv(folder / "smoothness.csv")
     assert len(smooth) == 1 and smooth["ours_peak_acc_rel_p95"].iloc[0] > 0
-    repeats = summary["seed_repeats"][str(script)]
+    repeats = summary["seed_repeats"]["two_labels"]
     assert repeats["runs"] == 2 and 0 < repeats["pairwise_rms_cm_min"] < 1.0
     assert (tmp / "reports/figures/latent_face.png").stat().st_size > 10_000
     metrics = step_metrics("evaluate", summary, 1.0)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import pickle
+import time
 from pathlib import Path
 
 import numpy as np
@@ -118,8 +119,6 @@ def load_table(layout: Layout, rig: str) -> TransitionTable:
 
 
 def run_match(config: dict, rig, layout: Layout) -> Path:
-    import time
-
     fitted = load_fitted(layout, rig.name)
     start = time.perf_counter()
     table = match_models(
@@ -171,6 +170,17 @@ def write_controls(path: Path, rig, P: np.ndarray, metadata: dict) -> Path:
     return write_table_file(path, table, CONTROLS_KEY, json_ready(metadata), what="controls")
 
 
+def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
+    """Used-control values ``(F, C)`` of one script's run by ``latent_synthesize``."""
+    from rigmap.store.table_file import read_table_file
+
+    path = layout.rig_data(rig.name) / LATENT / f"{Path(script).stem}-seed{seed}.parquet"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; run the latent_synthesize stage first")
+    table, _ = read_table_file(path, CONTROLS_KEY, what="controls")
+    return table[list(rig.used_controls)].to_numpy(np.float64)
+
+
 def log_rows(controller) -> list[dict]:
     return [
         {"command": type(e.command).__name__.upper(), "model": e.model, "start": e.start,
@@ -190,8 +200,8 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
                 blend_frames=int(config["blend_frames"]),
             )  # fmt: skip
             meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": config["fps"]}
-            write_controls(folder / f"{name}-seed{seed}.parquet", rig, P, meta)
-            log[f"{name}-seed{seed}"] = log_rows(controller)
+            write_controls(folder / f"{Path(name).stem}-seed{seed}.parquet", rig, P, meta)
+            log[f"{Path(name).stem}-seed{seed}"] = log_rows(controller)
     return write_json_atomic(folder / "log.json", json_ready(log))
 
 
@@ -219,8 +229,9 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
     sets, settings = fitted.sets, settings_of(config)
     P = np.vstack([s.values for s in sets.values()])
     P_test = np.vstack([heldout[label].values for label in labels])
-    tables = {
-        "pca": [
+    compare = settings_of(config, max_iter=int(ev.get("compare_max_iter") or config["max_iter"]))
+    jobs = {
+        "pca": lambda: [
             {
                 "model": label,
                 "model_pca_dims": int(model.pca.n_components_),
@@ -231,44 +242,33 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
             }
             for label, model in fitted.models.items()
         ],
-        "scaling": m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
-        "latent_dims": m.latent_dim_sweep(
-            rig,
-            sets,
-            heldout,
-            labels[: int(ev["sweep_labels"])],
-            ev["latent_dims"],
-            settings=settings,
-            fps=fps,
-            variance=variance,
+        "scaling": lambda: m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
+        "latent_dims": lambda: m.latent_dim_sweep(
+            rig, sets, heldout, labels[: int(ev["sweep_labels"])], ev["latent_dims"],
+            settings=settings, fps=fps, variance=variance,
         ),
-        "one_vs_per_label": m.one_against_per_label(
-            rig,
-            sets,
-            heldout,
-            labels[: int(ev["compare_labels"])],
-            ev["compare_dims"],
-            settings=settings,
-            fps=fps,
-            variance=variance,
+        "one_vs_per_label": lambda: m.one_against_per_label(
+            rig, sets, heldout, labels[: int(ev["compare_labels"])], ev["compare_dims"],
+            settings=compare, fps=fps, variance=variance,
         ),
-        "matching": m.matching_rows(table, labels),
-        "smoothness": m.transition_smoothness(
-            rig,
-            fitted,
-            table,
-            m.ordered_pairs(labels, int(ev["smoothness_pairs"])),
-            starts=int(ev["transition_starts"]),
-            seed=seed,
-            fps=fps,
+        "matching": lambda: m.matching_rows(table, labels),
+        "smoothness": lambda: m.transition_smoothness(
+            rig, fitted, table, m.ordered_pairs(labels, int(ev["smoothness_pairs"])),
+            starts=int(ev["transition_starts"]), seed=seed, fps=fps,
         ),
-        "suites": m.command_suites(fitted, table, n=int(ev["suite_commands"]), seed=seed),
-        "fit_time": [
+        "suites": lambda: m.command_suites(fitted, table, n=int(ev["suite_commands"]), seed=seed),
+        "fit_time": lambda: [
             {"model": label, "frames": sets[label].n_frames, "fit_s": fitted.fit_seconds[label]}
             for label in labels
         ],
-    }
-    return _summary(tables, pca_dims_all_labels=m.pca_dims(rig, P, fraction)), tables
+    }  # fmt: skip
+    tables, seconds = {}, {}
+    for name, job in jobs.items():
+        started = time.perf_counter()
+        tables[name] = job()
+        seconds[name] = time.perf_counter() - started
+    extra = {"pca_dims_all_labels": m.pca_dims(rig, P, fraction), "seconds": seconds}
+    return _summary(tables, **extra), tables
 
 
 def _summary(tables: dict, **extra) -> dict:
@@ -313,16 +313,11 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
     fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
     heldout = sets_of(config, rig, heldout=True)
     summary, tables = _measure(config, rig, fitted, table, heldout)
-    runs = []
-    for name in script_names(config, rig):
-        runs = [
-            play_script(fitted, table, script_path(name), seed=int(seed),
-                        blend_frames=int(config["blend_frames"]))[0]
-            for seed in config["seeds"]
-        ]  # fmt: skip
-        from rigmap.latent.measures import seed_spread
+    from rigmap.latent.measures import seed_spread
 
-        summary.setdefault("seed_repeats", {})[name] = seed_spread(rig, runs)
+    for name in script_names(config, rig):  # the synthesize stage's runs of each script
+        played = [read_controls(layout, rig, name, int(seed)) for seed in config["seeds"]]
+        summary.setdefault("seed_repeats", {})[Path(name).stem] = seed_spread(rig, played)
     folder = layout.metrics_folder(rig.name, LATENT)
     write_tables(folder, tables)
     from rigmap.latent.figures import draw_latent_spaces
