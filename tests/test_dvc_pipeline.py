@@ -104,6 +104,8 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "edit_fit": 1,
         "edit_apply": 1,
         "edit_evaluate": 1,
+        # latent synthesis (issue #18): four stages per rig of latent.rigs (quick: the face)
+        **{f"latent_{step}": len(params["latent"]["rigs"]) for step in LATENT_STEPS},
         "map_mocap": len(params["pipeline"]["map_rigs"]),
         "map_partial": 2,
         "animate_map": len(map_only),
@@ -115,8 +117,37 @@ def test_the_planned_work_per_stage_kind(stages, params):
     assert len(stages) == (
         28 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
+        + len(LATENT_STEPS) * len(params["latent"]["rigs"])
     )  # fmt: skip
     assert len(blender) == 1
+
+
+LATENT_STEPS = ("fit", "match", "synthesize", "evaluate")
+
+
+def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_paper(stages, params):
+    """latent_* (issue #18) run per rig of latent.rigs: the face, which is no sweep rig, in
+    experiment=quick; each reads the step before it and writes under the rig's folders."""
+    assert params["latent"]["rigs"] == ["face"]
+    assert "face" not in params["pipeline"]["sweep_rigs"]
+    fit, match = stages["latent_fit@face"], stages["latent_match@face"]
+    synth, evaluate = stages["latent_synthesize@face"], stages["latent_evaluate@face"]
+    for step, stage in zip(LATENT_STEPS, (fit, match, synth, evaluate), strict=True):
+        assert f"rig=face +latent_step={step}" in stage.cmd
+        assert {"pipelines/latent.py", "src/rigmap/latent", "conf/latent"} <= set(paths(stage.deps))
+    assert "latent.max_iter=100" in fit.cmd and "latent.size=quick" in fit.cmd
+    assert paths(fit.outs) == ["models/face/latent/fit"]
+    assert paths(match.outs) == ["models/face/latent/match"]
+    assert "models/face/latent/fit" in paths(match.deps)
+    assert paths(synth.outs) == ["data/face/latent"]
+    assert {"models/face/latent/fit", "models/face/latent/match", "data/face/latent"} <= set(
+        paths(evaluate.deps)
+    )  # the seed repeats are the synthesize stage's runs
+    assert [o.def_path for o in evaluate.outs if o.metric] == ["metrics/face/latent/summary.json"]
+    assert "reports/figures/latent_face.png" in paths(evaluate.outs)
+    paper = yaml.safe_load(compose_params(ROOT / "conf", ["experiment=paper"]))["latent"]
+    assert paper["rigs"] == ["face", "squirrel"]
+    assert paper["max_iter"] == 300 and paper["size"] == "paper"
 
 
 BLEND_FILE_STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
@@ -153,13 +184,13 @@ def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params)
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
     """Every rig of the sweep family: each sampler and kernel; the other built-in rigs get
-    their corpus and poses only (Table 3)."""
+    their corpus and poses only (Table 3), and the latent stages of latent.rigs (issue #18)."""
     assert set(params["pipeline"]["sweep_rigs"]) <= set(params["pipeline"]["rigs"])
     assert set(params["pipeline"]["table1_rigs"]) <= set(params["pipeline"]["sweep_rigs"])
     for rig in set(params["pipeline"]["rigs"]) - set(params["pipeline"]["sweep_rigs"]):
         assert f"pose@{rig}" in stages
         assert not [name for name in stages if name.endswith((f"@{rig}", f"@{rig}-gmm"))
-                    and not name.startswith(("animate@", "pose@"))]  # fmt: skip
+                    and not name.startswith(("animate@", "pose@", "latent_"))]  # fmt: skip
     for rig in params["pipeline"]["sweep_rigs"]:
         for sampler in available_samplers():
             supersample = stages[f"supersample@{rig}-{sampler}"]

@@ -44,6 +44,9 @@ def _parser() -> argparse.ArgumentParser:
                 _add_reproduce):  # fmt: skip
         add(commands)
     add_learn_command(commands, compose_config, find_config_dir)
+    from rigmap.latent.cli import add_synth_command
+
+    add_synth_command(commands, compose_config, find_config_dir)
     return parser
 
 

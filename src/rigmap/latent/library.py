@@ -168,3 +168,57 @@ def face_expression_sets(
         [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
         n_controls=len(rig.controls.used_indices),
     )
+
+
+#: the squirrel's labelled sets (ours): motions of its keyframed library, each played as
+#: seeded takes; "groom" ends in the head shake the paper plays as a segment (§5.3)
+SQUIRREL_LABELS: dict[str, str] = {
+    "look": "Look Around",
+    "nibble": "Nibble",
+    "groom": "Groom",
+    "stretch": "Stretch Up",
+    "tail": "Tail Flick",
+}
+LIBRARY_TAKES: dict[str, tuple[int, int]] = {"quick": (2, 1), "paper": (6, 2)}  # ours
+
+
+def library_sets(
+    rig, motions: Mapping[str, str], *, seed: int = 0, size: str = "quick", labels=None,
+    heldout: bool = False,
+) -> dict[str, LabelledSet]:  # fmt: skip
+    """Labelled sets from a rig's motion library: label → motion name, each played as
+    seeded takes ``"<label> <k>"`` (held out: seeds moved by the library's offset)."""
+    from rigmap.animation.library import HELDOUT_SEED_OFFSET, build_clip, motion_library
+
+    if size not in LIBRARY_TAKES:
+        raise LatentInputError(f"library size must be one of {list(LIBRARY_TAKES)}, got {size!r}")
+    chosen = list(motions) if labels is None else list(labels)
+    unknown = [label for label in chosen if label not in motions]
+    if unknown:
+        raise LatentInputError(f"{rig.name} has no labelled set {unknown}; labels: {list(motions)}")
+    library = motion_library(rig.name)
+    count = LIBRARY_TAKES[size][1 if heldout else 0]
+    used = rig.controls.used_indices
+    defaults = rig.controls.defaults[used]
+    takes = []
+    for label in chosen:
+        _, motion = library.find(motions[label])
+        for k in range(count):
+            take_seed = seed + k + (HELDOUT_SEED_OFFSET if heldout else 0)
+            clip = build_clip(rig.name, motion, seed=take_seed)
+            name = f"{label} {'heldout ' if heldout else ''}{k}"
+            takes.append(Take(label, name, clip.evaluate(rig.used_controls, defaults)))
+    return labelled_sets(takes, n_controls=len(used))
+
+
+def rig_sets(rig, *, seed: int = 0, size: str = "quick", labels=None, heldout: bool = False):
+    """The labelled sets of a built-in rig: the face's expressions or the squirrel's motions."""
+    if rig.name == "face":
+        return face_expression_sets(rig, seed=seed, size=size, labels=labels, heldout=heldout)
+    if rig.name == "squirrel":
+        return library_sets(
+            rig, SQUIRREL_LABELS, seed=seed, size=size, labels=labels, heldout=heldout
+        )
+    raise LatentInputError(
+        f"rig {rig.name!r} has no labelled sets for latent synthesis; rigs: face, squirrel"
+    )

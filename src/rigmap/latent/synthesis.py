@@ -159,12 +159,17 @@ class Controller:
             )
         return self.fields[model].X[rows[frame]]
 
-    def _model_after_queue(self) -> str:
+    def model_after_queue(self) -> str:
+        """The model the next submitted command will run in: after the active command
+        and every queued one (a TRANSITION under way counts as done)."""
         model = self.model
-        for command in self.queue:
+        active = [self._entry.command] if self._entry is not None else []
+        for command in (*active, *self.queue):
             if isinstance(command, Transition):
                 model = command.model
         return model
+
+    _model_after_queue = model_after_queue
 
     def submit(self, command: Command) -> None:
         """Queue a command; names are checked now against the model it will run in."""
@@ -376,7 +381,9 @@ class Controller:
         fps = self.settings.particle.fps
         field_m = self.fields[self.model]
         for k in range(len(X)):
-            v = (X[k] - X[k - 1]) * fps if k else np.zeros_like(X[0])
+            # at rest on the first and last frame (ours: takes start and end near rest, and
+            # a take's last velocity would carry the particle out of what follows' radius)
+            v = (X[k] - X[k - 1]) * fps if 0 < k < len(X) - 1 else np.zeros_like(X[0])
             self.particle.place(X[k], v)
             self.anchor = X[k].copy()
             yield field_m.controls(X[k])

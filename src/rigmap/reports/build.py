@@ -27,6 +27,7 @@ from rigmap.reports.figures import (
     time_figure,
 )
 from rigmap.reports.index_page import sample_grid_figures, write_index
+from rigmap.reports.latent_tables import latent_figures, latent_tables
 from rigmap.reports.mapping_tables import mocap_table, partial_table
 from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
 from rigmap.reports.rig_facts import rig_facts
@@ -119,6 +120,7 @@ def build_report(
         tables.append(splits)
     # the mapping stages' tables, when map_mocap and map_partial ran
     tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
+    tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
     written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
 
     figures_folder = reports_root / RESULT_FIGURES_FOLDER
@@ -143,6 +145,7 @@ def build_report(
         figures.append(sweep)
     _remove_stale_figures(figures_folder, {f.path.resolve() for f in figures})
     grids, grid_notes = sample_grid_figures(reports_root / "figures", settings.sampler_rigs)
+    grids += latent_figures(reports_root / "figures")  # the latent stages' Fig 2
     notes += grid_notes
 
     index = write_index(

@@ -1,0 +1,25 @@
+"""DVC stages ``latent_fit``, ``latent_match``, ``latent_synthesize``, ``latent_evaluate``:
+latent synthesis (Bailey, Watt & O'Brien 2016; seed 003), one rig a run.
+
+One script for the four steps of :mod:`rigmap.latent.runs`, chosen by ``+latent_step``;
+settings in ``conf/latent/default.yaml`` (``latent.*``), and with ``latent.log_to_mlflow``
+a parent MLflow run per step in the rig's experiment:
+
+    python pipelines/latent.py rig=face +latent_step=fit latent.max_iter=100
+    python pipelines/latent.py rig=face +latent_step=evaluate
+"""
+
+from __future__ import annotations
+
+from omegaconf import DictConfig
+
+from rigmap.latent.stage import run_step
+from rigmap.stage import run_stage
+
+
+def run(cfg: DictConfig):
+    return run_step(cfg)
+
+
+if __name__ == "__main__":
+    run_stage(run)

@@ -1,0 +1,330 @@
+"""What the four latent stages do, from a plain config dict, a rig and a :class:`Layout`.
+
+- :func:`run_fit` (``latent_fit``): the rig's labelled sets, one scaling → PCA → GPLVM
+  model per label → ``models/<rig>/latent/fit/models.pkl`` and ``fit.json``;
+- :func:`run_match` (``latent_match``): matching points of every model pair (§5.2) →
+  ``models/<rig>/latent/match/transitions.pkl`` and ``match.json``;
+- :func:`run_synthesize` (``latent_synthesize``): every command script of the rig played
+  by the controller once per seed → ``data/<rig>/latent/<script>-seed<k>.parquet``
+  (frame, one column per used control) and ``log.json`` (each command's frames, success);
+- :func:`run_evaluate` (``latent_evaluate``): the measurements of
+  :mod:`rigmap.latent.measures` → ``metrics/<rig>/latent/summary.json`` and one CSV per
+  table, and Fig 2 → ``reports/figures/latent_<rig>.png``.
+
+The ``.pkl`` files are pickles written and read only by these stages (and ``rigmap
+synth``), in the DVC cache: load them only from a checkout you trust.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import pickle
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from rigmap.latent.errors import LatentInputError
+from rigmap.latent.gplvm import GPLVMSettings
+from rigmap.latent.library import FittedModels, fit_models, rig_sets
+from rigmap.latent.scripts import read_script
+from rigmap.latent.synthesis import Controller, SynthesisSettings
+from rigmap.latent.transitions import TransitionTable, match_models
+from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store.table_file import write_table_file
+
+LATENT = "latent"
+SCRIPTS_DIR = Path(__file__).resolve().parents[3] / "conf" / "latent" / "scripts"
+CONTROLS_KEY = b"rigmap.latent_controls"
+
+
+def settings_of(config: dict, **changes) -> GPLVMSettings:
+    values = {
+        "latent_dim": int(config["latent_dim"]),
+        "max_iter": int(config["max_iter"]),
+        "connectivity": bool(config["connectivity"]),
+        "seed": int(config.get("seed", 0)),
+    }
+    return GPLVMSettings(**{**values, **changes})
+
+
+def n_pca_of(config: dict) -> int | None:
+    n = config.get("n_pca")
+    return None if n is None else int(n)
+
+
+def fit_folder(layout: Layout, rig: str) -> Path:
+    return layout.rig_models(rig) / LATENT / "fit"
+
+
+def match_folder(layout: Layout, rig: str) -> Path:
+    return layout.rig_models(rig) / LATENT / "match"
+
+
+def _dump(path: Path, value) -> None:
+    with atomic_file(path, suffix=".pkl") as temporary:
+        with open(temporary, "wb") as f:
+            pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _load(path: Path, kind: type, stage: str):
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; run the {stage} stage first")
+    with open(path, "rb") as f:
+        value = pickle.load(f)
+    if not isinstance(value, kind):
+        raise LatentInputError(f"{path} holds a {type(value).__name__}, not {kind.__name__}")
+    return value
+
+
+def sets_of(config: dict, rig, *, heldout: bool = False):
+    return rig_sets(
+        rig, seed=int(config.get("seed", 0)), size=str(config["size"]),
+        labels=config.get("labels"), heldout=heldout,
+    )  # fmt: skip
+
+
+def run_fit(config: dict, rig, layout: Layout) -> Path:
+    sets = sets_of(config, rig)
+    fitted = fit_models(
+        rig, sets, fps=float(config["fps"]), settings=settings_of(config),
+        variance=float(config["variance"]), n_pca=n_pca_of(config),
+    )  # fmt: skip
+    folder = fit_folder(layout, rig.name)
+    _dump(folder / "models.pkl", fitted)
+    info = {
+        label: {
+            "frames": sets[label].n_frames,
+            "takes": sets[label].names,
+            "pca_dims": int(m.pca.n_components_),
+            "latent_dim": int(m.gplvm.settings.latent_dim),
+            "fit_s": fitted.fit_seconds[label],
+            "lbfgs_iterations": m.gplvm.iterations,
+            "objective_start": m.gplvm.history[0],
+            "objective_end": m.gplvm.history[-1],
+        }
+        for label, m in fitted.models.items()
+    }
+    return write_json_atomic(folder / "fit.json", json_ready(info))
+
+
+def load_fitted(layout: Layout, rig: str) -> FittedModels:
+    return _load(fit_folder(layout, rig) / "models.pkl", FittedModels, "latent_fit")
+
+
+def load_table(layout: Layout, rig: str) -> TransitionTable:
+    return _load(match_folder(layout, rig) / "transitions.pkl", TransitionTable, "latent_match")
+
+
+def run_match(config: dict, rig, layout: Layout) -> Path:
+    fitted = load_fitted(layout, rig.name)
+    start = time.perf_counter()
+    table = match_models(
+        rig, fitted.models, threshold_cm=float(config["match_threshold_cm"]),
+        max_iter=int(config["match_max_iter"]),
+    )  # fmt: skip
+    seconds = time.perf_counter() - start
+    folder = match_folder(layout, rig.name)
+    _dump(folder / "transitions.pkl", table)
+    from rigmap.latent.measures import matching_rows
+
+    info = {"threshold_cm": table.threshold_cm, "seconds": seconds,
+            "pairs": matching_rows(table, list(fitted.models))}  # fmt: skip
+    return write_json_atomic(folder / "match.json", json_ready(info))
+
+
+def script_names(config: dict, rig) -> list[str]:
+    key = "scripts" if rig.name == "face" else f"{rig.name}_scripts"
+    if key not in config:
+        raise LatentInputError(f"latent.{key}: no command scripts configured for {rig.name!r}")
+    return list(config[key])
+
+
+def script_path(name: str) -> Path:
+    path = Path(name)
+    if path.suffix in (".yaml", ".yml"):
+        return path
+    path = SCRIPTS_DIR / f"{name}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in SCRIPTS_DIR.glob("*.yaml"))
+        raise LatentInputError(f"no command script {name!r}; scripts: {known} or a .yaml path")
+    return path
+
+
+def play_script(fitted, table, path, *, seed: int, blend_frames: int = 12):
+    """``(controls (F, C), controller)`` of one command script played to its end."""
+    start, commands = read_script(path)
+    start = start or next(iter(fitted.models))
+    controller = Controller(
+        fitted.models, start=start, takes=fitted.sets, transitions=table, seed=seed,
+        settings=SynthesisSettings(blend_frames=blend_frames),
+    )  # fmt: skip
+    return controller.run(commands), controller
+
+
+def write_controls(path: Path, rig, P: np.ndarray, metadata: dict) -> Path:
+    table = pd.DataFrame(np.asarray(P), columns=list(rig.used_controls))
+    table.insert(0, "frame", np.arange(len(P)))
+    return write_table_file(path, table, CONTROLS_KEY, json_ready(metadata), what="controls")
+
+
+def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
+    """Used-control values ``(F, C)`` of one script's run by ``latent_synthesize``."""
+    from rigmap.store.table_file import read_table_file
+
+    path = layout.rig_data(rig.name) / LATENT / f"{Path(script).stem}-seed{seed}.parquet"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; run the latent_synthesize stage first")
+    table, _ = read_table_file(path, CONTROLS_KEY, what="controls")
+    return table[list(rig.used_controls)].to_numpy(np.float64)
+
+
+def log_rows(controller) -> list[dict]:
+    return [
+        {"command": type(e.command).__name__.upper(), "model": e.model, "start": e.start,
+         "frames": e.frames, "success": bool(e.success)}
+        for e in controller.log
+    ]  # fmt: skip
+
+
+def run_synthesize(config: dict, rig, layout: Layout) -> Path:
+    fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
+    folder = layout.rig_data(rig.name) / LATENT
+    log = {}
+    for name in script_names(config, rig):
+        for seed in config["seeds"]:
+            P, controller = play_script(
+                fitted, table, script_path(name), seed=int(seed),
+                blend_frames=int(config["blend_frames"]),
+            )  # fmt: skip
+            meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": config["fps"]}
+            write_controls(folder / f"{Path(name).stem}-seed{seed}.parquet", rig, P, meta)
+            log[f"{Path(name).stem}-seed{seed}"] = log_rows(controller)
+    return write_json_atomic(folder / "log.json", json_ready(log))
+
+
+def csv_text(rows: list[dict]) -> str:
+    out = io.StringIO()
+    if rows:
+        writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(json_ready(rows))
+    return out.getvalue()
+
+
+def write_tables(folder: Path, tables: dict[str, list[dict]]) -> None:
+    for name, rows in tables.items():
+        write_text_atomic(folder / f"{name}.csv", csv_text(rows))
+
+
+def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
+    """Every measurement: ``(summary, tables)``."""
+    from rigmap.latent import measures as m
+
+    ev, fps, fraction = config["evaluate"], float(config["fps"]), float(config["variance"])
+    variance = (fraction, n_pca_of(config))
+    labels, seed = list(fitted.models), int(config.get("seed", 0))
+    sets, settings = fitted.sets, settings_of(config)
+    P = np.vstack([s.values for s in sets.values()])
+    P_test = np.vstack([heldout[label].values for label in labels])
+    compare = settings_of(config, max_iter=int(ev.get("compare_max_iter") or config["max_iter"]))
+    jobs = {
+        "pca": lambda: [
+            {
+                "model": label,
+                "model_pca_dims": int(model.pca.n_components_),
+                **{
+                    f"{k}_at_{fraction:g}": v
+                    for k, v in m.pca_dims(rig, sets[label].values, fraction).items()
+                },
+            }
+            for label, model in fitted.models.items()
+        ],
+        "scaling": lambda: m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
+        "latent_dims": lambda: m.latent_dim_sweep(
+            rig, sets, heldout, labels[: int(ev["sweep_labels"])], ev["latent_dims"],
+            settings=settings, fps=fps, variance=variance,
+        ),
+        "one_vs_per_label": lambda: m.one_against_per_label(
+            rig, sets, heldout, labels[: int(ev["compare_labels"])], ev["compare_dims"],
+            settings=compare, fps=fps, variance=variance,
+        ),
+        "matching": lambda: m.matching_rows(table, labels),
+        "smoothness": lambda: m.transition_smoothness(
+            rig, fitted, table, m.ordered_pairs(labels, int(ev["smoothness_pairs"])),
+            starts=int(ev["transition_starts"]), seed=seed, fps=fps,
+        ),
+        "suites": lambda: m.command_suites(fitted, table, n=int(ev["suite_commands"]), seed=seed),
+        "fit_time": lambda: [
+            {"model": label, "frames": sets[label].n_frames, "fit_s": fitted.fit_seconds[label]}
+            for label in labels
+        ],
+    }  # fmt: skip
+    tables, seconds = {}, {}
+    for name, job in jobs.items():
+        started = time.perf_counter()
+        tables[name] = job()
+        seconds[name] = time.perf_counter() - started
+    extra = {"pca_dims_all_labels": m.pca_dims(rig, P, fraction), "seconds": seconds}
+    return _summary(tables, **extra), tables
+
+
+def _summary(tables: dict, **extra) -> dict:
+    def column(name, key):
+        return [row[key] for row in tables[name] if row.get(key) is not None]
+
+    def median(name, key):
+        values = column(name, key)
+        return float(np.median(values)) if values else None
+
+    sweep: dict[int, list[float]] = {}
+    for row in tables["latent_dims"]:
+        sweep.setdefault(row["latent_dim"], []).append(row["surface_rms_cm"])
+    points = column("matching", "points")
+    return {
+        "metrics_are_rigmaps_own": True,
+        "pca_dims_at_85": {
+            r["model"]: r["scaled_at_0.85"] for r in tables["pca"] if "scaled_at_0.85" in r
+        },
+        "model_pca_dims": {r["model"]: r["model_pca_dims"] for r in tables["pca"]},
+        **extra,
+        "heldout_surface_rms_cm_by_latent_dim": {q: float(np.mean(v)) for q, v in sweep.items()},
+        "matching_points": {
+            "min": min(points),
+            "median": float(np.median(points)),
+            "max": max(points),
+            "pairs_without": points.count(0),
+        },
+        "matching_spread_latent_median": median("matching", "spread_latent"),
+        "matching_distance_cm_median": median("matching", "distance_cm_median"),
+        "smoothness": {
+            key: median("smoothness", key) for key in tables["smoothness"][0] if key != "pair"
+        },
+        "suites": {
+            r["command"]: {"success_rate": r["success_rate"], "frames_median": r["frames_median"]}
+            for r in tables["suites"]
+        },
+    }
+
+
+def run_evaluate(config: dict, rig, layout: Layout) -> Path:
+    fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
+    heldout = sets_of(config, rig, heldout=True)
+    summary, tables = _measure(config, rig, fitted, table, heldout)
+    from rigmap.latent.measures import seed_spread
+
+    for name in script_names(config, rig):  # the synthesize stage's runs of each script
+        played = [read_controls(layout, rig, name, int(seed)) for seed in config["seeds"]]
+        summary.setdefault("seed_repeats", {})[Path(name).stem] = seed_spread(rig, played)
+    folder = layout.metrics_folder(rig.name, LATENT)
+    write_tables(folder, tables)
+    from rigmap.latent.figures import draw_latent_spaces
+
+    draw_latent_spaces(
+        rig, fitted, settings_of(config, connectivity=False), float(config["fps"]),
+        (float(config["variance"]), n_pca_of(config)), layout.figures() / f"latent_{rig.name}.png",
+        labels=list(fitted.models)[: int(config["evaluate"].get("figure_labels", 2))],
+    )  # fmt: skip
+    return write_json_atomic(folder / "summary.json", json_ready(summary))

@@ -1,0 +1,101 @@
+"""One latent stage from a composed config: the step, the rig, the layout, MLflow.
+
+``run_step(cfg)`` is what ``pipelines/latent.py`` and ``rigmap synth fit|match`` call:
+``cfg.latent_step`` (fit, match, synthesize, evaluate) picks the function of
+:mod:`rigmap.latent.runs`; with ``latent.log_to_mlflow`` the step is a parent run
+``latent-<step>`` in the rig's experiment (:mod:`rigmap.tracking`) with the latent
+config as params, the step's numbers as metrics and its JSON as an artifact.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from rigmap.latent import runs
+from rigmap.latent.errors import LatentInputError
+
+STEPS = ("fit", "match", "synthesize", "evaluate")
+
+
+def step_of(cfg) -> str:
+    step = cfg.get("latent_step")
+    if step not in STEPS:
+        raise LatentInputError(f"+latent_step: expected one of {STEPS}, got {step!r}")
+    return str(step)
+
+
+def latent_config(cfg) -> dict:
+    if "latent" not in cfg:
+        raise LatentInputError("no latent config: conf/latent/default.yaml is not composed")
+    config = OmegaConf.to_container(cfg.latent, resolve=True)
+    config["seed"] = int(cfg.get("seed", 0))
+    return config
+
+
+def run_step(cfg) -> Path:
+    from rigmap.stage.inputs import layout_of, rig_from_config
+
+    step = step_of(cfg)
+    config = latent_config(cfg)
+    layout = layout_of(cfg)
+    rig = rig_from_config(cfg.rig)
+    started = time.perf_counter()
+    path = getattr(runs, f"run_{step}")(config, rig, layout)
+    seconds = time.perf_counter() - started
+    print(f"latent_{step} ({rig.name}): {path} in {seconds:.1f} s", flush=True)
+    if config.get("log_to_mlflow", False):
+        log_step(cfg, rig.name, step, config, path, seconds)
+    return path
+
+
+def step_metrics(step: str, record: dict, seconds: float) -> dict[str, float]:
+    """The numbers a step's MLflow run shows (flat, finite)."""
+    metrics = {"seconds": seconds}
+    if step == "fit":
+        for label, info in record.items():
+            metrics[f"{label}.pca_dims"] = info["pca_dims"]
+            metrics[f"{label}.fit_s"] = info["fit_s"]
+            metrics[f"{label}.objective_end"] = info["objective_end"]
+    elif step == "match":
+        for row in record["pairs"]:
+            metrics[f"points.{row['pair']}"] = row["points"]
+    elif step == "synthesize":
+        for run, rows in record.items():
+            metrics[f"{run}.frames"] = sum(r["frames"] for r in rows)
+            metrics[f"{run}.success_rate"] = sum(r["success"] for r in rows) / max(1, len(rows))
+    else:
+        for q, value in record["heldout_surface_rms_cm_by_latent_dim"].items():
+            metrics[f"heldout_surface_rms_cm.q{q}"] = value
+        for key, value in record["smoothness"].items():
+            metrics[f"smoothness.{key}"] = value
+        for kind, row in record["suites"].items():
+            metrics[f"suite.{kind}.success_rate"] = row["success_rate"]
+        metrics["matching_points_median"] = record["matching_points"]["median"]
+    return {k: float(v) for k, v in metrics.items() if v is not None}
+
+
+def log_step(cfg, rig: str, step: str, config: dict, path: Path, seconds: float) -> str:
+    from mlflow.entities import Metric
+
+    from rigmap.tracking import Tracker, start_parent_run
+    from rigmap.tracking.keys import safe_name
+
+    tracker = Tracker.from_config(OmegaConf.to_container(cfg.tracking, resolve=True))
+    record = json.loads(Path(path).read_text())
+    with start_parent_run(
+        tracker, rig, name=f"latent-{step}", config={"latent": config},
+        tags={"stage": f"latent_{step}", "kind": "latent"},
+    ) as parent:  # fmt: skip
+        now = int(time.time() * 1000)
+        metrics = [
+            Metric(safe_name(k), v, now, 0) for k, v in step_metrics(step, record, seconds).items()
+        ]
+        for start in range(0, len(metrics), 1000):
+            tracker.client.log_batch(parent.run_id, metrics=metrics[start : start + 1000])
+        tracker.client.log_artifact(parent.run_id, str(path))
+    print(f"MLflow: {tracker.uri}, run {parent.run_id}", flush=True)
+    return parent.run_id
