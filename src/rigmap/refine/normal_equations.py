@@ -29,7 +29,7 @@ import torch
 from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
 from rigmap.torch_threads import one_thread
 
-SOLVERS = ("cholesky", "svd")
+SOLVERS = ("cholesky", "block_cholesky", "svd")
 
 #: fixed-point solves are used while they contract at least this fast (ours)
 REUSE_CONTRACTION = 0.05
@@ -56,6 +56,10 @@ def damped_solver(J: np.ndarray, damping: Damping, solver: str = "cholesky"):
         return CholeskyStep(J, damping)
     if solver == "svd":
         return SVDStep(J, damping)
+    if solver == "block_cholesky":
+        from rigmap.refine.block_cholesky import BlockCholeskyStep
+
+        return BlockCholeskyStep(J, damping)
     raise ValueError(f"refine solver: expected one of {SOLVERS}, got {solver!r}")
 
 
