@@ -73,7 +73,7 @@ class BlockCholeskyStep:
 
     def _factorise(self, J: np.ndarray, damping, pattern) -> None:
         self.J = torch.as_tensor(np.asarray(J, dtype=np.float64))
-        n_frames, n_rows, n_columns = self.J.shape
+        n_frames, _, n_columns = self.J.shape
         self.n_columns = n_columns
         if pattern is None:
             pattern = (self.J != 0).any(dim=0).numpy()
