@@ -231,3 +231,28 @@ def test_predicted_jacobian_is_factorised_once(problem):
     result = problem.refine(damping="auto", source=source)
     assert calls == [FRAMES] and result.iterations.max() >= 2
     assert result.rig_evaluations == FRAMES + int(result.iterations.sum())
+
+
+def test_replayed_traces_give_the_eager_positions(problem):
+    """Padded to a trace size (and split at the largest): the same positions, in order."""
+    rig = problem.rig
+    rng = np.random.default_rng(1)
+    used = rig.controls.used_indices
+    Y = np.repeat(rig.controls.defaults[None], 37, axis=0)
+    Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (37, len(used)))
+    eager = rig.evaluate(Y)
+    with rig.replaying_traces():
+        replayed = rig.evaluate(Y)
+        one = rig.evaluate(Y[5])
+    np.testing.assert_allclose(replayed, eager, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(one, eager[5], rtol=0, atol=1e-9)
+    assert not rig._replay  # the context restores eager evaluation
+
+
+def test_traced_block_refinement_is_the_eager_one(problem):
+    source = ComputedJacobian(problem.rig, differences="forward", sparsity="coloured")
+    eager = problem.refine(damping="auto", solver="block_cholesky", source=source)
+    traced = problem.refine(damping="auto", solver="block_cholesky", source=source, traced=True)
+    np.testing.assert_allclose(traced.Y_used, eager.Y_used, rtol=0, atol=1e-9)
+    assert traced.rig_evaluations == eager.rig_evaluations
+    assert traced.joint_error.mean() < 0.05 * traced.initial_joint_error.mean()
