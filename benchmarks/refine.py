@@ -67,6 +67,13 @@ VARIANTS = {
         "sparsity": "coloured",
         "share_every": 4,
     },
+    "block": {"solver": "block_cholesky", "differences": "forward", "sparsity": "coloured"},
+    "fast": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "traced": True,
+    },
 }
 
 

@@ -161,7 +161,13 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
     assert tuned.method.regressor == "nn_joint_space" and tuned.tune["steps"] == 80
     computed = catalog["gpr_computed_jacobian"]
     assert computed.refine == RefineSettings(
-        damping=0.3, tolerance=1e-4, max_iterations=4, differences="forward", sparsity="coloured"
+        damping=0.3,
+        tolerance=1e-4,
+        max_iterations=4,
+        differences="forward",
+        sparsity="coloured",
+        solver="block_cholesky",
+        traced=True,
     )
     assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
     assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"

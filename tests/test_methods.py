@@ -211,6 +211,7 @@ def test_refinement_lowers_the_joint_error_of_its_initial_guess(face_runs, refin
         "jacobian_update": "recompute",
         "sparsity": "dense",
         "threads": 1,
+        "traced": False,
     }
     assert extra["initial_joint_error"]["average"] == pytest.approx(guess_result.joint_error)
 

@@ -22,8 +22,10 @@ from rigmap.refine import (
     damped_least_squares,
     damped_solver,
     jacobian,
+    rig_colouring,
     smallest_singular_value,
 )
+from rigmap.refine.block_cholesky import block_structure
 from rigmap.refine.jacobian_reuse import anchor_frames, broyden_update
 
 FRAMES = 4
@@ -87,14 +89,51 @@ def test_cholesky_step_is_the_svd_step(problem, damping):
     )
 
 
-def test_batched_refinement_gives_the_per_frame_result(problem):
+@pytest.mark.parametrize("damping", [Damping(0.3), Damping(None, 1.0, 1.0), Damping(0.0)])
+def test_block_cholesky_step_is_the_svd_step(problem, damping):
+    """The compact block solver (coloured Jacobian: exact zeros outside the pattern) = SVD."""
+    colouring = rig_colouring(problem.rig)
+    Y = problem.rig.expand_used(problem.start)
+    J = jacobian(problem.rig, Y, differences="forward", colouring=colouring) * problem.std
+    blocks, coupling = block_structure((J != 0).any(axis=0))
+    assert len(blocks) >= 2 and len(coupling) < J.shape[2] // 3  # a real block structure
+    covered = np.concatenate([c for _, c in blocks] + [coupling])
+    assert len(covered) == len(set(covered.tolist()))  # every column in one place at most
+    residual = (problem.target - problem.rig.evaluate(Y)).reshape(FRAMES, -1)
+    exact = damped_solver(J, damping, "svd")
+    block = damped_solver(J, damping, "block_cholesky")
+    np.testing.assert_allclose(block.damping, exact.damping, rtol=1e-6)
+    step = exact.solve(residual)
+    assert np.abs(step).max() > 0.1
+    np.testing.assert_allclose(block.solve(residual), step, atol=1e-6 * np.abs(step).max())
+    rows = np.array([2, 0])
+    np.testing.assert_allclose(
+        block.solve(residual[rows], rows), step[rows], atol=1e-6 * np.abs(step).max()
+    )
+
+
+def test_block_structure_splits_disjoint_columns_and_couples_wide_ones():
+    pattern = np.zeros((10, 6), dtype=bool)
+    pattern[0:3, 0] = pattern[1:4, 1] = True  # one block (rows shared)
+    pattern[5:8, 2] = True  # another
+    pattern[:, 3] = True  # touches every row: coupling
+    # column 4 is zero everywhere, column 5 touches row 9 alone
+    pattern[9, 5] = True
+    blocks, coupling = block_structure(pattern)
+    assert coupling.tolist() == [3]
+    found = sorted((r.tolist(), c.tolist()) for r, c in blocks)
+    assert found == [([0, 1, 2, 3], [0, 1]), ([5, 6, 7], [2]), ([9], [5])]
+
+
+@pytest.mark.parametrize("solver", ["cholesky", "block_cholesky"])
+def test_batched_refinement_gives_the_per_frame_result(problem, solver):
     """Whole batch (Cholesky) = each frame alone (SVD, the original solver), to 1e-6.
 
     The Jacobian is the rig's exact one (autodiff): a finite difference divides the
     rig's rounding by its 1e-6 step, and a batch of another size rounds differently in
     the last bits on some CPUs (measured: 3e-6 apart after 3 iterations on the biped)."""
-    exact = ComputedJacobian(problem.rig, method="autodiff")
-    batched = problem.refine(damping=0.3, solver="cholesky", source=exact)
+    exact = ComputedJacobian(problem.rig, method="autodiff", sparsity="coloured")
+    batched = problem.refine(damping=0.3, solver=solver, source=exact)
     for frame in range(FRAMES):
         alone = problem.refine(
             damping=0.3,
@@ -110,9 +149,10 @@ def test_batched_refinement_gives_the_per_frame_result(problem):
     assert batched.joint_error.mean() < 0.05 * batched.initial_joint_error.mean()
 
 
-def test_automatic_refinement_matches_the_svd_one(problem):
+@pytest.mark.parametrize("solver", ["cholesky", "block_cholesky"])
+def test_automatic_refinement_matches_the_svd_one(problem, solver):
     exact = problem.refine(damping="auto", solver="svd")
-    cheap = problem.refine(damping="auto", solver="cholesky")
+    cheap = problem.refine(damping="auto", solver=solver)
     np.testing.assert_allclose(cheap.Y_used, exact.Y_used, atol=1e-2)  # training stds
     np.testing.assert_allclose(cheap.joint_error, exact.joint_error, rtol=0.05, atol=1e-6)
     assert exact.rig_evaluations == cheap.rig_evaluations
@@ -191,3 +231,28 @@ def test_predicted_jacobian_is_factorised_once(problem):
     result = problem.refine(damping="auto", source=source)
     assert calls == [FRAMES] and result.iterations.max() >= 2
     assert result.rig_evaluations == FRAMES + int(result.iterations.sum())
+
+
+def test_replayed_traces_give_the_eager_positions(problem):
+    """Padded to a trace size (and split at the largest): the same positions, in order."""
+    rig = problem.rig
+    rng = np.random.default_rng(1)
+    used = rig.controls.used_indices
+    Y = np.repeat(rig.controls.defaults[None], 37, axis=0)
+    Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (37, len(used)))
+    eager = rig.evaluate(Y)
+    with rig.replaying_traces():
+        replayed = rig.evaluate(Y)
+        one = rig.evaluate(Y[5])
+    np.testing.assert_allclose(replayed, eager, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(one, eager[5], rtol=0, atol=1e-9)
+    assert not rig._replay  # the context restores eager evaluation
+
+
+def test_traced_block_refinement_is_the_eager_one(problem):
+    source = ComputedJacobian(problem.rig, differences="forward", sparsity="coloured")
+    eager = problem.refine(damping="auto", solver="block_cholesky", source=source)
+    traced = problem.refine(damping="auto", solver="block_cholesky", source=source, traced=True)
+    np.testing.assert_allclose(traced.Y_used, eager.Y_used, rtol=0, atol=1e-9)
+    assert traced.rig_evaluations == eager.rig_evaluations
+    assert traced.joint_error.mean() < 0.05 * traced.initial_joint_error.mean()

@@ -160,7 +160,8 @@ class RefineSettings:
     computed Jacobian is reused (``rigmap.refine.jacobian_reuse``, issue #16);
     ``sparsity`` (dense | coloured) whether it differences structurally
     independent controls together (``rigmap.refine.sparsity``); ``threads`` the
-    torch threads refinement runs on (``None``: torch's own setting).
+    torch threads refinement runs on (``None``: torch's own setting); ``traced``
+    whether a built-in rig is evaluated by its TorchScript traces (issue #16).
     """
 
     damping: float | str = "auto"
@@ -174,6 +175,7 @@ class RefineSettings:
     jacobian_update: str = "recompute"
     sparsity: str = "dense"
     threads: int | None = 1
+    traced: bool = False
 
     def __post_init__(self) -> None:
         number = isinstance(self.damping, int | float) and np.isfinite(self.damping)
@@ -189,10 +191,11 @@ class RefineSettings:
             raise EvaluationSetupError(
                 f"refine.max_iterations: expected an integer >= 0, got {self.max_iterations!r}"
             )
-        if not isinstance(self.keep_in_range, bool):
-            raise EvaluationSetupError(
-                f"refine.keep_in_range: expected true or false, got {self.keep_in_range!r}"
-            )
+        for flag in ("keep_in_range", "traced"):
+            if not isinstance(getattr(self, flag), bool):
+                raise EvaluationSetupError(
+                    f"refine.{flag}: expected true or false, got {getattr(self, flag)!r}"
+                )
         if self.threads is not None and not (isinstance(self.threads, int) and self.threads >= 1):
             raise EvaluationSetupError(
                 f"refine.threads: expected an integer >= 1 or null, got {self.threads!r}"
@@ -258,6 +261,7 @@ class RefineSettings:
             jacobian_update=str(config.get("jacobian_update", cls.jacobian_update)),
             sparsity=str(config.get("sparsity", cls.sparsity)),
             threads=config.get("threads", cls.threads),
+            traced=config.get("traced", cls.traced),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -273,6 +277,7 @@ class RefineSettings:
             "jacobian_update": self.jacobian_update,
             "sparsity": self.sparsity,
             "threads": self.threads,
+            "traced": self.traced,
         }
 
 
@@ -644,6 +649,7 @@ class _Retargeter:
             solver=self.refine.solver,
             reuse=self.refine.reuse(),
             threads=self.refine.threads,
+            traced=self.refine.traced,
         )
         return refined.Y_used, refined
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import torch
@@ -12,6 +14,10 @@ from rigmap.rigs.engine.builder import EvalContext, RigBuilder, batched_locals
 
 # Large batches are evaluated in chunks so memory stays bounded (~100 MB a chunk).
 DEFAULT_CHUNK = 16_384
+#: batch sizes traced for :meth:`TorchRig.replaying_traces` (ours): a batch is padded to the
+#: next one, so at most about half a batch is wasted, and a few traces (about 1 s each to
+#: build) serve every batch; 1 720 is the 40 poses of a coloured quadruped Jacobian chunk
+TRACE_SIZES = (16, 32, 64, 128, 256, 512, 1024, 1760, 2048)
 
 
 class TorchRig(Rig):
@@ -35,11 +41,30 @@ class TorchRig(Rig):
         self._steps = [batched_locals(builder.transform_controls), *builder.steps]
         self._cog = builder.cog
         self._chunk = chunk
+        self._replay = 0  # > 0 while numpy batches go through TorchScript traces
+
+    @contextmanager
+    def replaying_traces(self) -> Iterator[None]:
+        """Numpy batches evaluated by this rig's TorchScript traces while the block runs.
+
+        Each batch is padded with default poses to the next of ``TRACE_SIZES`` (split
+        at the largest) and replayed by :meth:`traced_pose`, about twice as fast as the
+        eager pass (quadruped, one thread: 75 poses 34 against 77 ms, 1 752 poses 200
+        against 460; equal to the last bit). A trace is built once per size and dtype
+        (about 1 s). Torch inputs (autodiff) still run eagerly.
+        """
+        self._replay += 1
+        try:
+            yield
+        finally:
+            self._replay -= 1
 
     def _pose(self, Y) -> Pose:
         if _is_torch(Y):
             return self._pose_torch(Y)
         dtype = torch.float32 if Y.dtype == np.float32 else torch.float64
+        if self._replay:
+            return self._pose_replayed(Y, dtype)
         with torch.no_grad():
             parts = [
                 self._pose_torch(
@@ -48,6 +73,21 @@ class TorchRig(Rig):
                 for i in range(0, max(len(Y), 1), self._chunk)
             ]
         return Pose(*(np.concatenate([p[k].numpy() for p in parts]) for k in range(3)))
+
+    def _pose_replayed(self, Y: np.ndarray, dtype: torch.dtype) -> Pose:
+        parts = []
+        largest = TRACE_SIZES[-1]
+        with torch.no_grad():
+            for start in range(0, max(len(Y), 1), largest):
+                chunk = Y[start : start + largest]
+                n = len(chunk)
+                size = next(s for s in TRACE_SIZES if s >= n)
+                padded = np.empty((size, Y.shape[1]), dtype=np.float64)
+                padded[:n] = chunk
+                padded[n:] = self.controls.defaults
+                out = self.traced_pose(size, dtype)(torch.from_numpy(padded).to(dtype))
+                parts.append([o[:n].numpy() for o in out])
+        return Pose(*(np.concatenate([p[k] for p in parts]) for k in range(3)))
 
     def _pose_torch(self, Y: torch.Tensor) -> Pose:
         ctx = EvalContext(Y)
