@@ -22,6 +22,7 @@ MLFLOW="${RIGMAP_MLFLOW:-$REPO/.venv/bin/mlflow}"
 DB=mlflow
 DB_USER=rigmap
 START_TIMEOUT_S="${RIGMAP_TRACKING_START_TIMEOUT_S:-120}"
+STOP_GRACE_S="${RIGMAP_TRACKING_STOP_GRACE_S:-10}"  # SIGTERM to SIGKILL of mlflow server
 
 die() { echo "tracking_server.sh: $*" >&2; exit 1; }
 
@@ -118,12 +119,12 @@ stop() {
   if mlflow_running; then
     local pid; pid="$(cat "$DIR/mlflow.pid")"
     kill -TERM -- "-$pid" 2>/dev/null || kill -TERM "$pid" 2>/dev/null || true
-    for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.2; done
+    for _ in $(seq $((STOP_GRACE_S * 5))); do kill -0 "$pid" 2>/dev/null || break; sleep 0.2; done
     kill -KILL -- "-$pid" 2>/dev/null || true
   fi
   rm -f "$DIR/mlflow.pid"
   if BIN="$(pg_bindir)" && [ -f "$DIR/pgdata/PG_VERSION" ] && pg_running; then
-    as_owner "$BIN/pg_ctl" -D "$DIR/pgdata" -m fast -w stop >/dev/null
+    as_owner "$BIN/pg_ctl" -D "$DIR/pgdata" -m fast -w stop >/dev/null || true
   fi
   echo "stopped"
 }

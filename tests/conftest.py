@@ -148,7 +148,8 @@ def pg_tracking_server():
     script = Path(__file__).resolve().parents[1] / "scripts" / "tracking_server.sh"
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
     env.update(RIGMAP_TRACKING_DIR=folder, RIGMAP_PG_PORT=str(free_port()),
-               RIGMAP_MLFLOW_PORT=str(free_port()))  # fmt: skip
+               RIGMAP_MLFLOW_PORT=str(free_port()),
+               RIGMAP_TRACKING_STOP_GRACE_S="2")  # fmt: skip
     started = subprocess.run(
         ["bash", str(script), "start"], env=env, capture_output=True, text=True, timeout=300
     )
