@@ -99,13 +99,20 @@ def _fit(rig, entry: LabelledSet, settings: GPLVMSettings, fps: float, variance)
     return model, time.perf_counter() - start
 
 
-def latent_dim_sweep(rig, sets, heldout, labels, dims, *, settings, fps, variance) -> list[dict]:
-    """Per label and latent dimension ``q``: held-out reconstruction error and fit time."""
+def latent_dim_sweep(
+    rig, sets, heldout, labels, dims, *, settings, fps, variance, fitted=None
+) -> list[dict]:
+    """Per label and latent dimension ``q``: held-out reconstruction error and fit time.
+    ``fitted`` (a :class:`~rigmap.latent.library.FittedModels` made with ``settings``)
+    stands in for the fit at ``settings.latent_dim``."""
     rows = []
     for label in labels:
         for q in dims:
             s = GPLVMSettings(**{**settings.__dict__, "latent_dim": int(q)})
-            model, seconds = _fit(rig, sets[label], s, fps, variance)
+            if fitted is not None and s == settings and label in fitted.models:
+                model, seconds = fitted.models[label], fitted.fit_seconds[label]
+            else:
+                model, seconds = _fit(rig, sets[label], s, fps, variance)
             rows.append(
                 {"label": label, "latent_dim": int(q), "frames": sets[label].n_frames,
                  "pca_dims": int(model.pca.n_components_), "fit_s": seconds,

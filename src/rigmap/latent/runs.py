@@ -245,7 +245,7 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
         "scaling": lambda: m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
         "latent_dims": lambda: m.latent_dim_sweep(
             rig, sets, heldout, labels[: int(ev["sweep_labels"])], ev["latent_dims"],
-            settings=settings, fps=fps, variance=variance,
+            settings=settings, fps=fps, variance=variance, fitted=fitted,
         ),
         "one_vs_per_label": lambda: m.one_against_per_label(
             rig, sets, heldout, labels[: int(ev["compare_labels"])], ev["compare_dims"],
