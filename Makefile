@@ -29,7 +29,8 @@ blender:
 # (scripts/tracking_server.sh); installed from Debian's packages when missing (needs root).
 postgres:
 	@ls /usr/lib/postgresql/*/bin/pg_ctl >/dev/null 2>&1 || command -v pg_ctl >/dev/null 2>&1 \
-	  || { [ "$$(id -u)" = 0 ] && DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql; } \
+	  || { [ "$$(id -u)" = 0 ] && export DEBIAN_FRONTEND=noninteractive \
+	       && { apt-get install -y -q postgresql || { apt-get update -q && apt-get install -y -q postgresql; }; }; } \
 	  || { echo "PostgreSQL is missing: apt-get install postgresql (as root)" >&2; exit 1; }
 
 # MLflow on PostgreSQL on this machine (then: tracking=server, or MLFLOW_TRACKING_URI).
