@@ -211,3 +211,31 @@ def test_synth_help_names_the_verbs(capsys):
     with pytest.raises(SystemExit):
         main(["synth", "run", "--help"])
     assert "command script" in capsys.readouterr().out
+
+
+def test_the_evaluate_run_in_mlflow_carries_every_steps_numbers(project, tmp_path):
+    """latent.mlflow_steps=[evaluate] (quick): one run with fit, match and synthesize too."""
+    from mlflow import MlflowClient
+
+    from rigmap.latent.stage import latent_config, log_step
+
+    tmp, script = project
+    summary = tmp / "metrics/face/latent/summary.json"
+    if not summary.is_file():  # run alone: the steps before it first
+        for step in ("synthesize", "evaluate"):
+            run_step(compose(tmp, f"+latent_step={step}", f"latent.scripts=[{script}]"))
+    uri = f"sqlite:///{tmp_path / 'mlruns.db'}"
+    cfg = compose(tmp, "latent.log_to_mlflow=true", f"tracking.uri={uri}")
+    run_id = log_step(cfg, "face", "evaluate", latent_config(cfg), summary, 2.5, layout=layout(tmp))
+    run = MlflowClient(uri).get_run(run_id)
+    assert run.data.tags["stage"] == "latent_evaluate" and run.info.run_name == "latent-evaluate"
+    metrics = run.data.metrics
+    record = json.loads(summary.read_text())
+    assert metrics["seconds"] == 2.5
+    assert (
+        metrics["heldout_surface_rms_cm.q1"] == record["heldout_surface_rms_cm_by_latent_dim"]["1"]
+    )
+    assert metrics["fit.happy.pca_dims"] == 4 and metrics["match.points.happy-neutral"] > 0
+    assert "synthesize.two_labels-seed0.frames" in metrics and "fit.seconds" not in metrics
+    files = {f.path for f in MlflowClient(uri).list_artifacts(run_id, "fit")}
+    assert files == {"fit/fit.json"}

@@ -130,6 +130,18 @@ def project(tmp_path_factory):
         else _tiny_png(root),
         root / "reports" / "figures" / "samples_quadruped.png",
     )
+    # what latent_evaluate would leave for the face (#18): two of its tables and Fig 2
+    latent = metrics / "face" / "latent"
+    latent.mkdir(parents=True)
+    (latent / "suites.csv").write_text(
+        "command,count,success_rate,frames_median,frames_max\nMOVE,6,0.5,56.5,130\n"
+        "PLAY,6,1.0,108.5,122\n"
+    )
+    (latent / "matching.csv").write_text(
+        "pair,points,candidates,spread_latent,distance_cm_median,distance_cm_max\n"
+        "happy-roar,0,300,0.0,,\n"
+    )
+    shutil.copy(_tiny_png(root), root / "reports" / "figures" / "latent_face.png")
     files = build_report(
         metrics_root=metrics, data_root=data, reports_root=root / "reports", settings=SETTINGS
     )
@@ -335,6 +347,17 @@ def test_index_links_resolve_and_shows_tables_and_figures(project):
     assert "samples sweep" in text or "supersamples" in text  # the skipped-figure note
     assert "Supersample grids (Fig. 4) not found for Face" in text
     assert "<script" not in text
+    # latent synthesis (#18): its tables when latent_evaluate ran, said to be rigmap's own
+    for name in ("table_latent_suites", "table_latent_matching"):
+        assert f'id="{name}"' in text and f"tables/{name}.csv" in parser.links
+    assert "table_latent_smoothness" not in text  # its CSV is absent: no table
+    assert "rigmap&#x27;s own" in text or "rigmap's own" in text
+    assert "figures/latent_face.png" in images
+    suites = _csv(project, "table_latent_suites")
+    assert suites["command"].tolist() == ["MOVE", "PLAY"] and suites["success_rate"][0] == 0.5
+    assert set(suites["rig"]) == {"face"}
+    matching = project["files"].tables["table_latent_matching"]["md"].read_text()
+    assert "happy-roar" in matching and "—" in matching  # no pair found: no distance
 
 
 def test_sweep_metrics_are_read_and_drawn(project, tmp_path):

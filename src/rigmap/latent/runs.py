@@ -118,11 +118,17 @@ def load_table(layout: Layout, rig: str) -> TransitionTable:
     return _load(match_folder(layout, rig) / "transitions.pkl", TransitionTable, "latent_match")
 
 
+def match_threshold(config: dict, rig) -> float:
+    """``latent.<rig>_match_threshold_cm`` if set (a rig measured on joints, not a mesh,
+    needs its own), else ``latent.match_threshold_cm``."""
+    return float(config.get(f"{rig.name}_match_threshold_cm") or config["match_threshold_cm"])
+
+
 def run_match(config: dict, rig, layout: Layout) -> Path:
     fitted = load_fitted(layout, rig.name)
     start = time.perf_counter()
     table = match_models(
-        rig, fitted.models, threshold_cm=float(config["match_threshold_cm"]),
+        rig, fitted.models, threshold_cm=match_threshold(config, rig),
         max_iter=int(config["match_max_iter"]),
     )  # fmt: skip
     seconds = time.perf_counter() - start

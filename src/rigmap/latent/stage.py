@@ -47,8 +47,8 @@ def run_step(cfg) -> Path:
     path = getattr(runs, f"run_{step}")(config, rig, layout)
     seconds = time.perf_counter() - started
     print(f"latent_{step} ({rig.name}): {path} in {seconds:.1f} s", flush=True)
-    if config.get("log_to_mlflow", False):
-        log_step(cfg, rig.name, step, config, path, seconds)
+    if config.get("log_to_mlflow", False) and step in config.get("mlflow_steps", STEPS):
+        log_step(cfg, rig.name, step, config, path, seconds, layout=layout)
     return path
 
 
@@ -78,24 +78,45 @@ def step_metrics(step: str, record: dict, seconds: float) -> dict[str, float]:
     return {k: float(v) for k, v in metrics.items() if v is not None}
 
 
-def log_step(cfg, rig: str, step: str, config: dict, path: Path, seconds: float) -> str:
+def earlier_records(config: dict, rig: str, step: str, layout) -> dict[str, Path]:
+    """The JSON records of the steps before ``step`` that log no run of their own
+    (``latent.mlflow_steps``), so the run that is logged carries them too."""
+    own = set(config.get("mlflow_steps", STEPS))
+    paths = {
+        "fit": runs.fit_folder(layout, rig) / "fit.json",
+        "match": runs.match_folder(layout, rig) / "match.json",
+        "synthesize": layout.rig_data(rig) / runs.LATENT / "log.json",
+    }
+    before = STEPS[: STEPS.index(step)]
+    return {s: paths[s] for s in before if s not in own and paths[s].is_file()}
+
+
+def log_step(cfg, rig: str, step: str, config: dict, path: Path, seconds: float, *, layout=None):
+    """The step's parent run ``latent-<step>`` (metrics of earlier unlogged steps
+    prefixed with their step's name, their JSON beside the step's own)."""
     from mlflow.entities import Metric
 
     from rigmap.tracking import Tracker, start_parent_run
     from rigmap.tracking.keys import safe_name
 
     tracker = Tracker.from_config(OmegaConf.to_container(cfg.tracking, resolve=True))
-    record = json.loads(Path(path).read_text())
+    records = {step: Path(path)}
+    if layout is not None:
+        records.update(earlier_records(config, rig, step, layout))
+    values: dict[str, float] = {}
+    for name, file in records.items():
+        numbers = step_metrics(name, json.loads(file.read_text()), seconds if name == step else 0)
+        prefix = "" if name == step else f"{name}."
+        values.update({prefix + k: v for k, v in numbers.items() if name == step or k != "seconds"})
     with start_parent_run(
         tracker, rig, name=f"latent-{step}", config={"latent": config},
         tags={"stage": f"latent_{step}", "kind": "latent"},
     ) as parent:  # fmt: skip
         now = int(time.time() * 1000)
-        metrics = [
-            Metric(safe_name(k), v, now, 0) for k, v in step_metrics(step, record, seconds).items()
-        ]
+        metrics = [Metric(safe_name(k), v, now, 0) for k, v in values.items()]
         for start in range(0, len(metrics), 1000):
             tracker.client.log_batch(parent.run_id, metrics=metrics[start : start + 1000])
-        tracker.client.log_artifact(parent.run_id, str(path))
+        for name, file in records.items():
+            tracker.client.log_artifact(parent.run_id, str(file), artifact_path=name)
     print(f"MLflow: {tracker.uri}, run {parent.run_id}", flush=True)
     return parent.run_id
