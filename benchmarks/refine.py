@@ -15,7 +15,12 @@ timing, warm-up and rig counting) in the same process, once per variant:
   structurally independent controls perturbed in one rig evaluation,
   ``rigmap.refine.sparsity`` — and one torch thread);
 - ``reuse`` (computed Jacobians only): ``new`` with Jacobians on every 4th frame
-  shared with the neighbours, a frame's own recomputed when its error stops falling.
+  shared with the neighbours, a frame's own recomputed when its error stops falling;
+- ``block``: ``new`` with the step solved on the compact Jacobian's blocks
+  (``solver: block_cholesky``, ``rigmap.refine.block_cholesky``; the conf/refine default
+  since issue #16);
+- ``fast``: ``block`` with the built-in rig evaluated by its TorchScript traces
+  (``traced: true``).
 
 The variants alternate ``--repeats`` times and the fastest run of each is kept
 (the machine may be shared: every number carries the 1-minute load average
@@ -59,6 +64,7 @@ METHODS = (
 VARIANTS = {
     "old": {"solver": "svd", "threads": None},
     "today": {"solver": "cholesky", "differences": "forward", "threads": None},
+    # "new" below is main's conf/refine defaults before block_cholesky (issue #16)
     "today_one_thread": {"solver": "cholesky", "differences": "forward", "threads": 1},
     "new": {"solver": "cholesky", "differences": "forward", "sparsity": "coloured"},
     "reuse": {

@@ -167,7 +167,6 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
         differences="forward",
         sparsity="coloured",
         solver="block_cholesky",
-        traced=True,
     )
     assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
     assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"

@@ -155,7 +155,7 @@ class RefineSettings:
     deviations of the controls (λ in cm per std), ``"none"`` in each control's
     own unit (λ in cm per unit, the literal Eq. 13); ``keep_in_range`` keeps
     refined controls inside their soft ranges (see rigmap.refine, issue #7).
-    ``solver`` (cholesky | svd), ``differences`` (central | forward),
+    ``solver`` (block_cholesky | cholesky | svd), ``differences`` (central | forward),
     ``share_every`` and ``jacobian_update`` choose how the step is solved and how a
     computed Jacobian is reused (``rigmap.refine.jacobian_reuse``, issue #16);
     ``sparsity`` (dense | coloured) whether it differences structurally

@@ -1,5 +1,6 @@
 """Refinement of predicted controls: rig Jacobians and damped least squares (§4.3)."""
 
+from rigmap.refine.block_cholesky import BlockCholeskyStep, block_structure
 from rigmap.refine.damped_least_squares import RefineResult, damped_least_squares
 from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
 from rigmap.refine.jacobian import DIFFERENCES, JACOBIAN_METHODS, jacobian
@@ -18,6 +19,7 @@ __all__ = [
     "JACOBIAN_METHODS",
     "SOLVERS",
     "SPARSITIES",
+    "BlockCholeskyStep",
     "ColumnColouring",
     "ComputedJacobian",
     "Damping",
@@ -25,6 +27,7 @@ __all__ = [
     "JacobianSource",
     "PredictedJacobian",
     "RefineResult",
+    "block_structure",
     "chiaverini_damping",
     "damped_least_squares",
     "damped_solver",

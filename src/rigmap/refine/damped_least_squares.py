@@ -30,8 +30,10 @@ All frames of a clip are refined as one batch: residuals, Jacobians and
 steps for every frame still moving go through the rig and the solver
 together, and each frame leaves the batch when it reaches the tolerance.
 The step is solved by normal equations and a batched Cholesky factorisation
-(``solver="cholesky"``, ``rigmap.refine.normal_equations``) — factorised once
-per frame for a learned Jacobian, which stays fixed — or by each frame's SVD
+(``solver="cholesky"``, ``rigmap.refine.normal_equations``), or on the
+compact Jacobian's per-limb blocks (``solver="block_cholesky"``,
+``rigmap.refine.block_cholesky``) — factorised once per frame for a learned
+Jacobian, which stays fixed — or by each frame's SVD
 (``solver="svd"``, exact λ, the original implementation). A computed Jacobian
 can be reused across frames and iterations (``rigmap.refine.jacobian_reuse``).
 """
@@ -92,7 +94,7 @@ def damped_least_squares(
     ``[lower, upper]`` (or where it started, if the guess was already outside).
     A frame stops when its mean squared joint error is below ``tolerance``
     (units²). The best iterate seen per frame is returned, so a diverging step
-    never makes a frame worse. ``solver`` is ``"cholesky"`` or ``"svd"``;
+    never makes a frame worse. ``solver`` is ``"cholesky"``, ``"block_cholesky"`` or ``"svd"``;
     ``reuse`` says how a computed Jacobian is reused (default: recomputed for
     every frame at every iteration). ``threads`` torch threads run the whole
     refinement, rig evaluations included (``None``: torch's own setting): on this
