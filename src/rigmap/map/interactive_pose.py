@@ -34,7 +34,8 @@ from rigmap.map.partial import SubsetMapping
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine.jacobian import jacobian
 from rigmap.refine.jacobian_reuse import broyden_update
-from rigmap.refine.normal_equations import Damping, damped_solver
+from rigmap.refine.normal_equations import Damping
+from rigmap.refine.solvers import damped_solver
 from rigmap.rigs.base import RigInputError
 from rigmap.torch_threads import one_thread
 

@@ -5,7 +5,8 @@ from rigmap.refine.damped_least_squares import RefineResult, damped_least_square
 from rigmap.refine.damping import chiaverini_damping, smallest_singular_value
 from rigmap.refine.jacobian import DIFFERENCES, JACOBIAN_METHODS, jacobian
 from rigmap.refine.jacobian_reuse import JacobianReuse
-from rigmap.refine.normal_equations import SOLVERS, Damping, damped_solver
+from rigmap.refine.normal_equations import SOLVERS, Damping
+from rigmap.refine.solvers import damped_solver
 from rigmap.refine.sources import (
     SPARSITIES,
     ComputedJacobian,

@@ -46,7 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rigmap.refine.jacobian_reuse import JacobianReuse, anchor_frames, broyden_update
-from rigmap.refine.normal_equations import SOLVERS, Damping, damped_solver
+from rigmap.refine.normal_equations import SOLVERS, Damping
+from rigmap.refine.solvers import damped_solver
 from rigmap.refine.sources import JacobianSource
 from rigmap.rigs.base import Rig, RigInputError, check_positions
 from rigmap.torch_threads import torch_threads

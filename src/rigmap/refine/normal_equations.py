@@ -50,26 +50,6 @@ class Damping:
         return self.value is None
 
 
-def damped_solver(
-    J: np.ndarray, damping: Damping, solver: str = "cholesky", scale: np.ndarray | None = None
-):
-    """A solver for the frames of ``J`` ``(F, R, C)``: ``.solve(residual (F, R)) -> (F, C)``.
-
-    ``scale`` ``(C,)`` (optional) multiplies ``J``'s columns first: ``J·diag(scale)``.
-    """
-    if scale is not None and solver != "block_cholesky":
-        J = J * scale
-    if solver == "cholesky":
-        return CholeskyStep(J, damping)
-    if solver == "svd":
-        return SVDStep(J, damping)
-    if solver == "block_cholesky":
-        from rigmap.refine.block_cholesky import BlockCholeskyStep
-
-        return BlockCholeskyStep(J, damping, scale)
-    raise ValueError(f"refine solver: expected one of {SOLVERS}, got {solver!r}")
-
-
 class SVDStep:
     """Eq. 13 from each frame's SVD (exact σ_min for the automatic λ)."""
 
