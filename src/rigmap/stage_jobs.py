@@ -134,16 +134,7 @@ def run_side_by_side(
         return len(running) < jobs
 
     def start(stage: str) -> None:
-        process = subprocess.Popen(
-            list(command_for(stage)),
-            cwd=cwd,
-            env=dict(env),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-        )
-        reader = threading.Thread(target=_relay, args=(process, stage, say), daemon=True)
-        reader.start()
-        running[stage] = _Running(process, reader, time.perf_counter())
+        running[stage] = _launch(command_for(stage), cwd, env, stage, say)
         started.append(stage)
         side = f", beside {', '.join(s for s in running if s != stage)}" if len(running) > 1 else ""
         say(f"{prefix} stage {len(started)}/{total} started: {stage}{side}")
@@ -157,13 +148,7 @@ def run_side_by_side(
             if not running:
                 break
             time.sleep(0.2)
-            for stage, entry in list(running.items()):
-                code = entry.process.poll()
-                if code is None:
-                    continue
-                entry.reader.join()
-                seconds = time.perf_counter() - entry.began
-                del running[stage]
+            for stage, code, seconds in _collect_finished(running):
                 if code == 0:
                     finished.add(stage)
                     say(f"{prefix} stage done: {stage} ({seconds:.1f} s)")
@@ -172,7 +157,7 @@ def run_side_by_side(
                 else:
                     failed[stage] = code
                     say(f"{prefix} stage FAILED: {stage} (exit code {code}, {seconds:.1f} s)")
-    except BaseException:
+    except BaseException:  # Ctrl-C, a signal: no stage outlives the run
         for entry in running.values():
             entry.process.terminate()
         for entry in running.values():
@@ -184,6 +169,31 @@ def run_side_by_side(
         say(f"{prefix} failed: {names}; not run: {len(skipped)} stage(s)")
         return next(iter(failed.values()))
     return 0
+
+
+def _launch(
+    command: Sequence[str], cwd: Path, env: Mapping[str, str], stage: str, say: Callable
+) -> _Running:
+    """Start one stage's process and the thread that prints its output."""
+    process = subprocess.Popen(
+        list(command), cwd=cwd, env=dict(env), stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
+    reader = threading.Thread(target=_relay, args=(process, stage, say), daemon=True)
+    reader.start()
+    return _Running(process, reader, time.perf_counter())
+
+
+def _collect_finished(running: dict[str, _Running]) -> list[tuple[str, int, float]]:
+    """The stages whose process ended, taken out of ``running``: (stage, exit code, seconds)."""
+    ended = []
+    for stage, entry in list(running.items()):
+        code = entry.process.poll()
+        if code is None:
+            continue
+        entry.reader.join()  # the last lines are printed before the stage is called done
+        ended.append((stage, code, time.perf_counter() - entry.began))
+        del running[stage]
+    return ended
 
 
 def _relay(process: subprocess.Popen, stage: str, say: Callable[[str], None]) -> None:

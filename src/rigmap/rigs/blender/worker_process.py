@@ -86,6 +86,9 @@ class WorkerProcess:
     def request(
         self, op: str, args: dict | None = None, arrays: dict | None = None, timeout: float = 120.0
     ) -> tuple[dict, dict]:
+        if self.process.stdin is None or self.process.stdin.closed or not self.alive:
+            # killed after an earlier failure (its pipes closed): a crash, not a ValueError
+            raise WorkerCrashed(self._crash_message(op, "it is no longer running"))
         deadline = time.monotonic() + timeout
         frame = protocol.encode_frame({"op": op, "args": args or {}}, arrays)
         try:
