@@ -163,7 +163,7 @@ def test_a_signalled_dry_run_puts_params_yaml_back(project, fake_dvc, tmp_path, 
             time.sleep(0.05)
         assert b"samples: 1234" in (project / "params.yaml").read_bytes()
         process.send_signal(signum)
-        process.wait(timeout=30)
+        process.wait(timeout=120)
     finally:
         process.kill()
         process.wait()
