@@ -16,19 +16,9 @@ import json
 import platform
 import time
 
-import numpy as np
-
+from rig_eval import random_controls  # benchmarks/ is on sys.path when run as a script
 from rigmap.rigs.blender.ray_pool import ensure_ray
 from rigmap.rigs.blender.rigify import build_rigify_wolf
-
-
-def random_controls(rig, n: int, seed: int = 0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    used = rig.controls.used_indices
-    Y = rig.default_controls(n)
-    lo, hi = rig.controls.lower[used], rig.controls.upper[used]
-    Y[:, used] += 0.3 * (rng.uniform(lo, hi, size=(n, len(used))) - Y[:, used])
-    return Y
 
 
 def timed_pose(rig, Y) -> tuple[float, object]:
