@@ -47,6 +47,7 @@ import json
 import os
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from rigmap.evaluation import RefineSettings, TestSet, run_method
@@ -80,7 +81,45 @@ VARIANTS = {
         "sparsity": "coloured",
         "traced": True,
     },
+    # the same settings with this session's changes switched off (see previous_code)
+    "block_before": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "before": True,
+    },
+    "fast_before": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "traced": True,
+        "before": True,
+    },
 }
+
+
+@contextmanager
+def previous_code(active: bool):
+    """The refinement code before session 27's changes, for a same-run comparison.
+
+    Switches off, for the duration: forward differences reusing the residual's
+    positions (``ComputedJacobian.uses_base``: the pose evaluated again, n + 1
+    evaluations) and a traced rig's preferred batch (``TorchRig.poses_per_call``:
+    chunks of ``POSES_PER_CALL`` poses again).
+    """
+    if not active:
+        yield
+        return
+    from rigmap.refine.sources import ComputedJacobian
+    from rigmap.rigs.engine.torch_rig import TorchRig
+
+    saved = ComputedJacobian.uses_base, TorchRig.poses_per_call
+    ComputedJacobian.uses_base = lambda self: False
+    TorchRig.poses_per_call = property(lambda self: None)
+    try:
+        yield
+    finally:
+        ComputedJacobian.uses_base, TorchRig.poses_per_call = saved
 
 
 def rig_refine_overrides(name: str, method: str) -> dict:
@@ -106,6 +145,7 @@ def load_rig(name: str, workers: int):
 
 def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, iterations: int):
     options = dict(VARIANTS[variant])
+    before = options.pop("before", False)
     if variant != "old":
         options.update(rig_refine_overrides(rig.name, method))
     settings = RefineSettings(max_iterations=iterations, **options)
@@ -113,14 +153,16 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
     learned = models["learned"] if "learned" in method else None
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    evaluation = run_method(
-        rig, method, test_set, regressor=regressor, learned_jacobian=learned, refine=settings
-    )
+    with previous_code(before):
+        evaluation = run_method(
+            rig, method, test_set, regressor=regressor, learned_jacobian=learned, refine=settings
+        )
     average = evaluation.result.to_dict()["average"]
     return {
         "method": method,
         "variant": variant,
         "settings": settings.to_dict(),
+        "code": "before session 27" if before else "this commit",
         "frames": test_set.frames,
         "fps": round(average["fps"], 2),
         "rig_evaluations_per_frame": round(average["rig_evaluations"] / test_set.frames, 1),

@@ -19,6 +19,7 @@ from rigmap.refine import (
     rig_colouring,
 )
 from rigmap.refine.sparsity import probe_pattern
+from rigmap.rigs.base import RigInputError
 
 
 def _test_poses(rig, every: int = 37) -> np.ndarray:
@@ -53,6 +54,57 @@ def test_coloured_jacobian_equals_the_dense_one(rig, differences):
     scale = np.abs(dense).max()
     assert scale > 1.0
     np.testing.assert_allclose(coloured, dense, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("coloured", [False, True])
+def test_forward_differences_from_known_positions_equal_the_full_ones(rig, coloured):
+    """Positions at Y given (refinement's residual): the same Jacobian, one pose fewer each."""
+    from rigmap.evaluation.timing import CountingRig
+
+    Y = _test_poses(rig)
+    colouring = rig_colouring(rig) if coloured else None
+    counting = CountingRig(rig)
+    full = jacobian(counting, Y, differences="forward", chunk=64, colouring=colouring)
+    full_poses = counting.reset().poses
+    base = rig.evaluate(Y)
+    known = jacobian(counting, Y, differences="forward", chunk=64, colouring=colouring, base=base)
+    assert counting.count.poses == full_poses - len(Y)
+    assert np.abs(full).max() > 1.0
+    np.testing.assert_allclose(known, full, rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="forward differences only"):
+        jacobian(rig, Y, differences="central", base=base)
+    with pytest.raises(RigInputError, match="base must be the positions at Y"):
+        jacobian(rig, Y, differences="forward", base=base[:-1])
+
+
+def test_refinement_hands_its_residual_positions_to_forward_differences(quadruped):
+    """The refined result is the same whether the source re-evaluates the poses or not."""
+    rig = quadruped
+    train = build_corpus(rig, "train", seed=0).table[rig.used_controls].to_numpy(float)
+    test = build_corpus(rig, "test", seed=0).table[rig.used_controls].to_numpy(float)
+    std = control_std(train)
+    truth = test[10:14]
+    start = truth + 0.5 * std * np.random.default_rng(1).standard_normal(truth.shape)
+    target = rig.evaluate(rig.expand_used(truth))
+
+    class Forgetful(ComputedJacobian):
+        def uses_base(self):  # the poses evaluated again, as before
+            return False
+
+    results = {}
+    for name, kind in (("known", ComputedJacobian), ("evaluated", Forgetful)):
+        source = kind(rig, differences="forward", sparsity="coloured")
+        results[name] = damped_least_squares(
+            rig, start, target, source, damping="auto", tolerance=1e-4, max_iterations=3,
+            control_scale=std, keep_in_range=True,
+        )  # fmt: skip
+    known, evaluated = results["known"], results["evaluated"]
+    np.testing.assert_allclose(known.joint_error, evaluated.joint_error, rtol=1e-6, atol=1e-9)
+    moved = np.abs(known.Y_used - evaluated.Y_used) / np.where(std > 0, std, 1.0)
+    assert moved.max() < 1e-6
+    # three Jacobians of four frames, each one pose cheaper
+    assert evaluated.rig_evaluations - known.rig_evaluations == 3 * len(truth)
+    assert known.joint_error.mean() < 0.1 * known.initial_joint_error.mean()
 
 
 def test_coloured_autodiff_equals_the_dense_one(quadruped):

@@ -161,6 +161,7 @@ class _Refinement:
         self.n = len(X_target)
         self.target = X_target.reshape(self.n, -1)
         self.y = Y_used.copy()
+        self.x = np.zeros_like(self.target)  # the rig's positions at self.y (from error_of)
         self.evaluations = 0
         self.scale: np.ndarray | None = None
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None
@@ -173,11 +174,14 @@ class _Refinement:
     def error_of(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = self.rig.evaluate(self.rig.expand_used(self.y[frames])).reshape(len(frames), -1)
         self.evaluations += len(frames)
+        self.x[frames] = x
         residual = self.target[frames] - x
         return residual, (residual**2).mean(axis=1)
 
     def compute(self, frames: np.ndarray) -> np.ndarray:
-        J, cost = self.source(self.rig.expand_used(self.y[frames]), self.X_target[frames], frames)
+        # the positions at y are known (the residual's evaluation): forward differences reuse them
+        Y_full = self.rig.expand_used(self.y[frames])
+        J, cost = self.source(Y_full, self.X_target[frames], frames, base=self.x[frames])
         self.evaluations += cost
         return np.asarray(J, dtype=np.float64)
 

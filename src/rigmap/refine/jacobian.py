@@ -28,6 +28,7 @@ def jacobian(
     differences: str = "central",
     columns=None,
     colouring=None,
+    base=None,
 ) -> np.ndarray:
     """``(N, 3J, C_used)`` Jacobians of the COG-relative joint positions at ``Y``.
 
@@ -43,7 +44,10 @@ def jacobian(
     ``rigmap.refine.sparsity.ColumnColouring``) perturbs each colour's controls together —
     one rig evaluation (forward, or two central) per colour instead of per control — and
     reads each column off its own rows; entries outside the pattern are 0. With autodiff
-    it sends one tangent per colour instead of one per control.
+    it sends one tangent per colour instead of one per control. ``base`` (forward
+    differences only): the rig's COG-relative positions at ``Y`` (``(N, J, 3)`` or
+    ``(N, 3J)``), already evaluated by the caller (refinement's residual), so the pose
+    itself is not evaluated again: ``n`` rig evaluations per pose instead of ``n + 1``.
     """
     Y = np.asarray(Y)
     squeeze = Y.ndim == 1
@@ -75,12 +79,14 @@ def jacobian(
                 f"jacobian of rig {rig.name!r}: the colouring's pattern has shape "
                 f"{colouring.pattern.shape}, expected ({3 * rig.n_joints}, {n_used})"
             )
+    if base is not None:
+        base = _checked_base(rig, base, len(Y2), method, differences)
     if method == "finite_difference":
         central = differences == "central"
         if colouring is not None:
-            J = _coloured_difference(rig, Y2, step, max(chunk, 1), central, colouring)
+            J = _coloured_difference(rig, Y2, step, max(chunk, 1), central, colouring, base)
         else:
-            J = _finite_difference(rig, Y2, step, max(chunk, 1), central, columns)
+            J = _finite_difference(rig, Y2, step, max(chunk, 1), central, columns, base)
     elif method == "autodiff":
         J = _autodiff(rig, Y2, chunk, colouring)
     else:
@@ -88,8 +94,30 @@ def jacobian(
     return J[0] if squeeze else J
 
 
+def _checked_base(rig: Rig, base, n: int, method: str, differences: str) -> np.ndarray:
+    """``base`` as ``(n, 3J)``, or a clear error when it cannot stand for the poses."""
+    if method != "finite_difference" or differences != "forward":
+        raise ValueError(
+            "jacobian: base (the positions at Y) is for forward differences only, "
+            f"got method={method!r}, differences={differences!r}"
+        )
+    base = np.asarray(base)
+    if base.shape not in ((n, rig.n_joints, 3), (n, 3 * rig.n_joints)):
+        raise RigInputError(
+            f"jacobian of rig {rig.name!r}: base must be the positions at Y, shape "
+            f"({n}, {rig.n_joints}, 3) or ({n}, {3 * rig.n_joints}), got {base.shape}"
+        )
+    return base.reshape(n, 3 * rig.n_joints)
+
+
 def _finite_difference(
-    rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool, columns: np.ndarray
+    rig: Rig,
+    Y: np.ndarray,
+    step: float | None,
+    chunk: int,
+    central: bool,
+    columns: np.ndarray,
+    base: np.ndarray | None = None,
 ) -> np.ndarray:
     dtype = np.float32 if Y.dtype == np.float32 else np.float64
     h = _step_of(rig, dtype, step)
@@ -102,15 +130,17 @@ def _finite_difference(
         Yc = Y[start : start + chunk].astype(dtype)
         n = len(Yc)
         # rows: for each pose, +h on each differenced control, then -h on each (central) or
-        # the pose itself (forward)
-        perturbed = np.repeat(Yc[:, None, :], 2 * m if central else m + 1, axis=1)
+        # the pose itself (forward, unless its positions are given)
+        known = base is not None
+        perturbed = np.repeat(Yc[:, None, :], 2 * m if central else m + (not known), axis=1)
         perturbed[:, k, moved] += h
         if central:
             perturbed[:, m + k, moved] -= h
         rows = perturbed.shape[1]
         X = rig.evaluate(perturbed.reshape(n * rows, -1)).reshape(n, rows, -1)
+        behind = base[start : start + n, None, :] if known else X[:, m:]
         width = 2 * h if central else h
-        J[start : start + n, :, columns] = ((X[:, :m] - X[:, m:]) / width).transpose(0, 2, 1)
+        J[start : start + n, :, columns] = ((X[:, :m] - behind) / width).transpose(0, 2, 1)
     return J
 
 
@@ -122,7 +152,13 @@ def _step_of(rig: Rig, dtype, step: float | None) -> float:
 
 
 def _coloured_difference(
-    rig: Rig, Y: np.ndarray, step: float | None, chunk: int, central: bool, colouring
+    rig: Rig,
+    Y: np.ndarray,
+    step: float | None,
+    chunk: int,
+    central: bool,
+    colouring,
+    base: np.ndarray | None = None,
 ) -> np.ndarray:
     """Finite differences with every colour's controls perturbed together (``sparsity``)."""
     dtype = np.float32 if Y.dtype == np.float32 else np.float64
@@ -139,12 +175,18 @@ def _coloured_difference(
     for start in range(0, len(Y), chunk):
         Yc = Y[start : start + chunk].astype(dtype)
         n = len(Yc)
-        base = Yc[:, None, :]
-        parts = [base + direction, base - direction] if central else [base + direction, base]
-        perturbed = np.concatenate(parts, axis=1)  # (n, 2g or g+1, C)
+        pose = Yc[:, None, :]
+        if central:
+            parts = [pose + direction, pose - direction]
+        else:  # the pose itself only when its positions are not given
+            parts = [pose + direction] if base is not None else [pose + direction, pose]
+        perturbed = np.concatenate(parts, axis=1)  # (n, 2g, g+1 or g, C)
         X = rig.evaluate(perturbed.reshape(n * perturbed.shape[1], -1)).reshape(n, -1, J.shape[1])
         ahead = X[:, :g]
-        behind = X[:, g:] if central else X[:, g : g + 1]
+        if central:
+            behind = X[:, g:]
+        else:
+            behind = base[start : start + n, None, :] if base is not None else X[:, g : g + 1]
         width = 2 * h if central else h
         difference = (ahead - behind) / width  # (n, g, R)
         J[start : start + n, rows, cols] = difference[:, colour_of, rows]

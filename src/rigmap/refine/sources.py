@@ -3,8 +3,10 @@
 A source is called with the current full controls of the frames still
 moving, their COG-relative targets, and their indices in the refined batch
 (``frames``), so a source that holds per-frame data — a learned Jacobian's
-input features — picks its rows directly. It returns ``(F, 3J, C_used)``
-Jacobians and the rig evaluations they cost.
+input features — picks its rows directly, and optionally the rig's positions at
+the current controls (``base``: refinement has them from its residual), which
+forward differences use instead of evaluating the poses again. It returns
+``(F, 3J, C_used)`` Jacobians and the rig evaluations they cost.
 """
 
 from __future__ import annotations
@@ -31,7 +33,11 @@ class JacobianSource(Protocol):
     per_iteration: bool
 
     def __call__(
-        self, Y_full: np.ndarray, X_target: np.ndarray, frames: np.ndarray | None = None
+        self,
+        Y_full: np.ndarray,
+        X_target: np.ndarray,
+        frames: np.ndarray | None = None,
+        base: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]: ...
 
 
@@ -43,7 +49,9 @@ class ComputedJacobian:
     and pose, ``"forward"`` one (plus the pose itself) at an error of the
     order of the step (1e-6 in float64, far below a cm). A rig in another
     process (a DCC's worker pool) gets every perturbation of every frame in
-    one ``evaluate`` call, so its workers run at their batch rate.
+    one ``evaluate`` call, so its workers run at their batch rate. Given the
+    positions at the current controls (``base``, refinement's residual
+    evaluation), forward differences skip the pose itself: ``n`` evaluations.
 
     ``sparsity`` ``"coloured"`` perturbs structurally independent controls
     together (``rigmap.refine.sparsity``: the rig's pattern probed once, its
@@ -70,27 +78,39 @@ class ComputedJacobian:
                 f"got {self.differences!r}"
             )
 
-    def cost_per_pose(self) -> int:
-        """Rig evaluations one pose's Jacobian costs (autodiff: one differentiable pass)."""
+    def cost_per_pose(self, base_known: bool = False) -> int:
+        """Rig evaluations one pose's Jacobian costs (autodiff: one differentiable pass);
+        ``base_known``: the pose's own positions are given (forward differences skip it)."""
         if self.method != "finite_difference":
             return 1
         n = self.colouring().n_colours if self.sparsity == "coloured" else None
         n = len(self.rig.controls.used_indices) if n is None else n
-        return 2 * n if self.differences == "central" else n + 1
+        return 2 * n if self.differences == "central" else n + (not base_known)
+
+    def uses_base(self) -> bool:
+        """True when given positions at the current controls save rig evaluations."""
+        return self.method == "finite_difference" and self.differences == "forward"
 
     def colouring(self):
         """The rig's column colouring (probed on first use), or None when dense."""
         return rig_colouring(self.rig) if self.sparsity == "coloured" else None
 
     def __call__(
-        self, Y_full: np.ndarray, X_target: np.ndarray, frames: np.ndarray | None = None
+        self,
+        Y_full: np.ndarray,
+        X_target: np.ndarray,
+        frames: np.ndarray | None = None,
+        base: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]:
         # in-process rigs: about POSES_PER_CALL perturbed poses per call; a worker pool:
         # everything in one call
         colouring = self.colouring()
-        per_pose = self.cost_per_pose() if self.method == "finite_difference" else 1
+        base = base if self.uses_base() else None
+        per_pose = self.cost_per_pose(base is not None)
         in_process = getattr(self.rig, "differentiable", False)
-        chunk = max(1, POSES_PER_CALL // per_pose) if in_process else None
+        # a rig replaying traces says which batch size runs fastest (TorchRig.poses_per_call)
+        limit = getattr(self.rig, "poses_per_call", None) or POSES_PER_CALL
+        chunk = max(1, limit // per_pose) if in_process else None
         J = jacobian(
             self.rig,
             Y_full,
@@ -99,8 +119,9 @@ class ComputedJacobian:
             chunk=chunk,
             step=self.step,
             colouring=colouring,
+            base=base,
         )
-        return J, len(Y_full) * self.cost_per_pose()
+        return J, len(Y_full) * per_pose
 
 
 @dataclass
@@ -121,9 +142,13 @@ class PredictedJacobian:
     _predicted: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def __call__(
-        self, Y_full: np.ndarray, X_target: np.ndarray, frames: np.ndarray | None = None
+        self,
+        Y_full: np.ndarray,
+        X_target: np.ndarray,
+        frames: np.ndarray | None = None,
+        base: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]:
-        rows = X_target[0].size
+        rows = X_target[0].size  # base: not needed, the model never evaluates the rig
         if self.features is None:
             n = len(X_target)
             J = np.asarray(self.model.predict(X_target.reshape(n, -1)), dtype=np.float64)
