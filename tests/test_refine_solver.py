@@ -249,6 +249,37 @@ def test_replayed_traces_give_the_eager_positions(problem):
     assert not rig._replay  # the context restores eager evaluation
 
 
+def test_a_traced_rig_gets_jacobian_chunks_of_its_preferred_size(problem):
+    """While traces replay, finite differences send at most ``poses_per_call`` poses a call."""
+    from rigmap.rigs.engine.torch_rig import TRACED_POSES_PER_CALL
+
+    class Recording:
+        def __init__(self, rig):
+            self.rig, self.sizes = rig, []
+
+        def evaluate(self, Y):
+            self.sizes.append(len(Y))
+            return self.rig.evaluate(Y)
+
+        def __getattr__(self, name):
+            return getattr(self.rig, name)
+
+    rig = problem.rig
+    assert rig.poses_per_call is None
+    recording = Recording(rig)
+    source = ComputedJacobian(recording, differences="forward", sparsity="coloured")
+    Y = np.repeat(rig.controls.defaults[None], 40, axis=0)
+    per_pose = source.cost_per_pose()  # probes the rig's pattern (its own evaluations)
+    assert 40 * per_pose > TRACED_POSES_PER_CALL  # more than one call's worth
+    recording.sizes.clear()
+    with rig.replaying_traces():
+        assert rig.poses_per_call == TRACED_POSES_PER_CALL
+        traced, _ = source(Y, None)
+    assert max(recording.sizes) <= TRACED_POSES_PER_CALL and len(recording.sizes) >= 2
+    assert sum(recording.sizes) == 40 * per_pose
+    np.testing.assert_allclose(traced, source(Y, None)[0], rtol=0, atol=1e-6)
+
+
 def test_traced_block_refinement_is_the_eager_one(problem):
     source = ComputedJacobian(problem.rig, differences="forward", sparsity="coloured")
     eager = problem.refine(damping="auto", solver="block_cholesky", source=source)

@@ -15,13 +15,14 @@ from rigmap.rigs.engine.builder import EvalContext, RigBuilder, batched_locals
 # Large batches are evaluated in chunks so memory stays bounded (~100 MB a chunk).
 DEFAULT_CHUNK = 16_384
 #: batch sizes traced for :meth:`TorchRig.replaying_traces` (ours): a batch is padded to the
-#: next one, so at most about half a batch is wasted, and a few traces (about 1 s each to
-#: build) serve every batch; 1 720 is the 40 poses of a coloured quadruped Jacobian chunk
-TRACE_SIZES = (16, 32, 64, 128, 256, 512, 1024, 1760, 2048)
-#: the traced batch size with the highest pose rate: quadruped, one thread, 3 440 poses in
-#: chunks, 4 alternating repeats at a load of 1-2: 14 100 poses/s at 1 024, 13 300 at 512,
-#: 11 800 at 1 720 (padded to 1 760) — the larger traces fall out of the cache (ours)
-TRACED_POSES_PER_CALL = 1024
+#: next one, so at most about half a batch is wasted, and a few traces (0.5-0.7 s each to
+#: build) serve every batch; a larger batch is split at the largest, which is also the size
+#: with the highest pose rate (quadruped, one thread, 3 440 poses in chunks, 4 alternating
+#: repeats at a load of 1-2: 14 100 poses/s at 1 024, 13 300 at 512, 11 800 at 1 720 padded
+#: to a 1 760 trace — the larger traces fall out of the cache, so 1 760 and 2 048 went)
+TRACE_SIZES = (16, 32, 64, 128, 256, 512, 1024)
+#: what a caller that chunks its poses should send while traces replay (the largest size)
+TRACED_POSES_PER_CALL = TRACE_SIZES[-1]
 
 
 class TorchRig(Rig):
