@@ -20,15 +20,22 @@ timing, warm-up and rig counting) in the same process, once per variant:
   (``solver: block_cholesky``, ``rigmap.refine.block_cholesky``; the conf/refine default
   since issue #16);
 - ``fast``: ``block`` with the built-in rig evaluated by its TorchScript traces
-  (``traced: true``).
+  (``traced: true``);
+- ``block_before`` / ``fast_before``: ``block`` / ``fast`` with the code before
+  session 27 (``previous_code``: numpy's BLAS on its own threads, forward differences
+  evaluate the pose itself again, a traced rig gets 1 720-pose chunks), for a same-run
+  comparison;
+- ``block_forward``: ``block`` with one-sided differences even where the rig's
+  conf asks for central ones (the Blender rigs).
 
-The variants alternate ``--repeats`` times and the fastest run of each is kept
-(the machine may be shared: every number carries the 1-minute load average
-around it). A rig's own refine settings (conf/rig/<rig>.yaml
-``evaluate.methods``: the Blender rigs' central differences) apply to every
-variant but ``old``. The JSON gives, per rig, method and variant: frames/s, rig
-evaluations per frame, joint error (cm²), ground-truth error, and the speed-up
-over ``old``, ``today`` and ``today_one_thread`` where they ran.
+The variants alternate ``--repeats`` times and the fastest run of each is kept,
+with every run's frames/s and their median (the machine may be shared: every
+number carries the 1-minute load average around it). A rig's own refine
+settings (conf/rig/<rig>.yaml ``evaluate.methods``: the Blender rigs' central
+differences) apply to every variant but ``old``. The JSON gives, per rig, method
+and variant: frames/s, rig evaluations per frame, joint error (cm²),
+ground-truth error, and the speed-up over ``old``, ``today`` and
+``today_one_thread`` where they ran (and, of medians, over a ``_before`` twin).
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
@@ -47,8 +54,10 @@ import json
 import os
 import sys
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
+
+import numpy as np
 
 from rigmap.evaluation import RefineSettings, TestSet, run_method
 from rigmap.regression import load_learned_jacobian, load_regressor
@@ -109,24 +118,32 @@ VARIANTS = {
 def previous_code(active: bool):
     """The refinement code before session 27's changes, for a same-run comparison.
 
-    Switches off, for the duration: forward differences reusing the residual's
+    Switches off, for the duration: refinement's BLAS thread limit (``blas_threads``:
+    numpy's OpenBLAS keeps its own threads again), forward differences reusing the residual's
     positions (``ComputedJacobian.uses_base``: the pose evaluated again, n + 1
     evaluations) and a traced rig's preferred batch (``TorchRig.poses_per_call``:
-    chunks of ``POSES_PER_CALL`` poses again).
+    chunks of ``POSES_PER_CALL`` poses again, padded to the 1 760 trace, with the
+    2 048 trace as the split size).
     """
     if not active:
         yield
         return
     from rigmap.refine.sources import ComputedJacobian
-    from rigmap.rigs.engine.torch_rig import TorchRig
+    from rigmap.rigs.engine import torch_rig
 
-    saved = ComputedJacobian.uses_base, TorchRig.poses_per_call
+    refinement = sys.modules["rigmap.refine.damped_least_squares"]
+    saved = ComputedJacobian.uses_base, torch_rig.TorchRig.poses_per_call, torch_rig.TRACE_SIZES
+    saved_blas = refinement.blas_threads
+    refinement.blas_threads = lambda threads: nullcontext()
     ComputedJacobian.uses_base = lambda self: False
-    TorchRig.poses_per_call = property(lambda self: None)
+    torch_rig.TorchRig.poses_per_call = property(lambda self: None)
+    torch_rig.TRACE_SIZES = (*saved[2], 1760, 2048)
     try:
         yield
     finally:
-        ComputedJacobian.uses_base, TorchRig.poses_per_call = saved
+        ComputedJacobian.uses_base, torch_rig.TorchRig.poses_per_call = saved[:2]
+        torch_rig.TRACE_SIZES = saved[2]
+        refinement.blas_threads = saved_blas
 
 
 def rig_refine_overrides(name: str, method: str) -> dict:
@@ -216,14 +233,24 @@ def benchmark_rig(name: str, args) -> list[dict]:
                 continue
             variants = [v for v in args.variants if v != "reuse" or "computed" in method]
             best: dict[str, dict] = {}
+            runs: dict[str, list[float]] = {v: [] for v in variants}
             for _ in range(args.repeats):  # old and new alternate, so both see the same load
                 for variant in variants:
                     row = measure(rig, method, test_set, models, variant, args.iterations)
                     row["rig"] = name
                     print(json.dumps(row), file=sys.stderr, flush=True)
+                    runs[variant].append(row["fps"])
                     if variant not in best or row["fps"] > best[variant]["fps"]:
                         best[variant] = row
+            for v in variants:  # every repeat's rate and their median beside the best
+                best[v]["fps_runs"] = runs[v]
+                best[v]["fps_median"] = round(float(np.median(runs[v])), 2)
             for v in variants:
+                twin = best.get(f"{v}_before")  # the same settings on the previous code
+                if twin is not None:
+                    best[v]["speedup_over_before_median"] = round(
+                        best[v]["fps_median"] / twin["fps_median"], 2
+                    )
                 for base in ("old", "today", "today_one_thread"):
                     if base in best and v != base:
                         best[v][f"speedup_over_{base}"] = round(

@@ -287,3 +287,29 @@ def test_traced_block_refinement_is_the_eager_one(problem):
     np.testing.assert_allclose(traced.Y_used, eager.Y_used, rtol=0, atol=1e-9)
     assert traced.rig_evaluations == eager.rig_evaluations
     assert traced.joint_error.mean() < 0.05 * traced.initial_joint_error.mean()
+
+
+def test_refinement_runs_numpy_blas_on_its_thread_count(problem):
+    """``threads`` pins numpy's BLAS threads too (a learned Jacobian's GPR product runs there)."""
+    from threadpoolctl import threadpool_info
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    outside = blas_threads()
+    assert outside, "numpy has no BLAS library threadpoolctl can see"
+    seen = []
+
+    class Recording(ComputedJacobian):
+        def __call__(self, *args, **kwargs):
+            seen.append(blas_threads())
+            return super().__call__(*args, **kwargs)
+
+    for threads, expected in ((1, 1), (None, None)):
+        seen.clear()
+        source = Recording(problem.rig, differences="forward", sparsity="coloured")
+        problem.refine(damping="auto", solver="block_cholesky", source=source, threads=threads)
+        assert seen, "the source was never called"
+        wanted = [expected] * len(outside) if expected else outside
+        assert all(counts == wanted for counts in seen), (threads, seen)
+    assert blas_threads() == outside  # restored after the refinement

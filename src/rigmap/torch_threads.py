@@ -5,6 +5,11 @@ and short calls (measured on this project's machine: a 218² batched Cholesky 0.
 one thread and 8 ms on two; a 150² Cholesky 0.13 ms and 22 ms; a single-pose rig call
 about halved), so refinement, the GPLVM fit and interactive posing pin one thread while
 they run, and the networks take their thread count from config.
+
+numpy's OpenBLAS keeps its own threads (two here), which torch's setting does not
+touch: refinement's GPR products (a learned Jacobian's prediction, 72 quadruped frames
+× 250 support poses × 5 809 entries) ran 85-115 ms on two BLAS threads at a load of 7
+and 35 ms on one, so ``blas_threads`` pins those alike.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import torch
+from threadpoolctl import threadpool_limits
 
 
 @contextmanager
@@ -27,6 +33,19 @@ def torch_threads(threads: int | None) -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(previous)
+
+
+@contextmanager
+def blas_threads(threads: int | None) -> Iterator[None]:
+    """Run the block with ``threads`` BLAS threads for numpy/scipy (``None``: unchanged).
+
+    threadpoolctl's limit is process-wide while the block runs (about 0.7 ms to enter).
+    """
+    if threads is None:
+        yield
+        return
+    with threadpool_limits(limits=int(threads), user_api="blas"):
+        yield
 
 
 def one_thread():
