@@ -97,14 +97,13 @@ def damped_least_squares(
     (units²). The best iterate seen per frame is returned, so a diverging step
     never makes a frame worse. ``solver`` is ``"cholesky"``, ``"block_cholesky"`` or ``"svd"``;
     ``reuse`` says how a computed Jacobian is reused (default: recomputed for
-    every frame at every iteration). ``threads`` torch threads and as many numpy BLAS threads
-    run the whole refinement, rig evaluations and a learned Jacobian's prediction
-    included (``None``: the libraries' own settings): on this shared 2-core machine one
-    thread evaluated the quadruped's 1 720-pose batches 5-20x faster than two under load,
-    and predicted a clip's learned Jacobians 2.5-3x faster (``rigmap.torch_threads``;
-    ours). ``traced`` evaluates a built-in rig's numpy batches by its TorchScript traces
-    (``TorchRig.replaying_traces``: about twice as fast, the same positions); a rig
-    without traces (Blender's) ignores it.
+    every frame at every iteration). ``threads`` torch and numpy BLAS threads run the
+    whole refinement, rig evaluations and a learned Jacobian's prediction included
+    (``None``: the libraries' own): on this shared 2-core machine one thread evaluated
+    the quadruped's batches 5-20x and predicted a clip's learned Jacobians 2.5-3x faster
+    than two under load (``rigmap.torch_threads``; ours). ``traced`` evaluates a
+    built-in rig's numpy batches by its TorchScript traces (``TorchRig.replaying_traces``:
+    about twice as fast, the same positions); a rig without traces (Blender's) ignores it.
     """
     X_target = check_positions(X_target, rig.n_joints, f"refine target for rig {rig.name!r}")
     Y_used = np.asarray(Y_used, dtype=np.float64)
