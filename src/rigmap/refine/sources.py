@@ -55,8 +55,8 @@ class ComputedJacobian:
 
     ``sparsity`` ``"coloured"`` perturbs structurally independent controls
     together (``rigmap.refine.sparsity``: the rig's pattern probed once, its
-    columns coloured): on the quadruped 42 rig evaluations per forward-difference
-    Jacobian instead of 219, the same Jacobian up to rounding; with autodiff one
+    columns coloured): on the quadruped 41 rig evaluations per forward-difference
+    Jacobian instead of 218, the same Jacobian up to rounding; with autodiff one
     tangent per colour.
     """
 
