@@ -38,7 +38,6 @@ from rigmap.latent.errors import LatentInputError
 from rigmap.latent.particle import LatentField, Particle, ParticleSettings
 from rigmap.latent.transitions import BLEND_FRAMES, TransitionTable, blend_weights
 
-
 #: ours: how far past ``r`` (relative) a particle resting on the wall still counts as within
 #: it — a thousand times the Baumgarte lag measured there (1e-5 of r), far below a pose change
 WALL_TOLERANCE = 1e-3
