@@ -11,8 +11,10 @@ next to what the data itself allows:
 - the label's PCA spectrum (components at 85, 95, 99 % of the scaled variance) and the
   held-out error of PCA alone at 1, 2, 3, 4, 5, 8 and 16 components (a linear model of
   that size, and the floor under a GPLVM on 8 PCA components);
-- the knee (ours): the smallest latent dimension whose error is within 10 % of the
-  error at the largest dimension swept.
+- the knee (ours): the smallest latent dimension that has made 90 % of the error's drop
+  from the smallest dimension swept to the largest (scale-free: the errors of a
+  label with few degrees of freedom fall to near zero, where "within x % of the
+  largest's error" would only measure the fit's noise).
 
 ``--coordinated`` builds the takes another way (:mod:`rigmap.animation.library.
 face_expressions`): ``none`` is the library's (every key pose draws its own slider
@@ -45,7 +47,7 @@ from rigmap.latent.pca import fit_pca
 from rigmap.rigs import load
 
 PCA_SIZES = (1, 2, 3, 4, 5, 8, 16)
-KNEE_WITHIN = 0.10  # ours: a dimension "reaches the knee" within 10 % of the largest's error
+KNEE_DROP = 0.90  # ours: the knee has made this fraction of the drop from the first to the last
 
 
 def pca_rows(rig, P, P_test) -> tuple[dict, dict]:
@@ -64,8 +66,8 @@ def pca_rows(rig, P, P_test) -> tuple[dict, dict]:
 
 
 def knee(errors: dict[int, float]) -> int:
-    best = errors[max(errors)]
-    return min(q for q, e in errors.items() if e <= (1.0 + KNEE_WITHIN) * best)
+    first, last = errors[min(errors)], errors[max(errors)]
+    return min(q for q, e in errors.items() if e <= last + (1.0 - KNEE_DROP) * (first - last))
 
 
 def measure(rig, args, coordinated) -> list[dict]:
@@ -133,7 +135,7 @@ def main() -> None:
                 "size": args.size,
                 "max_iter": args.max_iter,
                 "n_pca": args.n_pca,
-                "knee_within": KNEE_WITHIN,
+                "knee_drop": KNEE_DROP,
                 "load_average": os.getloadavg(),
                 "runs": runs,
             },
