@@ -11,10 +11,10 @@ next to what the data itself allows:
 - the label's PCA spectrum (components at 85, 95, 99 % of the scaled variance) and the
   held-out error of PCA alone at 1, 2, 3, 4, 5, 8 and 16 components (a linear model of
   that size, and the floor under a GPLVM on 8 PCA components);
-- the knee (ours): the smallest latent dimension that has made 90 % of the error's drop
-  from the smallest dimension swept to the largest (scale-free: the errors of a
-  label with few degrees of freedom fall to near zero, where "within x % of the
-  largest's error" would only measure the fit's noise).
+- the knee (ours, :func:`rigmap.latent.measures.knee_dimension`): the smallest latent
+  dimension that has made 90 % of the error's drop from the smallest dimension swept to
+  the largest (scale-free: the errors of a label with few degrees of freedom fall to
+  near zero, where "within x % of the largest's error" would only measure fit noise).
 
 ``--coordinated`` builds the takes another way (:mod:`rigmap.animation.library.
 face_expressions`): ``none`` is the library's (every key pose draws its own slider
@@ -42,12 +42,11 @@ import numpy as np
 from rigmap.latent import GPLVMSettings
 from rigmap.latent.control_scaling import fit_control_scaling
 from rigmap.latent.library import face_expression_sets
-from rigmap.latent.measures import latent_dim_sweep, surface_rms_cm
+from rigmap.latent.measures import KNEE_DROP, knee_dimension, latent_dim_sweep, surface_rms_cm
 from rigmap.latent.pca import fit_pca
 from rigmap.rigs import load
 
 PCA_SIZES = (1, 2, 3, 4, 5, 8, 16)
-KNEE_DROP = 0.90  # ours: the knee has made this fraction of the drop from the first to the last
 
 
 def pca_rows(rig, P, P_test) -> tuple[dict, dict]:
@@ -63,11 +62,6 @@ def pca_rows(rig, P, P_test) -> tuple[dict, dict]:
         back = scaling.unscale(pca.inverse_transform(pca.transform(Z_test)))
         floor[str(k)] = surface_rms_cm(rig, P_test, back)
     return at, floor
-
-
-def knee(errors: dict[int, float]) -> int:
-    first, last = errors[min(errors)], errors[max(errors)]
-    return min(q for q, e in errors.items() if e <= last + (1.0 - KNEE_DROP) * (first - last))
 
 
 def measure(rig, args, coordinated) -> list[dict]:
@@ -96,7 +90,7 @@ def measure(rig, args, coordinated) -> list[dict]:
                 "pca_alone_heldout_rms_cm": floor,
                 "gplvm_heldout_rms_cm": {str(q): e for q, e in errors.items()},
                 "gplvm_controls_rms": {str(r["latent_dim"]): r["controls_rms"] for r in sweep},
-                "knee": knee(errors),
+                "knee": knee_dimension(errors),
                 "fit_s": {str(r["latent_dim"]): round(r["fit_s"], 2) for r in sweep},
             }
         )
