@@ -124,6 +124,9 @@ def test_bad_training_sets_are_clear_errors():
     seg[:3] = 7  # a three-frame segment
     with pytest.raises(LatentInputError, match=r"fewer than 4 frames: \[\(7, 3\)\]"):
         GPLVM().fit(Y, seg, segment_times(seg, 24.0))
+    named = np.array(["happy 0"] * 20 + ["happy 1"] * 17 + ["happy 2"] * 3, dtype=object)
+    with pytest.raises(LatentInputError, match=r"fewer than 4 frames: \[\('happy 2', 3\)\]"):
+        GPLVM().fit(Y, named, segment_times(named, 24.0))  # takes' names, as the library's
     Y_bad = Y.copy()
     Y_bad[9, 1] = np.nan
     with pytest.raises(LatentInputError, match="first at frame 9"):

@@ -81,3 +81,35 @@ def test_bad_take_values_are_errors_naming_the_take():
         labelled_sets([Take("happy", "a", bad)], n_controls=2)
     with pytest.raises(KeyError, match="sleepy"):
         fx.build_take("sleepy", 0, seed=0)
+
+
+def _sided(rig):
+    names = list(rig.used_controls)
+    left = [i for i, n in enumerate(names) if n.endswith("_l") and n[:-2] + "_r" in names]
+    return left, [names.index(names[i][:-2] + "_r") for i in left]
+
+
+def test_coordinated_takes_vary_only_in_their_few_factors():
+    rig = face_rig()
+    left, right = _sided(rig)
+
+    def roar(k):
+        return face_expression_sets(rig, labels=["roar"], coordinated=k)["roar"].takes
+
+    def peaks_differ(takes):
+        peaks = np.array([t.max(0) for t in takes])
+        return float(np.abs(peaks - peaks[0]).max())
+
+    def lean(takes):
+        return max(float(np.abs(t[:, left] - t[:, right]).max()) for t in takes)
+
+    # no factor: every take reaches the same key poses (timing alone differs)
+    assert peaks_differ(roar(0)) < 1e-9 and lean(roar(0)) == 0.0
+    # intensity: the poses' strengths differ, the face stays symmetric
+    assert peaks_differ(roar(1)) > 0.05 and lean(roar(1)) == 0.0
+    # intensity and asymmetry: one side leads
+    assert lean(roar(2)) > 0.05
+    # the library's takes: every pose draws its own values
+    assert peaks_differ(roar(None)) > 0.05 and lean(roar(None)) > 0.05
+    with pytest.raises(ValueError, match="0-3 factors"):
+        fx.build_take("roar", 0, seed=0, coordinated=4)

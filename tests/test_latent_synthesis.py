@@ -134,6 +134,33 @@ def test_move_reaches_its_target_by_line_and_by_graph(fitted):
         assert c.log[-1].success
 
 
+def test_a_particle_resting_on_the_wall_has_arrived(fitted):
+    # the random force drifts a stopped particle onto the wall, where Baumgarte's term
+    # leaves it ~1e-5 r outside; a strict ``≤ r`` timed MOVEs out there
+    c = controller(fitted, seed=0)
+    c.run([Move(take="happy 0", frame=40)])
+    target = c.fields["happy"].X[fitted.sets["happy"].rows("happy 0")[40]]
+    r = c.settings.particle.radius
+    u = np.array([0.6, 0.0, 0.8])
+    c.particle.place(target + r * (1.0 + 1e-5) * u)
+    assert c._settled(target, r)
+    c.particle.place(target + 1.01 * r * u)
+    assert not c._settled(target, r)  # a hundredth of r out is not there yet
+    c.particle.place(target + 0.5 * r * u, v=np.array([1.0, 0.0, 0.0]))
+    assert not c._settled(target, r)  # inside but too fast for the wall to stop it
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+def test_every_move_of_a_seeded_suite_arrives(fitted, seed):
+    from rigmap.latent.measures import suite_commands
+
+    c = controller(fitted, seed=seed)
+    c.run(suite_commands(fitted, "move", 6, seed, "happy"))
+    moves = [e for e in c.log if isinstance(e.command, Move)]
+    assert len(moves) == 6
+    assert all(e.success for e in moves), [(e.frames, e.command) for e in moves]
+
+
 def test_graph_path_follows_the_training_points(fitted):
     c = controller(fitted)
     X = c.fields["happy"].X

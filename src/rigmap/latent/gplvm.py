@@ -160,7 +160,8 @@ class GPLVM:
             raise LatentInputError("frame times have non-finite values")
         labels, counts = np.unique(segments, return_counts=True)
         pairs = zip(labels, counts, strict=True)
-        short = [(lab.item(), int(c)) for lab, c in pairs if c < s.min_segment_frames]
+        # np.asarray(…).item(): a numpy scalar (int segments) or a take's name (object array)
+        short = [(np.asarray(lab).item(), int(c)) for lab, c in pairs if c < s.min_segment_frames]
         if short:
             raise LatentInputError(
                 f"segments with fewer than {s.min_segment_frames} frames: {short[:5]}"

@@ -157,13 +157,17 @@ def fit_models(
 
 def face_expression_sets(
     rig, *, seed: int = 0, size: str = "quick", labels=None, takes: int | None = None,
-    heldout: bool = False,
+    heldout: bool = False, coordinated: int | None = None,
 ) -> dict[str, LabelledSet]:  # fmt: skip
-    """The face's expression library as labelled sets (training, or held out)."""
+    """The face's expression library as labelled sets (training, or held out);
+    ``coordinated``: how takes vary (:mod:`rigmap.animation.library.face_expressions`)."""
     from rigmap.animation.library import face_expressions as fx
 
     chosen = fx.LABELS if labels is None else tuple(labels)
-    built = fx.build_takes(seed=seed, size=size, labels=chosen, takes=takes, heldout=heldout)
+    built = fx.build_takes(
+        seed=seed, size=size, labels=chosen, takes=takes, heldout=heldout,
+        coordinated=coordinated,
+    )  # fmt: skip
     return labelled_sets(
         [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
         n_controls=len(rig.controls.used_indices),

@@ -121,6 +121,17 @@ def latent_dim_sweep(
     return rows
 
 
+KNEE_DROP = 0.90  # ours: a knee has made this fraction of the drop from the first to the last
+
+
+def knee_dimension(errors: dict[int, float], drop: float = KNEE_DROP) -> int:
+    """The smallest latent dimension that has made ``drop`` of the error's fall from the
+    smallest dimension swept to the largest (ours; scale-free, so a label whose errors
+    fall to near zero is judged by its shape, not by the fit's noise at the bottom)."""
+    first, last = errors[min(errors)], errors[max(errors)]
+    return min(q for q, e in errors.items() if e <= last + (1.0 - drop) * (first - last))
+
+
 def merged_set(sets, labels) -> LabelledSet:
     """One labelled set of every take of ``labels`` (each take its own segment)."""
     names, takes = [], []

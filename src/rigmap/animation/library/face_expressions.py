@@ -14,6 +14,19 @@ Sizes (ours): ``quick`` is 3 training takes per label (about 150 frames per labe
 1 held-out take; ``paper`` is 8 training takes (about 400 frames, inside the paper's
 100–800) and 2 held-out takes. Held-out takes are new draws (the seed moved by
 :data:`HELDOUT_SEED_OFFSET`), never a training take.
+
+How values vary between takes (ours), ``coordinated``:
+
+- ``None`` (the library's takes, every stage's): each key pose draws its own intensity
+  slider by slider (± 0.12), its own asymmetry, mouth shift and jaw swing — a label's
+  takes then differ in dozens of independent ways, and a label's frames span many
+  dimensions (measured by ``benchmarks/latent_knee.py``);
+- ``k`` in 0–3: each take draws ``k`` numbers once, in this order — an intensity
+  (``1 ± 0.25`` on every weight), an asymmetry (± 0.3) and a mouth shift (± 0.15) — and
+  every key pose of the take uses them, with no per-slider jitter (the jaw's side swing
+  stays 0): one expression played with a few coordinated controls. Timing varies as in
+  every take, and grumpy and curious draw the side they favour per take either way.
+  Only the keyed expressions use it; ``talk`` (speech) keeps its own draws.
 """
 
 from __future__ import annotations
@@ -43,9 +56,40 @@ HELDOUT_SEED_OFFSET = 1_000_000  # ours, as the corpus library's
 RIG = "face"
 
 
+#: ours: a coordinated take's spreads, in the order its factors are drawn (module docstring)
+COORDINATED_SPREADS: tuple[tuple[str, float], ...] = (
+    ("intensity", 0.25),
+    ("asymmetry", 0.3),
+    ("shift", 0.15),
+)
+
+
+class ExpressionBuilder(ClipBuilder):
+    """A :class:`ClipBuilder` whose take may be *coordinated*: ``factors`` holds the take's
+    intensity, asymmetry and mouth shift, used by every key pose (None: every key pose
+    draws its own values, the library's takes)."""
+
+    def __init__(self, name: str, rng: np.random.Generator, *, coordinated: int | None, **kw):
+        super().__init__(name, rng, **kw)  # draws the tempo first, as every take does
+        self.factors: dict[str, float] | None = None
+        if coordinated is not None:
+            if not 0 <= coordinated <= len(COORDINATED_SPREADS):
+                raise ValueError(
+                    f"coordinated takes draw 0-{len(COORDINATED_SPREADS)} factors, "
+                    f"got {coordinated!r}"
+                )
+            self.factors = {"intensity": 1.0, "asymmetry": 0.0, "shift": 0.0}
+            for key, spread in COORDINATED_SPREADS[:coordinated]:
+                self.factors[key] = self.vary(self.factors[key], spread)
+
+
 def _beats(b: ClipBuilder, beats) -> None:
     """Key ``(frame, parts, extras)`` beats; ``parts`` a preset name, a slider dict or a
     list of ``(preset, weight)``; extras fix ``shift``/``jaw_side``/``asymmetry``."""
+    factors = getattr(b, "factors", None)
+    if factors is not None:
+        _coordinated_beats(b, beats, factors)
+        return
     face = Face(b)
     for frame, what, extra in beats:
         extra = extra or {}
@@ -57,6 +101,23 @@ def _beats(b: ClipBuilder, beats) -> None:
             asymmetry=extra.get("asymmetry", b.vary(0.0, 0.15)),
             shift=extra.get("shift", b.vary(0.0, 0.08)),
             jaw_side=extra.get("jaw_side", b.vary(0.0, 0.12)),
+        )
+
+
+def _coordinated_beats(b: ClipBuilder, beats, factors: dict[str, float]) -> None:
+    """The beats of one coordinated take: every pose at the take's intensity, asymmetry and
+    mouth shift (a beat's extras still fix its own), no per-slider or per-pose draws."""
+    face = Face(b)
+    for frame, what, extra in beats:
+        extra = extra or {}
+        parts = [(what, 1.0)] if isinstance(what, str | dict) else list(what)
+        weights = {n: v * factors["intensity"] for n, v in face.blend(*parts).items()}
+        face.pose(
+            frame,
+            {n: min(1.0, v) for n, v in weights.items()},
+            asymmetry=extra.get("asymmetry", factors["asymmetry"]),
+            shift=extra.get("shift", factors["shift"]),
+            jaw_side=extra.get("jaw_side", 0.0),
         )
 
 
@@ -233,13 +294,17 @@ def take_name(label: str, index: int, heldout: bool = False) -> str:
     return f"{label} {'heldout ' if heldout else ''}{index}"
 
 
-def build_take(label: str, index: int, *, seed: int, heldout: bool = False) -> ExpressionTake:
-    """One seeded take of one label."""
+def build_take(
+    label: str, index: int, *, seed: int, heldout: bool = False, coordinated: int | None = None
+) -> ExpressionTake:
+    """One seeded take of one label (``coordinated``: the module docstring)."""
     if label not in MOTIONS:
         raise KeyError(f"the face has no expression {label!r}; labels: {list(LABELS)}")
     name = take_name(label, index, heldout)
     rng = clip_rng(seed + (HELDOUT_SEED_OFFSET if heldout else 0), RIG, name)
-    builder = ClipBuilder(name, rng, description=f"{label} expression, take {index}")
+    builder = ExpressionBuilder(
+        name, rng, coordinated=coordinated, description=f"{label} expression, take {index}"
+    )
     MOTIONS[label](builder)
     clip = builder.build()
     assert clip.fps == AUTHORED_FPS
@@ -253,15 +318,18 @@ def build_takes(
     labels=LABELS,
     takes: int | None = None,
     heldout: bool = False,
+    coordinated: int | None = None,
 ) -> list[ExpressionTake]:
     """Every take of ``labels`` (training, or held out with ``heldout=True``).
 
-    ``takes`` overrides the size's count per label."""
+    ``takes`` overrides the size's count per label; ``coordinated``: the module docstring."""
     if size not in SIZES:
         raise KeyError(f"expression library size must be one of {list(SIZES)}, got {size!r}")
     count = takes if takes is not None else SIZES[size][1 if heldout else 0]
     return [
-        build_take(label, k, seed=seed, heldout=heldout) for label in labels for k in range(count)
+        build_take(label, k, seed=seed, heldout=heldout, coordinated=coordinated)
+        for label in labels
+        for k in range(count)
     ]
 
 
