@@ -105,6 +105,7 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
         max_iterations=int(settings["max_iterations"]),
         gp_method=str(settings.get("gp_method", "lbfgs")),
         estimator=str(settings.get("estimator", "gp")),  # "mls": §4.4 (conf/edits/mls.yaml)
+        input_scale=str(settings.get("input_scale", "global")),
     )
     # §7.1 mirrors the training data; off unless the config says so (ours: the stages'
     # results so far are unmirrored)
