@@ -87,6 +87,45 @@ def test_procedural_edits_follow_their_context(biped):
     half = edit("half_steps_arms_forward", "rig")
     changed = np.abs(half.apply(walk).values[:, column] - walk.values[:, column])
     assert changed[:30].min() == pytest.approx(0.6) and changed[-30:].max() == 0.0
+    giant = edit("giant", "rig").apply(walk)
+    np.testing.assert_allclose(giant.values[:, 0], 1.5 * walk.values[:, 0])
+    np.testing.assert_allclose(giant.values[:, 1:3], 0.7 * walk.values[:, 1:3])
+    np.testing.assert_array_equal(giant.values[:, 3:], walk.values[:, 3:])
+    root, slow = walk.root(), giant.root()  # 0.7 of the distance in 1.5 times the time
+    assert slow.time[-1] == pytest.approx(1.5 * root.time[-1])
+    travelled = np.hypot(slow.x[-1] - slow.x[0], slow.z[-1] - slow.z[0])
+    assert travelled == pytest.approx(
+        0.7 * np.hypot(root.x[-1] - root.x[0], root.z[-1] - root.z[0])
+    )
+    with pytest.raises(EditConfigError, match=r"channel 'dtt'.*did you mean \['dt'\]"):
+        scale_dtt = {"kind": "scale", "targets": ["dtt"], "gain": 2}
+        Edit.from_config("bad", {"operations": {"rig": [scale_dtt]}}, "rig").apply(walk)
+
+
+def test_bowed_legs_put_the_knees_out_in_both_modes(biped):
+    rig, subject, clips = biped
+    walk = clips[("Walk", 0)]
+    names = list(rig.joint_names)
+    bowed = subject.positions(edit("bowed_legs", "rig").apply(walk))
+    plain = subject.positions(walk)
+
+    def apart(p, a, b, names=names):
+        return np.linalg.norm(p[:, names.index(a)] - p[:, names.index(b)], axis=1).mean()
+
+    assert apart(bowed, "shin_l", "shin_r") > apart(plain, "shin_l", "shin_r") + 8.0  # cm
+    assert apart(bowed, "foot_l", "foot_r") == pytest.approx(apart(plain, "foot_l", "foot_r"))
+    motion = read_bvh(WALK)
+    skeleton, track = Skeleton.of(motion), skeleton_targets(motion)
+    names = list(skeleton.joint_names)
+    plain = skeleton_positions(track, skeleton)
+    bowed = skeleton_positions(edit("bowed_legs", "skeleton").apply(track), skeleton)
+    knees = apart(bowed, "LeftKnee", "RightKnee", names) - apart(
+        plain, "LeftKnee", "RightKnee", names
+    )
+    ankles = apart(bowed, "LeftAnkle", "RightAnkle", names) - apart(
+        plain, "LeftAnkle", "RightAnkle", names
+    )
+    assert knees > 1.0 and ankles < 0.6 * knees  # BVH units: the feet come most of the way back
 
 
 def test_a_zero_edit_propagates_as_the_source(biped):
