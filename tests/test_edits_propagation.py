@@ -270,3 +270,22 @@ def test_both_gps_fit_on_one_blas_thread_while_they_run_side_by_side(biped, monk
     for a, b in ((first.kinematic_gp_, second.kinematic_gp_),
                  (first.acceleration_gp_, second.acceleration_gp_)):  # fmt: skip
         assert (a.length_scale_, a.signal_, a.noise_) == (b.length_scale_, b.signal_, b.noise_)
+
+
+def test_foot_skate_is_reported_on_the_sources_plants_and_bad_feet_are_named():
+    from rigmap.edits.evaluation import foot_skate_report
+    from rigmap.edits.study import load_study
+
+    spec = yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text())["subjects"]["biped"]
+    data = load_study("biped", spec)
+    sources = [s.track for s in data.heldout]
+    same = foot_skate_report(data, sources, sources)  # a zero edit slides as the source does
+    assert same["planted_frames"] > 100
+    assert same["result"] == pytest.approx(same["source"]) == pytest.approx(same["truth"])
+    longer = np.zeros(len(data.scale.channels))
+    longer[1] = 2.0  # root.step_forward, cm per frame
+    slid = [t.with_values(t.values + longer) for t in sources]
+    moved = foot_skate_report(data, sources, slid)  # every step 2 cm longer: feet slide
+    assert moved["result"] > moved["source"] + 1.0
+    with pytest.raises(TargetError, match=r"feet \['toe_x'\] are not among its joints"):
+        load_study("biped", {**spec, "feet": ["foot_l", "toe_x"]})

@@ -12,7 +12,7 @@ from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import rigmap.rigs
@@ -35,23 +35,28 @@ from rigmap.edits.subjects import (
 @dataclass(frozen=True, eq=False)
 class StudyData:
     """A subject with its channel scale, example clips, held-out clips and out-of-distribution
-    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4)."""
+    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4), and
+    the foot joints whose skate the evaluation reports (§7.3)."""
 
     subject: Subject
     scale: ChannelScale
     train: list[SourceClip]
     heldout: list[SourceClip]
     unlike: list[SourceClip] = field(default_factory=list)
+    feet: tuple[str, ...] = ()
 
 
 def load_study(name: str, spec: dict) -> StudyData:
     """The subject ``name`` of the ``edits.subjects`` config (see conf/edits/default.yaml)."""
     mode = spec.get("mode")
-    if mode == "rig":
-        return _rig_study(spec)
-    if mode == "skeleton":
-        return _skeleton_study(name, spec)
-    raise TargetError(f"edits subject {name!r}: mode must be 'rig' or 'skeleton', got {mode!r}")
+    if mode not in ("rig", "skeleton"):
+        raise TargetError(f"edits subject {name!r}: mode must be 'rig' or 'skeleton', got {mode!r}")
+    data = _rig_study(spec) if mode == "rig" else _skeleton_study(name, spec)
+    feet = tuple(str(f) for f in spec.get("feet") or ())
+    missing = [f for f in feet if f not in data.subject.joint_names]
+    if missing:
+        raise TargetError(f"edits subject {name!r}: feet {missing} are not among its joints")
+    return replace(data, feet=feet)
 
 
 def _rig_study(spec: dict) -> StudyData:
