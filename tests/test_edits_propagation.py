@@ -289,3 +289,20 @@ def test_foot_skate_is_reported_on_the_sources_plants_and_bad_feet_are_named():
     assert moved["result"] > moved["source"] + 1.0
     with pytest.raises(TargetError, match=r"feet \['toe_x'\] are not among its joints"):
         load_study("biped", {**spec, "feet": ["foot_l", "toe_x"]})
+
+
+def test_unlike_plays_of_a_bvh_walk_backwards_and_twice_as_fast(biped):
+    from rigmap.edits.subjects import skeleton_clip, skeleton_subject
+
+    subject = skeleton_subject(WALK, 6.0, "cmu")
+    forward, backward = skeleton_clip(subject, WALK), skeleton_clip(subject, WALK, "reversed")
+    fast = skeleton_clip(subject, WALK, "double_speed")
+    step = forward.column("root.step_forward")
+    assert forward.values[:, step].mean() > 0.0 > backward.values[:, step].mean()
+    np.testing.assert_allclose(backward.values[::-1, 4:], forward.values[:, 4:], atol=1e-9)
+    assert fast.n_frames == (forward.n_frames + 1) // 2
+    assert fast.values[:, step].mean() == pytest.approx(
+        2 * forward.values[:, step].mean(), rel=0.01
+    )
+    with pytest.raises(TargetError, match="play 'sideways' must be one of"):
+        skeleton_clip(subject, WALK, "sideways")

@@ -88,7 +88,11 @@ def _skeleton_study(name: str, spec: dict) -> StudyData:
     scale = ChannelScale.fit([whole[item["file"]] for item in spec["train"]])
     train = [subject.source(whole[c["file"]].frames(*c["frames"])) for c in spec["train"]]
     heldout = [subject.source(whole[f]) for f in spec["heldout"]]
-    return StudyData(subject, scale, train, heldout)
+    unlike = [
+        subject.source(skeleton_clip(subject, item["file"], item.get("play", "forward")))
+        for item in spec.get("unlike") or ()
+    ]
+    return StudyData(subject, scale, train, heldout, unlike)
 
 
 def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
