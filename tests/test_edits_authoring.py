@@ -21,7 +21,8 @@ from rigmap.edits.authoring import (
 )
 from rigmap.edits.skeleton_mode import Skeleton, skeleton_positions, skeleton_targets
 
-WALK = Path(__file__).resolve().parents[1].parent / "shared/mocap/cmu_131_02_walk.bvh"
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT.parent / "shared/mocap/cmu_131_02_walk.bvh"
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +106,37 @@ def test_bad_authoring_requests_are_named(walk):
         apply_pose_edit(track, skeleton, 10, {"LeftWrist": np.array([np.nan, 0, 0])}, blend=2)
     with pytest.raises(AuthoringError, match="folds time back"):
         apply_timing_edit(track, 100, 30.0, 3)
+
+
+def test_pinning_the_sources_contacts_removes_the_skate_an_edit_adds(walk):
+    import yaml
+
+    from rigmap.edits.authoring import pin_feet
+    from rigmap.edits.procedural import Edit
+    from rigmap.map.contacts import detect_contacts, foot_skate
+
+    skeleton, whole = walk
+    track = whole.frames(300, 540)  # 2 s of the walk
+    names = list(skeleton.joint_names)
+    feet = ("LeftAnkle", "RightAnkle")
+    cm = 6.0  # about the CMU unit in cm, for the contact thresholds
+    source = skeleton_positions(track, skeleton)
+    contacts = detect_contacts(source * cm, feet, names, track.fps)
+    config = yaml.safe_load((ROOT / "conf/edit/bowed_legs.yaml").read_text())
+    bowed = Edit.from_config("bowed_legs", config, "skeleton").apply(track)
+    columns = [names.index(f) for f in feet]
+    anchors = np.array([[source[f, c] for c in columns] for f in range(track.n_frames)])
+    for k in range(len(feet)):  # a planted foot stays where the source first put it down
+        for first, last in contacts.intervals(k):
+            anchors[first : last + 1, k] = source[first : last + 1, columns[k]].mean(axis=0)
+    pinned = pin_feet(bowed, skeleton, contacts.planted, feet, anchors)
+    skate = {name: foot_skate(skeleton_positions(t, skeleton) * cm, contacts, names)
+             for name, t in (("source", track), ("bowed", bowed), ("pinned", pinned))}  # fmt: skip
+    assert skate["bowed"] > 1.5 * skate["source"]
+    assert skate["pinned"] < 0.05 * skate["bowed"]
+    after = skeleton_positions(pinned, skeleton)
+    np.testing.assert_allclose(bone_lengths(after[100], skeleton.parents),
+                               bone_lengths(source[100], skeleton.parents), atol=1e-6)  # fmt: skip
+    knees = [names.index("LeftKnee"), names.index("RightKnee")]
+    width = lambda p: np.linalg.norm(p[:, knees[0]] - p[:, knees[1]], axis=1).mean()  # noqa: E731
+    assert width(after) > width(source) + 0.5  # the knees stay out

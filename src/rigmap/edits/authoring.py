@@ -22,6 +22,8 @@ How an artist makes the examples the GPs learn from (skeleton mode):
    ``t̂``, blended linearly in over the ``blend`` frames before and out over the ``blend``
    after (§5: "smoothly blend in the difference … using a linear blend");
    :func:`apply_pose_edit` and :func:`apply_timing_edit` apply them to a target track.
+4. :func:`pin_feet` — §7.3's automated clean-up: the source's foot contacts pinned on
+   an edited track with the same IK.
 
 The IK edits the pose channels only (root height and tilt and the joints' exponential
 maps); where the root stands on the ground stays the source's (the step channels are
@@ -310,6 +312,45 @@ def apply_pose_edit(
     delta[4:] = edited - track.values[frame, 4:]
     values = track.values + offset_signal(track.n_frames, frame, delta, blend)
     return track.with_values(values, source=f"{track.source} + IK edit at {frame}"), solved
+
+
+def pin_feet(
+    track: TargetTrack,
+    skeleton: Skeleton,
+    planted: np.ndarray,
+    feet: tuple[str, ...],
+    anchors: np.ndarray,
+) -> TargetTrack:
+    """§7.3's clean-up of an edited track: on every frame where foot ``k`` is ``planted``
+    (``(F, K)`` booleans, the source's contacts), the IK pins that foot at ``anchors[f,
+    k]`` (``(F, K, 3)``, the track's length unit: where the source planted it) with the
+    rest of the body as near its pose as the bone lengths allow and the root's ground
+    position held, then the minimal rotations give the frame's channels; an anchor the
+    leg cannot reach raises :class:`AuthoringError`. Frames with no
+    planted foot are left as they are (no blending: ours)."""
+    names = list(skeleton.joint_names)
+    missing = [f for f in feet if f not in names]
+    if missing:
+        raise AuthoringError(f"feet {missing} are not joints of the skeleton")
+    planted = np.asarray(planted, dtype=bool)
+    anchors = _finite(anchors, "anchors")
+    if planted.shape != (track.n_frames, len(feet)) or anchors.shape != (*planted.shape, 3):
+        raise AuthoringError(
+            f"planted {planted.shape} and anchors {anchors.shape} must be "
+            f"({track.n_frames}, {len(feet)}) and ({track.n_frames}, {len(feet)}, 3)"
+        )
+    columns = [names.index(f) for f in feet]
+    values = track.values.copy()
+    for frame in np.flatnonzero(planted.any(axis=1)):
+        positions, local, root_rotation = frame_pose(track, skeleton, frame)
+        pins, axes = {0: positions[0]}, {0: (0, 2)}
+        for k in np.flatnonzero(planted[frame]):
+            pins[columns[k]], axes[columns[k]] = anchors[frame, k], (0, 1, 2)
+        solved, _ = bone_length_ik(positions, skeleton.parents, positions, pins, pin_axes=axes)
+        new_local, new_root = minimal_rotation_pose(local, root_rotation, skeleton, solved)
+        values[frame, 4:] = pose_channels(track, skeleton, frame, new_local, new_root,
+                                          solved[0, 1])  # fmt: skip
+    return track.with_values(values, source=f"{track.source} (feet pinned)")
 
 
 def apply_timing_edit(track: TargetTrack, frame: int, shift: float, blend: int) -> TargetTrack:
