@@ -182,3 +182,20 @@ def test_source_features_ignore_where_the_clip_walks_and_turns():
     # the walk swings its limbs: accelerations of the wrists are far from zero
     wrist = names.index("LeftWrist")
     assert np.abs(a1[:, 3 * wrist : 3 * wrist + 3]).max() > 10.0
+
+
+def test_the_report_tables_the_edit_metrics_that_exist(tmp_path):
+    from rigmap.reports.edits_tables import edits_tables
+
+    assert edits_tables(tmp_path) == []
+    folder = tmp_path / "biped" / "edits"
+    folder.mkdir(parents=True)
+    (folder / "edits.csv").write_text(
+        "edit,edit_error_std,source_error_std,joint_rmse_cm,source_joint_rmse_cm,transfer,"
+        "leak_cm\narm_swing,0.000249,0.000345,2.37,2.84,0.376,\n"
+    )
+    (table,) = edits_tables(tmp_path)
+    assert table.name == "table_edits"
+    assert table.rows == [
+        ["Biped", "arm_swing", "0.000249", "0.000345", "2.37", "2.84", "0.38", "—"]
+    ]
