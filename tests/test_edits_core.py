@@ -30,8 +30,41 @@ def clip_problem(frames=60, outputs=4, seed=0):
 def test_banded_solve_equals_the_dense_solve():
     problem = clip_problem()
     for weights in (Weights(), Weights(2.0, 0.5, 3.0, 0.1), Weights(1.0, 0.0, 1.0, 0.0)):
-        np.testing.assert_allclose(combine(*problem, weights), combine_dense(*problem, weights),
-                                   rtol=1e-9, atol=1e-9)  # fmt: skip
+        for priors in ((1.0, 1.0), (0.3, 0.02)):
+            np.testing.assert_allclose(combine(*problem, weights, priors=priors),
+                                       combine_dense(*problem, weights, priors=priors),
+                                       rtol=1e-9, atol=1e-9)  # fmt: skip
+
+
+def test_a_frame_at_the_prior_variance_weighs_prediction_and_source_equally():
+    """With the regulariser in units of the prior variance (§4.3's constant, ours), a frame
+    whose kinematic variance equals the prior lands halfway between prediction and source,
+    whatever the prior's size; the literal §4.3 (priors 1) gives the prediction alone for a
+    small prior."""
+    source, km, _, _, _ = clip_problem()
+    frames = len(source)
+    only = Weights(1.0, 1.0, 0.0, 0.0)
+    for prior in (1e-3, 1.0, 50.0):
+        solved = combine(source, km, np.full(frames, prior), km[1:-1], np.ones(frames - 2),
+                         only, priors=(prior, 1.0))  # fmt: skip
+        np.testing.assert_allclose(solved, 0.5 * (source + km), atol=1e-9)
+    literal = combine(source, km, np.full(frames, 1e-3), km[1:-1], np.ones(frames - 2), only)
+    assert np.abs(literal - km).max() < 1e-5
+
+
+def test_a_noiseless_gps_tiny_variances_still_solve_without_the_kinematic_term():
+    """Variances near 1e-16 (a GP fitted to noiseless examples) made the banded Cholesky
+    fail when the kinematic weight was 0; raised to MIN_VARIANCE the system stays
+    positive definite. Its accelerations follow the predictions in both solves; the
+    offset and slope the weak anchor sets are ill-conditioned (about 1e-9 against 1e6)
+    and are not compared."""
+    source, km, kv, am, av = clip_problem()
+    tiny = (source, km, np.full_like(kv, 1e-16), am, np.full_like(av, 1e-16))
+    anchored = Weights(0.0, 1e-3, 1.0, 0.0)
+    banded = combine(*tiny, anchored)
+    assert np.isfinite(banded).all()
+    np.testing.assert_allclose(accelerations(banded), am, atol=1e-6)
+    np.testing.assert_allclose(accelerations(combine_dense(*tiny, anchored)), am, atol=1e-6)
 
 
 def test_second_difference_matches_accelerations():
@@ -149,3 +182,20 @@ def test_source_features_ignore_where_the_clip_walks_and_turns():
     # the walk swings its limbs: accelerations of the wrists are far from zero
     wrist = names.index("LeftWrist")
     assert np.abs(a1[:, 3 * wrist : 3 * wrist + 3]).max() > 10.0
+
+
+def test_the_report_tables_the_edit_metrics_that_exist(tmp_path):
+    from rigmap.reports.edits_tables import edits_tables
+
+    assert edits_tables(tmp_path) == []
+    folder = tmp_path / "biped" / "edits"
+    folder.mkdir(parents=True)
+    (folder / "edits.csv").write_text(
+        "edit,edit_error_std,source_error_std,joint_rmse_cm,source_joint_rmse_cm,transfer,"
+        "leak_cm\narm_swing,0.000249,0.000345,2.37,2.84,0.376,\n"
+    )
+    (table,) = edits_tables(tmp_path)
+    assert table.name == "table_edits"
+    assert table.rows == [
+        ["Biped", "arm_swing", "0.000249", "0.000345", "2.37", "2.84", "0.38", "—"]
+    ]

@@ -12,6 +12,8 @@ source where the predictions are unsure, to edit minutes of other motion.
   its own heading frame, and smoothed root-relative accelerations;
 - :mod:`rigmap.edits.mirror`: training data mirrored left/right (§7.1), per rig;
 - :mod:`rigmap.edits.mls`: moving least squares (§4.4) behind the GP's interface;
+- :mod:`rigmap.edits.authoring`: edit authoring (§5) — the bone-length IK (Newton on the
+  Lagrangian, pins), minimal-rotation angles, offset and timing signals blended in and out;
 - :mod:`rigmap.edits.incremental`: incremental refinement (§3, Fig 2) — fixed frames join
   the examples, refit, the highest-variance frames suggested next.
 """

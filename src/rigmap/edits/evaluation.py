@@ -10,7 +10,10 @@
   the averaging ratio (0.4–0.6 expected);
 - out-of-distribution input (Fig 4): on clips unlike the examples, the distance of the
   result from the source and how well the kinematic variance separates their frames from
-  the held-out ones (AUROC; 1 = perfectly).
+  the held-out ones (AUROC; 1 = perfectly);
+- foot skate (§7.3: the paper cleans contacts up afterwards): on the frames where the
+  source plants a foot (:func:`rigmap.map.contacts.detect_contacts`), the mean horizontal
+  slide of that foot per frame in cm, in the source, the ground truth and the result.
 
 Speed bands (cm/s) are ours.
 """
@@ -27,6 +30,7 @@ from rigmap.edits.propagation import EditModel
 from rigmap.edits.representation import TargetTrack
 from rigmap.edits.scoring import Tally, edit_fraction, score_clip
 from rigmap.edits.study import StudyData, weights_from
+from rigmap.map.contacts import detect_contacts, foot_skate
 
 SPEED_BANDS_CM_S = (0.0, 10.0, 20.0, 40.0, 80.0, np.inf)  # ours
 
@@ -59,7 +63,29 @@ def evaluate_edit(
         "ablation": rows,
         "context": context_dependence(data, edit, truths, results),
         "out_of_distribution": out_of_distribution(data, model),
+        "foot_skate_cm": foot_skate_report(data, truths, results),
     }
+
+
+def foot_skate_report(data: StudyData, truths, results) -> dict | None:
+    """Slide of the source's planted feet (cm per frame), pooled frame-weighted over clips."""
+    if not data.feet:
+        return None
+    names = data.subject.joint_names
+    sums = {"source": 0.0, "truth": 0.0, "result": 0.0}
+    frames = 0
+    for source, truth, result in zip(data.heldout, truths, results, strict=True):
+        world = data.subject.positions(source.track)
+        contacts = detect_contacts(world, data.feet, names, source.track.fps)
+        planted = int((contacts.planted[1:] & contacts.planted[:-1]).sum())
+        if planted == 0:
+            continue
+        for key, track in (("source", source.track), ("truth", truth), ("result", result)):
+            sums[key] += planted * foot_skate(data.subject.positions(track), contacts, names)
+        frames += planted
+    if frames == 0:
+        return None
+    return {**{k: v / frames for k, v in sums.items()}, "planted_frames": frames}
 
 
 def context_dependence(data: StudyData, edit: Edit, truths, results) -> dict:

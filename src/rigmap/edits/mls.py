@@ -107,6 +107,12 @@ class MovingLeastSquares:
             log_confidence[block] = conf
         return residual, log_confidence
 
+    @property
+    def prior_variance(self) -> float:
+        """MLS has no prior: 1, so the combined solve's regulariser precision is its variance
+        (§4.3 as written; :func:`rigmap.edits.combine.combine`)."""
+        return 1.0
+
     def predict(self, X) -> Prediction:
         if not hasattr(self, "A_"):
             raise GPInputError("this MovingLeastSquares is not fitted yet: call fit(X, Y) first")

@@ -10,7 +10,10 @@ operations on a target track's channels, each a function of the source clip alon
 - ``offset``: ``v + amount · gate(t)`` on rig controls, or in skeleton mode the joint's
   rotation turned by ``amount`` radians about ``axis`` of its parent's frame;
   ``gate`` is ``always``, ``walking`` (0 standing → 1 walking, from the root speed),
-  ``standing`` (1 − walking) or ``speed`` (root speed in m/s: lean back with speed).
+  ``standing`` (1 − walking) or ``speed`` (root speed in m/s: lean back with speed);
+- ``scale``: ``v · gain`` on channels named as the track names them, in either mode (the
+  root's ``dt``, ``root.step_forward``, ``root.step_lateral``: §7.2's giant, "a slow gait
+  and short steps", is ``dt`` × 1.5 and the steps × 0.7).
 
 ``first_half: true`` applies the edit only on the first half of each clip (blended over
 ``blend_s``): the paper's Fig 7, an artist who leaves the last steps alone, so the same
@@ -35,6 +38,7 @@ from rigmap.edits.representation import TargetError, TargetTrack
 from rigmap.edits.skeleton_mode import AXES
 
 GATES = ("always", "walking", "standing", "speed")
+KINDS = ("amplify", "offset", "scale")
 SPEED_WINDOW_S = 0.5  # ours
 
 
@@ -44,8 +48,9 @@ class EditConfigError(TargetError):
 
 @dataclass(frozen=True)
 class Operation:
-    """One change: ``kind`` amplify/offset on ``targets`` (controls, or joints in skeleton
-    mode), with ``gain``/``window_s`` (amplify) or ``amount``/``gate``/``axis`` (offset)."""
+    """One change: ``kind`` amplify/offset/scale on ``targets`` (controls, or joints in
+    skeleton mode; channels for scale), with ``gain``/``window_s`` (amplify), ``gain``
+    (scale) or ``amount``/``gate``/``axis`` (offset)."""
 
     kind: str
     targets: tuple[str, ...]
@@ -61,10 +66,8 @@ class Operation:
         unknown = sorted(set(data) - known)
         if unknown:
             raise EditConfigError(f"{where}: unknown keys {unknown}; known: {sorted(known)}")
-        if data.get("kind") not in ("amplify", "offset"):
-            raise EditConfigError(
-                f"{where}: kind must be 'amplify' or 'offset', got {data.get('kind')!r}"
-            )
+        if data.get("kind") not in KINDS:
+            raise EditConfigError(f"{where}: kind must be one of {KINDS}, got {data.get('kind')!r}")
         if data.get("gate", "always") not in GATES:
             raise EditConfigError(f"{where}: gate {data.get('gate')!r} is not one of {GATES}")
         targets = tuple(str(t) for t in data.get("targets") or ())
@@ -166,7 +169,7 @@ class Edit:
         """Raise naming the first target the track does not have (with close names)."""
         for operation in self.operations:
             for target in operation.targets:
-                self._columns(track, target)
+                self._columns(track, target, operation.kind)
 
     def apply(self, track: TargetTrack, cm_per_unit: float = 1.0) -> TargetTrack:
         """The edited track (the source's root and untouched channels kept)."""
@@ -174,9 +177,12 @@ class Edit:
         values = track.values.copy()
         for operation in self.operations:
             for k, target in enumerate(operation.targets):
-                columns = self._columns(track, target)
+                columns = self._columns(track, target, operation.kind)
                 amount = operation.amount[k if len(operation.amount) > 1 else 0]
-                if operation.kind == "amplify":
+                if operation.kind == "scale":
+                    gate = self.half_mask(track)
+                    values[:, columns[0]] *= 1.0 + gate * (operation.gain - 1.0)
+                elif operation.kind == "amplify":
                     size = max(1, round(operation.window_s * track.fps))
                     block = values[:, columns]
                     mean = uniform_filter1d(block, size=size, axis=0, mode="nearest")
@@ -189,15 +195,16 @@ class Edit:
                     values[:, columns] = _turned(values[:, columns], operation.axis, amount * gate)
         return track.with_values(values, source=f"{track.source} + {self.name}")
 
-    def _columns(self, track: TargetTrack, target: str) -> list[int]:
-        names = [target] if self.mode == "rig" else [f"{target}.{a}" for a in AXES]
+    def _columns(self, track: TargetTrack, target: str, kind: str) -> list[int]:
+        by_channel = self.mode == "rig" or kind == "scale"
+        names = [target] if by_channel else [f"{target}.{a}" for a in AXES]
         known = (
-            track.pose_channels
-            if self.mode == "rig"
+            track.channels
+            if by_channel
             else sorted({c.rsplit(".", 1)[0] for c in track.pose_channels})
         )
         if any(name not in track.channels for name in names):
-            what = "control" if self.mode == "rig" else "joint"
+            what = "channel" if kind == "scale" else "control" if self.mode == "rig" else "joint"
             close = difflib.get_close_matches(target, list(known), n=3, cutoff=0.5)
             raise EditConfigError(
                 f"edit {self.name!r} names {what} {target!r}, which "

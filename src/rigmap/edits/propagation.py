@@ -91,6 +91,7 @@ class EditModel:
         max_iterations: int = 100,
         gp_method: str = "lbfgs",
         estimator: str = "gp",
+        input_scale: str = "global",
     ):
         if estimator not in ESTIMATORS:
             raise TargetError(f"unknown edit estimator {estimator!r}; expected one of {ESTIMATORS}")
@@ -100,6 +101,7 @@ class EditModel:
         self.max_iterations = max_iterations
         self.gp_method = gp_method  # how the GPs are fitted (rigmap.edits.gp's METHODS)
         self.estimator = estimator  # "gp" (§4.1) or "mls" (§4.4, rigmap.edits.mls)
+        self.input_scale = input_scale  # the GPs' feature scaling (rigmap.edits.gp)
 
     def fit(
         self, pairs: list[tuple], scale: ChannelScale, mirror=None, warm_start: bool = False
@@ -161,7 +163,8 @@ class EditModel:
     def _estimator(self, center: bool):
         if self.estimator == "mls":
             return MovingLeastSquares()
-        return SharedGP(self.max_iterations, center=center, method=self.gp_method)
+        return SharedGP(self.max_iterations, center=center, method=self.gp_method,
+                        input_scale=self.input_scale)  # fmt: skip
 
     def predict(self, source: SourceClip) -> tuple[Prediction, Prediction]:
         """The two GPs' predictions on a clip, in scaled channels (targets, not offsets)."""
@@ -187,9 +190,9 @@ class EditModel:
         (``predictions`` from :meth:`predict`, to solve one clip with several weights)."""
         k, a = predictions or self.predict(source)
         scaled = self.scale.scaled(source.track)
-        solution = combine(
-            scaled, k.mean, k.variance, a.mean, a.variance, weights or self.weights, masked=masked
-        )
+        priors = (self.kinematic_gp_.prior_variance, self.acceleration_gp_.prior_variance)
+        solution = combine(scaled, k.mean, k.variance, a.mean, a.variance,
+                           weights or self.weights, masked=masked, priors=priors)  # fmt: skip
         return source.track.with_values(
             self.scale.unscaled(solution), source=f"{source.track.source} (propagated)"
         )
@@ -237,6 +240,7 @@ def save_model(model: EditModel, path) -> None:
         "heading_joints": np.array([j.root, j.left, j.right]),
         "residual": np.array(model.residual),
         "estimator": np.array(model.estimator),
+        "input_scale": np.array(model.input_scale),
         "max_iterations": np.array(model.max_iterations),
         "weights": np.array(
             [
@@ -262,6 +266,8 @@ def load_model(path) -> EditModel:
             bool(data["residual"]),
             int(data["max_iterations"]),
             estimator=str(data["estimator"]) if "estimator" in data.files else "gp",
+            # models saved before the choice existed scaled per column
+            input_scale=str(data["input_scale"]) if "input_scale" in data.files else "column",
         )
         model.scale = ChannelScale(tuple(str(c) for c in data["channels"]), data["std"].copy())
         for which in ("kinematic", "acceleration"):

@@ -103,6 +103,7 @@ def _add(config: dict, subject: str, layout: Layout) -> Path:
                 max_iterations=int(config["max_iterations"]),
                 gp_method=str(config.get("gp_method", "lbfgs")),
                 estimator=str(config.get("estimator", "gp")),
+                input_scale=str(config.get("input_scale", "global")),
             )
             report[choice] = refinement_rounds(
                 model, data.scale, examples, data.heldout, truths,

@@ -12,7 +12,7 @@ from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import rigmap.rigs
@@ -35,23 +35,28 @@ from rigmap.edits.subjects import (
 @dataclass(frozen=True, eq=False)
 class StudyData:
     """A subject with its channel scale, example clips, held-out clips and out-of-distribution
-    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4)."""
+    clips (motion unlike the examples: the rig library's extreme test clips; Fig 4), and
+    the foot joints whose skate the evaluation reports (§7.3)."""
 
     subject: Subject
     scale: ChannelScale
     train: list[SourceClip]
     heldout: list[SourceClip]
     unlike: list[SourceClip] = field(default_factory=list)
+    feet: tuple[str, ...] = ()
 
 
 def load_study(name: str, spec: dict) -> StudyData:
     """The subject ``name`` of the ``edits.subjects`` config (see conf/edits/default.yaml)."""
     mode = spec.get("mode")
-    if mode == "rig":
-        return _rig_study(spec)
-    if mode == "skeleton":
-        return _skeleton_study(name, spec)
-    raise TargetError(f"edits subject {name!r}: mode must be 'rig' or 'skeleton', got {mode!r}")
+    if mode not in ("rig", "skeleton"):
+        raise TargetError(f"edits subject {name!r}: mode must be 'rig' or 'skeleton', got {mode!r}")
+    data = _rig_study(spec) if mode == "rig" else _skeleton_study(name, spec)
+    feet = tuple(str(f) for f in spec.get("feet") or ())
+    missing = [f for f in feet if f not in data.subject.joint_names]
+    if missing:
+        raise TargetError(f"edits subject {name!r}: feet {missing} are not among its joints")
+    return replace(data, feet=feet)
 
 
 def _rig_study(spec: dict) -> StudyData:
@@ -83,7 +88,11 @@ def _skeleton_study(name: str, spec: dict) -> StudyData:
     scale = ChannelScale.fit([whole[item["file"]] for item in spec["train"]])
     train = [subject.source(whole[c["file"]].frames(*c["frames"])) for c in spec["train"]]
     heldout = [subject.source(whole[f]) for f in spec["heldout"]]
-    return StudyData(subject, scale, train, heldout)
+    unlike = [
+        subject.source(skeleton_clip(subject, item["file"], item.get("play", "forward")))
+        for item in spec.get("unlike") or ()
+    ]
+    return StudyData(subject, scale, train, heldout, unlike)
 
 
 def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
@@ -105,6 +114,7 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
         max_iterations=int(settings["max_iterations"]),
         gp_method=str(settings.get("gp_method", "lbfgs")),
         estimator=str(settings.get("estimator", "gp")),  # "mls": §4.4 (conf/edits/mls.yaml)
+        input_scale=str(settings.get("input_scale", "global")),
     )
     # §7.1 mirrors the training data; off unless the config says so (ours: the stages'
     # results so far are unmirrored)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -124,10 +124,21 @@ def skeleton_subject(
     )
 
 
-def skeleton_clip(subject: Subject, path: str | Path) -> TargetTrack:
-    """A BVH clip as a target track, checked against the subject's skeleton."""
+PLAYS = ("forward", "reversed", "double_speed")
+
+
+def skeleton_clip(subject: Subject, path: str | Path, play: str = "forward") -> TargetTrack:
+    """A BVH clip as a target track, checked against the subject's skeleton. ``play``
+    ``"reversed"`` (walking backwards: the poses of the clip, its motion turned round) or
+    ``"double_speed"`` (every other frame) makes motion unlike the clip for Fig 4's
+    out-of-distribution test where no other clip of the skeleton exists (ours)."""
+    if play not in PLAYS:
+        raise TargetError(f"{path}: play {play!r} must be one of {PLAYS}")
     motion = read_bvh(path)
     subject.skeleton.check_same(Skeleton.of(motion), str(path))
+    if play != "forward":
+        values = motion.values[::-1] if play == "reversed" else motion.values[::2]
+        motion = replace(motion, values=values.copy(), source=f"{motion.source} ({play})")
     return skeleton_targets(motion)
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rigmap.reports.catalog import rig_label
+from rigmap.reports.edits_tables import edits_tables
 from rigmap.reports.figures import (
     FigureFile,
     confidence_figure,
@@ -121,6 +122,7 @@ def build_report(
     # the mapping stages' tables, when map_mocap and map_partial ran
     tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
     tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
+    tables += edits_tables(metrics_root)  # when the edit stages ran (#17)
     written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
 
     figures_folder = reports_root / RESULT_FIGURES_FOLDER
