@@ -344,7 +344,8 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
     folder = tmp_path / "metrics" / "biped" / "sample_sweep_joint_space"
     assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)
     results = [json.loads(p.read_text()) for p in written]
-    assert [(r["extra"]["n_gaussian"], r["extra"]["n_wide"]) for r in results] == [(20, 10), (40, 20)]
+    draws = [(r["extra"]["n_gaussian"], r["extra"]["n_wide"]) for r in results]
+    assert draws == [(20, 10), (40, 20)]
     # all the draws: the same seeded fit as the fit stage's, so the same scores
     fitted = _stage("fit").run(cfg)
     test_set = TestSet.load(biped, data_dir / "biped")

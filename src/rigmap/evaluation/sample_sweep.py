@@ -157,11 +157,11 @@ def joint_space_sweep(
             )  # fmt: skip
             path = staging / f"nn_joint_space-draws-{n}.json"
             names.append(evaluation.result.write_json(path).name)
-            average = evaluation.result.average()
+            average, unit = evaluation.result.average(), evaluation.result.length_unit
             log(
                 f"{rig.name} nn_joint_space + {n} draws ({n_gaussian} around the corpus, "
-                f"{n_wide} wide): joint error {average['joint_error']:.4g} "
-                f"{evaluation.result.length_unit}², ground truth {average['ground_truth_error']:.4g}"
+                f"{n_wide} wide): joint error {average['joint_error']:.4g} {unit}², "
+                f"ground truth {average['ground_truth_error']:.4g}"
             )
 
     write_folder_atomic(folder, fill)
