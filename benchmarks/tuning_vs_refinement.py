@@ -38,6 +38,7 @@ from rigmap.store import Layout, ModelId
 #: name -> (regressor, refinement iterations or 0, tuning settings or None)
 VARIANTS = {
     "nn_cj3": ("nn", 3, None),
+    "nn_cj10": ("nn", 10, None),  # the paper budget's iteration cap (experiment=paper)
     "js": ("nn_joint_space", 0, None),
     "js_cj3": ("nn_joint_space", 3, None),
     "js_cj4": ("nn_joint_space", 4, None),
