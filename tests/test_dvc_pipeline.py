@@ -75,7 +75,8 @@ def test_every_rig_with_a_motion_library_is_in_one_family(params):
 def test_the_planned_work_per_stage_kind(stages, params):
     """The 95 stages the hand-written 664-line dvc.yaml planned, counted by kind, plus the
     check_params stage every stage depends on, the mean predictor's fits, the held-out takes
-    and their evaluations, the three edit-propagation stages,
+    and their evaluations, the joint-space network's fits and samples sweeps, the three
+    edit-propagation stages,
     the mocap maps, the corpus and poses of the Blender rigs only mapped (rigify_human)
     and the two map_partial stages (issue 14)."""
     rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
@@ -99,6 +100,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "evaluate_samplers": len(rigs),
         "evaluate_kernels": len(rigs),
         "sample_sweep": 2,
+        "sample_sweep_joint_space": 2,
         "fit_nn_joint_space": 2,
         "report": 1,
         "edit_fit": 1,
@@ -115,7 +117,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         **{f"{kind}_blend_file": 1 for kind in BLEND_FILE_STAGES},
     }
     assert len(stages) == (
-        28 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        30 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
     )  # fmt: skip

@@ -17,7 +17,8 @@ from hydra import compose, initialize_config_dir
 
 from rigmap.animation.corpus import Corpus
 from rigmap.cli import main as rigmap_main
-from rigmap.evaluation.methods import TestSet, run_method
+from rigmap.evaluation.methods import Method, TestSet, run_method
+from rigmap.evaluation.sample_sweep import joint_space_sweep
 from rigmap.refine import jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
@@ -29,6 +30,7 @@ from rigmap.regression import (
 from rigmap.regression.fitting import load_training_data
 from rigmap.regression.mapping import InverseMapping
 from rigmap.sampling import make_sampler, supersample
+from rigmap.store import Layout
 from rigmap.store import write_folder_atomic as write_model_folder
 from stage_scripts import load_stage as _stage
 
@@ -319,6 +321,51 @@ def test_sample_sweep_scores_the_network_per_sample_count(data_dir, nn_fit, bipe
     )
     for result in results.values():
         assert np.isfinite(result["average"]["joint_error"]) and result["average"]["frames"] > 0
+
+
+JOINT_SPACE_TINY = [
+    "regressor=nn_joint_space", "sampler=none", "regressor.n_gaussian=40", "regressor.n_wide=20",
+    "regressor.pretrain_epochs=1", "regressor.epochs=1", "regressor.batch_size=32",
+    "regressor.progress=false",
+]  # fmt: skip
+
+
+def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_path):
+    sweep = _stage("sample_sweep")
+    cfg = fit_config(
+        data_dir, tmp_path / "models", *JOINT_SPACE_TINY,
+        f"paths.metrics={tmp_path / 'metrics'}", "+sweep.fractions=[0.5,1.0]",
+    )  # fmt: skip
+    written = sweep.run(cfg)
+    assert [p.name for p in written] == [
+        "nn_joint_space-draws-30.json",
+        "nn_joint_space-draws-60.json",
+    ]
+    folder = tmp_path / "metrics" / "biped" / "sample_sweep_joint_space"
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)
+    results = [json.loads(p.read_text()) for p in written]
+    draws = [(r["extra"]["n_gaussian"], r["extra"]["n_wide"]) for r in results]
+    assert draws == [(20, 10), (40, 20)]
+    # all the draws: the same seeded fit as the fit stage's, so the same scores
+    fitted = _stage("fit").run(cfg)
+    test_set = TestSet.load(biped, data_dir / "biped")
+    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    staged = run_method(biped, method, test_set, regressor=load_regressor(fitted.folder, rig=biped))
+    assert results[1]["average"]["joint_error"] == pytest.approx(
+        staged.result.average()["joint_error"], rel=1e-9
+    )
+    assert results[0]["average"]["joint_error"] != results[1]["average"]["joint_error"]
+
+
+def test_joint_space_sweep_refuses_another_regressor_or_no_draws(data_dir, tmp_path):
+    sweep = _stage("sample_sweep")
+    layout = Layout(data=data_dir, metrics=tmp_path)
+    with pytest.raises(ValueError, match="expected regressor=nn_joint_space, got 'nn'"):
+        joint_space_sweep(None, layout, lambda: FeedForwardRegressor())
+    empty = fit_config(data_dir, tmp_path / "models", *JOINT_SPACE_TINY, "regressor.n_gaussian=0",
+                       "regressor.n_wide=0", f"paths.metrics={tmp_path}")  # fmt: skip
+    with pytest.raises(ValueError, match="draws no poses"):
+        sweep.run(empty)
 
 
 def test_sample_sweep_refuses_counts_it_cannot_draw():

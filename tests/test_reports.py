@@ -386,6 +386,31 @@ def test_sweep_metrics_are_read_and_drawn(project, tmp_path):
     assert figure is not None and figure.path.stat().st_size > 1000
 
 
+def test_the_joint_space_sweep_is_read_and_drawn_alone(project, tmp_path):
+    metrics = tmp_path / "metrics"
+    shutil.copytree(project["root"] / "metrics", metrics)
+    base = project["expected"][("quadruped", "samplers", "pca_gaussian")]
+    folder = metrics / "quadruped" / "sample_sweep_joint_space"
+    for n, scale in ((600, 2.0), (6000, 1.0)):
+        clips = [
+            ClipResult(c.clip, c.joint_error_per_frame * scale, c.ground_truth_error_per_frame,
+                       c.total_time_s, frame_numbers=c.frame_numbers)
+            for c in base.clips
+        ]  # fmt: skip
+        result = MethodResult("quadruped", "nn_joint_space", "none", clips)
+        result.write_json(folder / f"nn_joint_space-draws-{n}.json")
+    tree = load_metrics(metrics, project["root"] / "data", SETTINGS)
+    points = tree["quadruped"].joint_space_sweep
+    assert list(points) == [600, 6000]
+    assert points[600].average.joint_error == pytest.approx(2.0 * base.joint_error)
+    assert tree["quadruped"].sweep == {} and tree["face"].joint_space_sweep == {}
+    figure = sweep_figure(tree, tmp_path / "sweep.png")  # no control-space sweep: drawn alone
+    assert figure is not None and figure.path.stat().st_size > 1000
+    (folder / "stray.json").write_text("{}")
+    with pytest.raises(ReportInputError, match=r"nn_joint_space-draws-<draws>\.json"):
+        load_metrics(metrics, project["root"] / "data", SETTINGS)
+
+
 # --------------------------------------------------------------------------- bad input
 def test_missing_files_are_listed_by_name(project, tmp_path):
     metrics = tmp_path / "metrics"

@@ -6,6 +6,14 @@ needs. For every fraction ``f`` the network is fitted on the train corpus plus t
 ``n`` are a draw of ``n`` — and scored on the rig's test clips. The results are written
 together as one folder, ``metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json``. Nothing is
 logged to MLflow: these are points of a curve, not methods.
+
+:func:`joint_space_sweep` asks the same of the joint-space network (issue #15, item 3),
+whose samples are its own draws (PCA-Gaussian around the corpus and uniform over the soft
+ranges, :mod:`rigmap.regression.joint_space_training`): for every fraction both draw counts
+are scaled, ``n_gaussian = round(f x G)`` and ``n_wide = round(f x W)``, a fresh network is
+fitted and scored, into ``metrics/<rig>/sample_sweep_joint_space/nn_joint_space-draws-<n>.json``
+(``n`` the draws in all). As in the network's sweep the epochs are fixed, so more samples
+also mean more optimiser steps: the curve is what a user gets by asking for more samples.
 """
 
 from __future__ import annotations
@@ -20,6 +28,7 @@ from rigmap.store import Layout, write_folder_atomic
 
 DEFAULT_FRACTIONS = (0.0625, 0.125, 0.25, 0.5, 1.0)
 SWEEP_FOLDER = "sample_sweep"
+JOINT_SPACE_SWEEP_FOLDER = "sample_sweep_joint_space"
 Log = Callable[[str], None]
 
 
@@ -93,6 +102,66 @@ def sample_sweep(
                 f"{rig.name} nn + {n} {sampler} samples: joint error "
                 f"{average['joint_error']:.4g} {evaluation.result.length_unit}², ground truth "
                 f"{average['ground_truth_error']:.4g}"
+            )
+
+    write_folder_atomic(folder, fill)
+    return [folder / name for name in names]
+
+
+def joint_space_sweep(
+    rig,
+    layout: Layout,
+    make_network: Callable[[], Any],
+    *,
+    fractions: Sequence[float] = DEFAULT_FRACTIONS,
+    log: Log = _print,
+) -> list[Path]:
+    """Fit a fresh joint-space network per fraction of its draws, score it, write the folder."""
+    from rigmap.evaluation.methods import Method, TestSet, run_method
+    from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
+
+    template = make_network()
+    if getattr(template, "name", None) != "nn_joint_space":
+        raise SweepInputError(
+            "joint_space_sweep fits the joint-space network: expected regressor=nn_joint_space, "
+            f"got {getattr(template, 'name', None)!r}"
+        )
+    gaussian, wide = int(template.n_gaussian), int(template.n_wide)
+    if gaussian + wide < 1:
+        raise SweepInputError(
+            "joint_space_sweep: the network draws no poses (regressor.n_gaussian and "
+            "regressor.n_wide are both 0), so there is nothing to sweep"
+        )
+    draws = []
+    for fraction in fractions:
+        if not 0 < float(fraction) <= 1:
+            raise SweepInputError(f"sweep.fractions: expected numbers in (0, 1], got {fraction!r}")
+        draws.append((round(float(fraction) * gaussian), round(float(fraction) * wide)))
+    draws = sorted(set(draws), key=sum)
+    data = load_training_data(rig, layout.data, "none")
+    placement = placement_of(rig, data)
+    test_set = TestSet.load(rig, layout.rig_data(rig.name))
+    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    folder = layout.metrics_folder(rig.name, JOINT_SPACE_SWEEP_FOLDER)
+    names: list[str] = []
+
+    def fill(staging: Path) -> None:
+        for n_gaussian, n_wide in draws:
+            network = make_network().set_params(n_gaussian=n_gaussian, n_wide=n_wide)
+            mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
+            n = n_gaussian + n_wide
+            evaluation = run_method(
+                rig, method, test_set, regressor=mapping, sampler="none",
+                extra={"samples": n, "n_gaussian": n_gaussian, "n_wide": n_wide,
+                       "training_rows": data.rows + n},
+            )  # fmt: skip
+            path = staging / f"nn_joint_space-draws-{n}.json"
+            names.append(evaluation.result.write_json(path).name)
+            average, unit = evaluation.result.average(), evaluation.result.length_unit
+            log(
+                f"{rig.name} nn_joint_space + {n} draws ({n_gaussian} around the corpus, "
+                f"{n_wide} wide): joint error {average['joint_error']:.4g} {unit}², "
+                f"ground truth {average['ground_truth_error']:.4g}"
             )
 
     write_folder_atomic(folder, fill)

@@ -134,7 +134,7 @@ def time_figure(
 
 def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile | None:
     """Joint error against the number of supersamples, if a samples sweep was evaluated."""
-    rigs = [rig for rig, metrics in tree.items() if metrics.sweep]
+    rigs = [rig for rig, metrics in tree.items() if metrics.sweep or metrics.joint_space_sweep]
     if not rigs:
         return None
     fig = Figure(figsize=(5.5 * len(rigs), 4.2), dpi=DPI, layout="constrained")
@@ -147,6 +147,11 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
             errors = np.array([points[n].average.joint_error for n in counts])
             label = find_row(SAMPLERS, sampler, "sampler").label
             ax.plot(counts, errors, marker="o", label=label, color=palette.get(sampler))
+        if metrics.joint_space_sweep:  # its own draws (issue #15), beside the samplers' curves
+            draws = np.array(list(metrics.joint_space_sweep))
+            errors = np.array([p.average.joint_error for p in metrics.joint_space_sweep.values()])
+            label = "Joint-space NN (its own draws)"
+            ax.plot(draws, errors, marker="s", linestyle="-.", color="black", label=label)
         baseline = metrics.samplers.get("none")
         if baseline is not None:
             ax.axhline(
@@ -157,8 +162,13 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
             )
         ax.set_xscale("log")
         # label the counts that were run, not log-scale minor ticks (they overlap)
-        counts_run = sorted({n for points in metrics.sweep.values() for n in points if n > 0})
+        counts_run = sorted(
+            {n for points in metrics.sweep.values() for n in points if n > 0}
+            | set(metrics.joint_space_sweep)
+        )
         ax.set_xticks(counts_run, [f"{n:,}" for n in counts_run])
+        if metrics.joint_space_sweep and metrics.sweep:  # two sets of counts: labels crowd
+            ax.tick_params(axis="x", labelrotation=45)
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("extra supersampled poses")
         ax.set_ylabel(f"joint error ({metrics.length_unit}²)")
@@ -167,7 +177,8 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
         ax.legend(fontsize=8)
     caption = (
         "Joint error of the network (Average of the test clips) against the number of extra "
-        "supersampled poses it was trained with."
+        "supersampled poses it was trained with; the joint-space network's curve counts the "
+        "poses it draws itself (around the corpus and wide over the soft ranges)."
     )
     return _finished(fig, out, "The network's joint error against the number of supersamples",
                      caption)  # fmt: skip

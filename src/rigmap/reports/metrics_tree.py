@@ -6,6 +6,8 @@ Layout (written by ``rigmap.evaluation.metrics``)::
     metrics/<rig>/samplers/nn-<sampler>.json                             Table 2
     metrics/<rig>/kernels/gpr-<kernel>.json                              §7.1 kernels
     metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json   (optional)        error vs. samples
+    metrics/<rig>/sample_sweep_joint_space/nn_joint_space-draws-<n>.json   (optional)  the same,
+                                                        for the joint-space network's own draws
 
 A missing or malformed file stops the report with an error naming the file,
 what was expected and what came; all missing files are listed at once so one
@@ -31,6 +33,8 @@ from rigmap.reports.settings import ReportSettings
 NUMBER_KEYS = ("frames", "joint_error", "ground_truth_error", "total_time_s", "fps")
 PER_FRAME_COLUMNS = ("clip", "frame", "joint_error", "ground_truth_error")
 SWEEP_FOLDER = "sample_sweep"
+JOINT_SPACE_SWEEP_FOLDER = "sample_sweep_joint_space"
+_JOINT_SPACE_SWEEP_NAME = re.compile(r"^nn_joint_space-draws-(?P<n>\d+)\.json$")
 _SWEEP_NAME = re.compile(r"^nn-(?P<sampler>[a-z_]+)-(?P<n>\d+)\.json$")
 # relative agreement asked of a per-frame CSV's clip means and its JSON
 _CSV_AGREEMENT = 1e-6
@@ -98,6 +102,8 @@ class RigMetrics:
     samplers: dict[str, LoadedResult] = field(default_factory=dict)
     kernels: dict[str, LoadedResult] = field(default_factory=dict)
     sweep: dict[str, dict[int, LoadedResult]] = field(default_factory=dict)
+    #: the joint-space network against its number of own draws: draws -> result
+    joint_space_sweep: dict[int, LoadedResult] = field(default_factory=dict)
     #: Table 1's rows scored on other splits (``heldout``, ``train``): split -> method -> result
     splits: dict[str, dict[str, LoadedResult]] = field(default_factory=dict)
 
@@ -311,6 +317,9 @@ def load_metrics(
             result = read_result(path, rig=rig, method=method, sampler=sampler, clips=clips)
             getattr(metrics, table)[key] = result
         metrics.sweep = _read_sweep(Path(metrics_root) / rig / SWEEP_FOLDER, rig, clips)
+        metrics.joint_space_sweep = _read_joint_space_sweep(
+            Path(metrics_root) / rig / JOINT_SPACE_SWEEP_FOLDER, rig, clips
+        )
         metrics.splits = _read_splits(Path(metrics_root) / rig, rig)
         tree[rig] = metrics
     return tree
@@ -330,6 +339,21 @@ def _read_splits(rig_folder: Path, rig: str) -> dict[str, dict[str, LoadedResult
             result = read_result(path, rig=rig, method=method, sampler=sampler)
             found.setdefault(split, {})[method] = result
     return found
+
+
+def _read_joint_space_sweep(folder: Path, rig: str, clips) -> dict[int, LoadedResult]:
+    """Optional ``nn_joint_space-draws-<n>.json`` files: the joint-space network with n draws."""
+    points: dict[int, LoadedResult] = {}
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else ():
+        match = _JOINT_SPACE_SWEEP_NAME.match(path.name)
+        if match is None:
+            raise ReportInputError(
+                f"{path}: unexpected file in {folder}; expected names "
+                "nn_joint_space-draws-<draws>.json"
+            )
+        n = int(match["n"])
+        points[n] = read_result(path, rig=rig, method="nn_joint_space", sampler="none", clips=clips)
+    return dict(sorted(points.items()))
 
 
 def _read_sweep(folder: Path, rig: str, clips) -> dict[str, dict[int, LoadedResult]]:
