@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from rigmap.latent.measures import knee_dimension
 from rigmap.reports.catalog import rig_label
 from rigmap.reports.figures import FigureFile
 from rigmap.reports.table import Column, Table
@@ -133,6 +132,9 @@ def knee_note(data: pd.DataFrame) -> str:
     errors = {int(q): float(e) for q, e in means.items()}
     if len(errors) < 3:
         return "Too few latent dimensions swept to look for a knee."
+    # imported here: rigmap.latent loads torch, and listing rigs or reports must not
+    from rigmap.latent.measures import knee_dimension
+
     knee = knee_dimension(errors)
     listed = ", ".join(f"{e:.3f}" for e in errors.values())
     where = "at 3, as the paper chose" if knee == 3 else f"at {knee}, not at 3"
