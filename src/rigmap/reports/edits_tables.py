@@ -10,10 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
-
-from rigmap.reports.catalog import rig_label
-from rigmap.reports.table import Column, Table
+from rigmap.reports.csv_tables import tables_from_csvs
+from rigmap.reports.table import Table
 
 OWN = (
     "These metrics are rigmap's own (Ikemoto et al. 2009 judged their results by eye): edit "
@@ -45,29 +43,6 @@ TABLES = {
 }  # fmt: skip
 
 
-def _cell(value, fmt: str) -> str:
-    if value is None or (isinstance(value, float) and pd.isna(value)):
-        return "—"
-    return str(value) if fmt == "s" else format(float(value), fmt)
-
-
 def edits_tables(metrics_root: str | Path) -> list[Table]:
     """One table per measurement over every subject the edit stages ran on (none: [])."""
-    tables = []
-    for name, (csv, title, spec, note) in TABLES.items():
-        files = sorted(Path(metrics_root).glob(f"*/edits/{csv}"))
-        if not files:
-            continue
-        data = pd.concat(
-            [pd.read_csv(path).assign(subject=path.parent.parent.name) for path in files],
-            ignore_index=True,
-        )
-        rows = [
-            [rig_label(r["subject"]), *(_cell(r.get(col), fmt) for col, _, fmt in spec)]
-            for r in data.to_dict("records")
-        ]
-        columns = [Column("Character", numeric=False)] + [
-            Column(label, numeric=fmt != "s") for _, label, fmt in spec
-        ]
-        tables.append(Table(name, title, columns, rows, data, notes=[OWN, note]))
-    return tables
+    return tables_from_csvs(metrics_root, "edits", TABLES, "subject", OWN)

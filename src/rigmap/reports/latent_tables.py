@@ -12,8 +12,9 @@ from pathlib import Path
 import pandas as pd
 
 from rigmap.reports.catalog import rig_label
+from rigmap.reports.csv_tables import tables_from_csvs
 from rigmap.reports.figures import FigureFile
-from rigmap.reports.table import Column, Table
+from rigmap.reports.table import Table
 
 OWN = (
     "These metrics are rigmap's own (Bailey, Watt & O'Brien 2016 report settings, not "
@@ -90,39 +91,13 @@ TABLES = {
 }  # fmt: skip
 
 
-def _cell(value, fmt: str) -> str:
-    if value is None or (isinstance(value, float) and pd.isna(value)):
-        return "—"
-    if fmt == "s":
-        return str(value)
-    if fmt == "d":
-        return str(int(value))
-    return format(float(value), fmt)
-
-
 def latent_tables(metrics_root: str | Path) -> list[Table]:
     """One table per measurement over every rig the latent stages ran on (none: [])."""
-    tables = []
-    for name, (csv, title, spec, note) in TABLES.items():
-        files = sorted(Path(metrics_root).glob(f"*/latent/{csv}"))
-        if not files:
-            continue
-        data = pd.concat(
-            [pd.read_csv(path).assign(rig=path.parent.parent.name) for path in files],
-            ignore_index=True,
-        )
-        rows = [
-            [rig_label(r["rig"]), *(_cell(r.get(col), fmt) for col, _, fmt in spec)]
-            for r in data.to_dict("records")
-        ]
-        columns = [Column("Character", numeric=False)] + [
-            Column(label, numeric=fmt != "s") for _, label, fmt in spec
-        ]
-        notes = [OWN, note]
-        if name == "table_latent_dims":
-            notes.append(knee_note(data))
-        tables.append(Table(name, title, columns, rows, data, notes=notes))
-    return tables
+    return tables_from_csvs(metrics_root, "latent", TABLES, "rig", OWN, _knee_notes)
+
+
+def _knee_notes(name: str, data: pd.DataFrame) -> list[str]:
+    return [knee_note(data)] if name == "table_latent_dims" else []
 
 
 def knee_note(data: pd.DataFrame) -> str:
