@@ -151,9 +151,12 @@ sys.exit(run_reproduce(plan))
 def test_a_signalled_dry_run_puts_params_yaml_back(project, fake_dvc, tmp_path, signum):
     """Defect 8: SIGTERM of ``rigmap reproduce --dry`` left the dry run's params.yaml."""
     before = (project / "params.yaml").read_bytes()
+    # a shell that started the suite in the background leaves SIGINT ignored, and Python then
+    # installs no Ctrl-C handler; the child gets the default disposition a terminal gives
     process = subprocess.Popen(
         [sys.executable, "-c", SIGNALLED_DRY_RUN, str(project), str(fake_dvc)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "PYTHONPATH": _path()},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     try:
         deadline = time.monotonic() + 60
