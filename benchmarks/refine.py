@@ -25,6 +25,11 @@ timing, warm-up and rig counting) in the same process, once per variant:
   session 27 (``previous_code``: numpy's BLAS on its own threads, forward differences
   evaluate the pose itself again, a traced rig gets 1 720-pose chunks), for a same-run
   comparison;
+- ``block_s27`` / ``fast_s27``: ``block`` / ``fast`` with the code of session 27
+  (``s27_code``: ``blas_threads`` rescans the thread pools on every entry, the block
+  solver reads a batch's pattern by torch, a learned Jacobian is turned on its dense
+  prediction, a traced rig pads each batch to one of its per-size traces), for a
+  same-run comparison of session 28's changes;
 - ``block_forward``: ``block`` with one-sided differences even where the rig's
   conf asks for central ones (the Blender rigs).
 
@@ -35,7 +40,7 @@ settings (conf/rig/<rig>.yaml ``evaluate.methods``: the Blender rigs' central
 differences) apply to every variant but ``old``. The JSON gives, per rig, method
 and variant: frames/s, rig evaluations per frame, joint error (cm²),
 ground-truth error, and the speed-up over ``old``, ``today`` and
-``today_one_thread`` where they ran (and, of medians, over a ``_before`` twin).
+``today_one_thread`` where they ran (and, of medians, over a ``_before`` or ``_s27`` twin).
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
@@ -111,6 +116,20 @@ VARIANTS = {
         "traced": True,
         "before": True,
     },
+    # the same settings with session 28's changes switched off (see s27_code)
+    "block_s27": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "before": "s27",
+    },
+    "fast_s27": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "traced": True,
+        "before": "s27",
+    },
 }
 
 
@@ -146,6 +165,60 @@ def previous_code(active: bool):
         refinement.blas_threads = saved_blas
 
 
+@contextmanager
+def s27_code(active: bool):
+    """The refinement code of session 27 (before session 28's changes), for a same-run comparison.
+
+    Switches off, for the duration: the cached threadpoolctl controller (``blas_threads``
+    scans the loaded libraries on every entry again), numpy's pattern of a batch of
+    Jacobians in the block solver (torch's ``ne(0).any(dim=0)`` again), the learned
+    Jacobian's turn on its predicted entries (the dense prediction turned by
+    ``Placement.jacobians_to_world`` again) and the one trace for every batch size
+    (``torch_rig.GENERIC_TRACE``: batches padded to the per-size traces again; those are
+    built in the variant's untimed warm-up). Not switched off: a learned Jacobian's
+    predictions handed to the solver without a copy when every frame is refined
+    (``PredictedJacobian``), and a trace's JIT warm-up at build time
+    (``torch_rig.JIT_WARMUP_CALLS``, which cannot be undone once a trace is cached).
+    """
+    if not active:
+        yield
+        return
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    from rigmap.refine import block_cholesky
+    from rigmap.regression.mapping import JacobianMapping
+    from rigmap.rigs.engine import torch_rig
+
+    refinement = sys.modules["rigmap.refine.damped_least_squares"]
+
+    @contextmanager
+    def old_blas_threads(threads):
+        if threads is None:
+            yield
+            return
+        with threadpool_limits(limits=int(threads), user_api="blas"):
+            yield
+
+    def old_predict(self, X_pose):
+        X, single = self._rows(X_pose)
+        J = self.learned.predict(self.placement.inputs(X, "learned Jacobian"))
+        J = self.placement.jacobians_to_world(J, X)
+        return J[0] if single else J
+
+    saved = refinement.blas_threads, block_cholesky.batch_pattern, JacobianMapping.predict
+    saved_generic = torch_rig.GENERIC_TRACE
+    refinement.blas_threads = old_blas_threads
+    block_cholesky.batch_pattern = lambda J: torch.from_numpy(J).ne(0).any(dim=0).numpy()
+    JacobianMapping.predict = old_predict
+    torch_rig.GENERIC_TRACE = False
+    try:
+        yield
+    finally:
+        refinement.blas_threads, block_cholesky.batch_pattern, JacobianMapping.predict = saved
+        torch_rig.GENERIC_TRACE = saved_generic
+
+
 def rig_refine_overrides(name: str, method: str) -> dict:
     """conf/rig/<name>.yaml's ``_overrides_.method.<method>.refine`` (e.g. central differences)."""
     from omegaconf import OmegaConf
@@ -179,7 +252,7 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
     learned = models["learned"] if "learned" in method else None
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    with previous_code(before):
+    with previous_code(before is True), s27_code(before == "s27"):
         evaluation = run_method(
             rig, method, test_set, regressor=regressor, learned_jacobian=learned, refine=settings
         )
@@ -188,7 +261,9 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
         "method": method,
         "variant": variant,
         "settings": settings.to_dict(),
-        "code": "before session 27" if before else "this commit",
+        "code": {True: "before session 27", "s27": "session 27 (before session 28)"}.get(
+            before, "this commit"
+        ),
         "frames": test_set.frames,
         "fps": round(average["fps"], 2),
         "rig_evaluations_per_frame": round(average["rig_evaluations"] / test_set.frames, 1),
@@ -246,11 +321,12 @@ def benchmark_rig(name: str, args) -> list[dict]:
                 best[v]["fps_runs"] = runs[v]
                 best[v]["fps_median"] = round(float(np.median(runs[v])), 2)
             for v in variants:
-                twin = best.get(f"{v}_before")  # the same settings on the previous code
-                if twin is not None:
-                    best[v]["speedup_over_before_median"] = round(
-                        best[v]["fps_median"] / twin["fps_median"], 2
-                    )
+                for suffix in ("before", "s27"):  # the same settings on the previous code
+                    twin = best.get(f"{v}_{suffix}")
+                    if twin is not None:
+                        best[v][f"speedup_over_{suffix}_median"] = round(
+                            best[v]["fps_median"] / twin["fps_median"], 2
+                        )
                 for base in ("old", "today", "today_one_thread"):
                     if base in best and v != base:
                         best[v][f"speedup_over_{base}"] = round(

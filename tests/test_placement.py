@@ -7,9 +7,9 @@ import pytest
 
 from rig_poses import random_used_controls
 from rigmap.refine import jacobian
-from rigmap.regression import GaussianProcessRegressor
+from rigmap.regression import GaussianProcessRegressor, LearnedJacobian
 from rigmap.regression.features import inverse_features
-from rigmap.regression.mapping import InverseMapping
+from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import (
     Placement,
     find_placement,
@@ -101,6 +101,23 @@ def test_jacobians_in_the_input_frame_do_not_depend_on_the_heading(quadruped, qu
         placement.jacobians_to_inputs_frame(J_turned, X_turned), local, atol=1e-5
     )
     np.testing.assert_allclose(placement.jacobians_to_world(local, X), J, atol=1e-12)
+
+
+def test_a_learned_jacobian_turned_on_its_entries_is_the_dense_turn(quadruped, quadruped_placement):
+    """JacobianMapping.predict turns only the predicted entries' (joint, column) triples."""
+    placement = quadruped_placement
+    Y = random_used_controls(quadruped, 12, seed=5)
+    Y_turned = moved(quadruped, placement, Y, dx=-20.0, dz=40.0, turn=2.1)
+    X = pose_rows(quadruped, np.concatenate([Y, Y_turned]))
+    J = jacobian(quadruped, np.concatenate([Y, Y_turned]), colouring=None)
+    learned = LearnedJacobian(n_length_scales=5, seed=0).fit(
+        placement.inputs(X), placement.jacobians_to_inputs_frame(J, X)
+    )
+    mapping = JacobianMapping(learned, placement)
+    assert learned.pattern().mean() < 0.5  # a sparse pattern: the compact path is exercised
+    dense = placement.jacobians_to_world(learned.predict(placement.inputs(X)), X)
+    np.testing.assert_allclose(mapping.predict(X), dense, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mapping.predict(X[3]), dense[3], rtol=0, atol=1e-12)
 
 
 def test_a_rig_without_root_channels_keeps_the_pose_row():

@@ -238,3 +238,24 @@ def test_traced_pose_equals_the_eager_rig(name):
     for got, want in zip(traced, eager, strict=True):
         np.testing.assert_allclose(got.numpy(), want, rtol=0, atol=1e-9)
     assert rig.traced_pose(6) is rig.traced_pose(6)  # cached per batch size
+
+
+@pytest.mark.parametrize("name", ["biped", "quadruped"])
+def test_one_trace_replays_batches_of_every_size(name):
+    """The generic trace (recorded on 16 poses) gives the eager numbers at other batch sizes,
+    one pose and a batch split at the call size included."""
+    from rigmap.rigs import load
+    from rigmap.rigs.engine.torch_rig import TRACED_POSES_PER_CALL
+
+    rig = load(name)
+    assert rig.generic_trace() is not None
+    rng = np.random.default_rng(8)
+    used = rig.controls.used_indices
+    for n in (1, 23, TRACED_POSES_PER_CALL + 5):
+        Y = np.repeat(rig.controls.defaults[None], n, axis=0)
+        Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (n, len(used)))
+        eager = rig.pose(Y)
+        with rig.replaying_traces():
+            replayed = rig.pose(Y)
+        for got, want in zip(replayed, eager, strict=True):
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)

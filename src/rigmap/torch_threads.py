@@ -16,9 +16,10 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import lru_cache
 
 import torch
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 
 @contextmanager
@@ -39,13 +40,22 @@ def torch_threads(threads: int | None) -> Iterator[None]:
 def blas_threads(threads: int | None) -> Iterator[None]:
     """Run the block with ``threads`` BLAS threads for numpy/scipy (``None``: unchanged).
 
-    threadpoolctl's limit is process-wide while the block runs (about 0.7 ms to enter).
+    threadpoolctl's limit is process-wide while the block runs. The loaded libraries are
+    scanned once per process (``_controller``): a fresh ``threadpool_limits`` scanned them on
+    every entry, 0.8-3 ms, twice per refined clip; entering the cached controller's limit
+    takes 0.02 ms.
     """
     if threads is None:
         yield
         return
-    with threadpool_limits(limits=int(threads), user_api="blas"):
+    with _controller().limit(limits=int(threads), user_api="blas"):
         yield
+
+
+@lru_cache(maxsize=1)
+def _controller() -> ThreadpoolController:
+    """The process's thread pools, scanned once (numpy's OpenBLAS is loaded by then)."""
+    return ThreadpoolController()
 
 
 def one_thread():

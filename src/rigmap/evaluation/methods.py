@@ -161,7 +161,9 @@ class RefineSettings:
     ``sparsity`` (dense | coloured) whether it differences structurally
     independent controls together (``rigmap.refine.sparsity``); ``threads`` the
     torch threads refinement runs on (``None``: torch's own setting); ``traced``
-    whether a built-in rig is evaluated by its TorchScript traces (issue #16).
+    whether a built-in rig is evaluated by its TorchScript traces (issue #16; true in
+    ``conf/refine`` since session 28, while these fields keep the original refinement's
+    values, as the solver's and the differences' do).
     """
 
     damping: float | str = "auto"

@@ -121,19 +121,32 @@ class LearnedJacobian(Regressor):
         others are exactly 0 in the GPR's prediction anyway (zero mean, zero weights), so
         the result is the full GPR's up to the product's rounding, at 1/8 of its cost.
         """
+        values, squeeze = self._predict_entries(X)
+        flat = np.zeros((len(values), self.jacobian_shape_[0] * self.jacobian_shape_[1]))
+        flat[:, self.nonzero_entries()] = values
+        J = flat.reshape(len(values), *self.jacobian_shape_)
+        return J[0] if squeeze else J
+
+    def predict_entries(self, X: Any) -> np.ndarray:
+        """``(M, E)``: the predicted values of :meth:`nonzero_entries` at poses ``(M, D)``
+        (the compact form of :meth:`predict`, whose other entries are 0)."""
+        values, _ = self._predict_entries(np.atleast_2d(np.asarray(X, dtype=np.float64)))
+        return values
+
+    def _predict_entries(self, X: Any) -> tuple[np.ndarray, bool]:
         if not hasattr(self, "regressor_"):
             raise RuntimeError("LearnedJacobian is not fitted: call fit(X, jacobians) first")
         X, squeeze = self.fingerprint_.check_inputs(X, "LearnedJacobian")
-        gpr, entries = self.regressor_, self.nonzero_entries()
+        gpr = self.regressor_
+        self.nonzero_entries()
         weights, mean = self.__dict__["_compact"]
-        flat = np.zeros((len(X), gpr.fingerprint_.output_dim))
+        values = np.empty((len(X), len(mean)))
         for start in range(0, len(X), PREDICT_CHUNK):
             Xn = (X[start : start + PREDICT_CHUNK] - gpr.x_mean_) / gpr.x_std_
             block = gpr.kernel_(Xn, gpr.support_inputs_) @ weights
             block += mean
-            flat[start : start + PREDICT_CHUNK, entries] = block
-        J = flat.reshape(len(X), *self.jacobian_shape_)
-        return J[0] if squeeze else J
+            values[start : start + PREDICT_CHUNK] = block
+        return values, squeeze
 
     def nonzero_entries(self) -> np.ndarray:
         """Flat indices of the entries any prediction can make non-zero (cached)."""

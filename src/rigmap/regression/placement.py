@@ -226,6 +226,11 @@ class Placement:
         """The inverse of :meth:`jacobians_to_inputs_frame`."""
         return self._turn_jacobians(J, X_pose, inverse=False)
 
+    def turns_of(self, X_pose: Any) -> np.ndarray:
+        """``(N, 3, 3)``: the rotation :meth:`jacobians_to_world` applies to each row's joints."""
+        _, _, rotation = self._split(X_pose, "Jacobian poses")
+        return self._turns(rotation)
+
     def _turn_jacobians(self, J: Any, X_pose: Any, inverse: bool) -> np.ndarray:
         _, _, rotation = self._split(X_pose, "Jacobian poses")
         J = np.asarray(J, dtype=np.float64)
