@@ -75,7 +75,7 @@ def test_crouch_lowers_the_pelvis_with_feet_planted_and_bones_kept_on_the_biped(
     assert np.array_equal(edit("crouch", "rig", amount=0.0).apply(walk).values, walk.values)
 
 
-def test_crouch_of_the_cmu_walk_is_the_ik_with_hips_lowered_and_ankles_pinned(cmu):
+def test_crouch_of_the_cmu_walk_lowers_the_hips_with_ankles_pinned_and_hinge_knees(cmu):
     skeleton, track = cmu
     names = list(skeleton.joint_names)
     crouched = edit("crouch", "skeleton").apply(track, CM, skeleton)
@@ -89,18 +89,22 @@ def test_crouch_of_the_cmu_walk_is_the_ik_with_hips_lowered_and_ankles_pinned(cm
                                lengths(before, skeleton.parents), atol=1e-6)  # fmt: skip
     knee = names.index("LeftKnee")
     assert np.mean(after[:, knee, 1] < before[:, knee, 1] - 0.2 * drop) > 0.99  # knees bend
-    # the knee is where the bone-length IK puts it with the hip lowered and the ankle pinned
+    # the knee is on the circle the bone-length IK allows with the hip lowered and the ankle
+    # pinned, near the IK's point (which is nearest the old knee; ours keeps the leg's twist)
     hip, ankle = names.index("LeftHip"), names.index("LeftAnkle")
-    for frame in (0, 400, 900):
+    gaps = []
+    for frame in range(0, track.n_frames, 50):
         chain = before[frame, [hip, knee, ankle]].copy()
         goal = chain - [[0.0, drop, 0.0], [0.0, drop, 0.0], [0.0, 0.0, 0.0]]
         solved, _ = bone_length_ik(chain, np.array([-1, 0, 1]), goal, {0: goal[0], 2: chain[2]})
-        np.testing.assert_allclose(after[frame, knee], solved[1], atol=1e-6)
-    # the knee bends about its own axis (a hinge stays a hinge), only further
-    column = track.column("LeftKnee.x")
-    old, new = track.values[:, column : column + 3], crouched.values[:, column : column + 3]
-    np.testing.assert_allclose(np.cross(old, new), 0.0, atol=1e-9)
-    assert np.mean(np.linalg.norm(new, axis=1) > np.linalg.norm(old, axis=1)) > 0.99
+        np.testing.assert_allclose(after[frame, hip], solved[0], atol=1e-9)
+        gaps.append(np.linalg.norm(after[frame, knee] - solved[1]) * CM)
+    assert np.median(gaps) < 1.0  # cm (the IK flips its bend plane where the leg is straight)
+    # the knees bend about their hinge axis: the CMU knee's third channel stays at its noise
+    column = track.column("LeftKnee.z")
+    assert np.abs(crouched.values[:, column] - track.values[:, column]).max() < 1e-5
+    # and smoothly: no channel's edit jumps between frames (120 fps)
+    assert np.abs(np.diff(crouched.values - track.values, axis=0)).max() < 0.05
     none = edit("crouch", "skeleton", amount=0.0).apply(track, CM, skeleton)
     np.testing.assert_allclose(none.values, track.values, atol=1e-9)
 

@@ -297,18 +297,17 @@ def crouch_legs(
     track: TargetTrack, skeleton: Skeleton, ankles: Sequence[str], drop: np.ndarray
 ) -> TargetTrack:
     """A skeleton-mode track with the root ``drop`` lower (length units, per frame) and each
-    ankle of ``ankles`` where it was in the world, position and orientation: per frame,
-    the knee goes to the point nearest its lowered old place with the thigh and shin at
-    their lengths (in the plane of hip, ankle and that place: the two-bone solution of
-    :func:`rigmap.edits.authoring.bone_length_ik` with the hip and ankle pinned). The knee
-    keeps its rotation axis and changes only its angle (a hinge knee stays a hinge: the
-    CMU knees' third exp-map channel stays 0), the hip turns by the minimal rotation that
-    points the hip → ankle chain at the ankle and then about that line to put the knee in
-    place, and the ankle's local rotation undoes the change so the foot keeps its world
-    rotation.
-    Everything else is the source's. A leg that cannot reach raises
-    :class:`EditConfigError` naming the frame. Where the leg is straight (no bend plane)
-    the knee bends toward the root's heading (ours)."""
+    ankle of ``ankles`` where it was in the world, position and orientation, thigh and
+    shin at their lengths (a two-bone IK with the hip and ankle pinned, in closed form):
+    per frame the knee keeps its rotation axis and changes only its angle, to the one
+    that puts the ankle at its distance from the lowered hip (a hinge knee stays a hinge:
+    the CMU knees' third exp-map channel stays 0), the hip turns by the minimal rotation
+    that points the hip → ankle chain at the ankle (the leg's twist kept, Fig 5's minimal
+    rotations), and the ankle's local rotation undoes the change so the foot keeps its
+    world rotation. Everything else is the source's. A leg that cannot reach raises
+    :class:`EditConfigError` naming the frame. (Putting the knee at the point nearest
+    its old place instead, as :func:`rigmap.edits.authoring.bone_length_ik` would, flips
+    the bend plane where the source leg is nearly straight: the hip turned by 180°.)"""
     if track.channels != skeleton.channels():
         raise EditConfigError(f"{track.source}: its channels are not this skeleton's")
     drop = np.broadcast_to(np.asarray(drop, dtype=np.float64), (track.n_frames,))
@@ -316,7 +315,7 @@ def crouch_legs(
     n, k = track.n_frames, len(names)
     values = track.values.copy()
     local = Rotation.from_rotvec(values[:, 5:].reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
-    world_r, world_p, heading = _forward(track, skeleton, local)
+    world_r, world_p, _ = _forward(track, skeleton, local)
     down = np.array([0.0, 1.0, 0.0]) * drop[:, None]
     for ankle_name in ankles:
         if ankle_name not in names:
@@ -328,7 +327,7 @@ def crouch_legs(
             raise EditConfigError(f"crouch: {ankle_name!r} is not an ankle below a knee and a hip")
         thigh = float(np.linalg.norm(skeleton.offsets[knee]))
         shin = float(np.linalg.norm(skeleton.offsets[ankle]))
-        h, a, k0 = world_p[:, hip] - down, world_p[:, ankle], world_p[:, knee] - down
+        h, a = world_p[:, hip] - down, world_p[:, ankle]
         reach = a - h
         c = np.linalg.norm(reach, axis=1)
         bad = (c > thigh + shin) | (c < abs(thigh - shin)) | (c < 1e-9)
@@ -338,33 +337,21 @@ def crouch_legs(
                 f"crouch: the {names[hip]} → {ankle_name} leg cannot reach its ankle at frame "
                 f"{frame} ({c[frame]:.4g} against bones {thigh:.4g} + {shin:.4g})"
             )
-        u = reach / c[:, None]
-        bend = (k0 - h) - np.sum((k0 - h) * u, axis=1, keepdims=True) * u
-        forward = np.column_stack([np.sin(heading), np.zeros(n), np.cos(heading)])
-        fallback = forward - np.sum(forward * u, axis=1, keepdims=True) * u
-        straight = np.linalg.norm(bend, axis=1) < 1e-9 * thigh
-        bend[straight] = fallback[straight]
-        bend /= np.linalg.norm(bend, axis=1, keepdims=True)
-        along = (thigh**2 - shin**2 + c**2) / (2.0 * c)
-        across = np.sqrt(np.clip(thigh**2 - along**2, 0.0, None))
-        new_knee = h + along[:, None] * u + across[:, None] * bend
-        knee_local = _hinge_bend(values[:, 5 + 3 * knee : 8 + 3 * knee], skeleton.offsets[knee],
-                                 skeleton.offsets[ankle], c, f"{names[knee]}")  # fmt: skip
+        knee_column = 5 + 3 * knee
+        knee_vector = _hinge_bend(values[:, knee_column : knee_column + 3],
+                                  skeleton.offsets[knee], skeleton.offsets[ankle], c,
+                                  names[knee])  # fmt: skip
+        knee_local = Rotation.from_rotvec(knee_vector).as_matrix()
         chain = skeleton.offsets[knee] + knee_local @ skeleton.offsets[ankle]  # hip → ankle
-        turned = _minimal(np.einsum("nab,nb->na", world_r[:, hip], chain), reach) @ world_r[:, hip]
-        # the twist about hip → ankle that puts the knee at new_knee (in the bend plane)
-        thigh_now = turned @ skeleton.offsets[knee]
-        p = thigh_now - np.sum(thigh_now * u, axis=1, keepdims=True) * u
-        q = (new_knee - h) - np.sum((new_knee - h) * u, axis=1, keepdims=True) * u
-        twist = np.arctan2(np.sum(u * np.cross(p, q), axis=1), np.sum(p * q, axis=1))
-        hip_world = Rotation.from_rotvec(u * twist[:, None]).as_matrix() @ turned
+        pointing = np.einsum("nab,nb->na", world_r[:, hip], chain)
+        hip_world = _minimal(pointing, reach) @ world_r[:, hip]
         knee_world = hip_world @ knee_local
         parent_world = world_r[:, skeleton.parents[hip]]
         new_local = {
             hip: np.einsum("nba,nbc->nac", parent_world, hip_world),
-            knee: np.einsum("nba,nbc->nac", hip_world, knee_world),
             ankle: np.einsum("nba,nbc->nac", knee_world, world_r[:, ankle]),
         }
+        values[:, knee_column : knee_column + 3] = knee_vector  # exactly on its own axis
         for joint, rotation in new_local.items():
             column = 5 + 3 * joint
             old = values[:, column : column + 3]
@@ -376,17 +363,23 @@ def crouch_legs(
 
 
 def _hinge_bend(rotvecs, thigh, shin, reach, knee: str) -> np.ndarray:
-    """``(F, 3, 3)`` knee rotations about each frame's own axis (``rotvecs``' direction; the
-    clip's mean axis where the knee is straight) by the angle, nearest the old one, that
-    puts the ankle ``reach`` from the hip: ``|thigh + R(θ) shin| = reach``. With Rodrigues'
-    formula ``thigh · R(θ) shin = α cos θ + β sin θ + γ``, solved in closed form."""
-    angle = np.linalg.norm(rotvecs, axis=1)
+    """``(F, 3)`` knee rotation vectors: each frame's rotation turned further about the
+    clip's knee axis ``n`` (the mean of the rotation vectors: a hinge's axis, its noise
+    averaged out) by the angle ``φ`` that puts the ankle ``reach`` from the hip,
+    ``|thigh + R(n, φ) s| = reach`` with ``s`` the shin as the knee held it. With
+    Rodrigues' formula ``thigh · R(n, φ) s = α cos φ + β sin φ + γ``, solved in closed
+    form; of its two roots, the one on the side of the straight leg the knee was on (so
+    it bends the same way, never through straight; a straight knee bends to the clip's
+    usual side)."""
+    old = Rotation.from_rotvec(rotvecs)
     mean = rotvecs.sum(axis=0)
-    mean = mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-12 else np.array([1.0, 0, 0])
-    axis = np.where(angle[:, None] > 1e-6, rotvecs / np.maximum(angle, 1e-12)[:, None], mean)
-    n_thigh, n_shin = axis @ thigh, axis @ shin
-    alpha = float(thigh @ shin) - n_thigh * n_shin
-    beta = np.cross(axis, shin) @ thigh
+    if np.linalg.norm(mean) < 1e-12:
+        raise EditConfigError(f"crouch: the {knee} never bends in this clip (no knee axis)")
+    axis = mean / np.linalg.norm(mean)
+    held = old.apply(shin)  # (F, 3): the shin in the thigh's frame
+    n_thigh, n_shin = axis @ thigh, held @ axis
+    alpha = held @ thigh - n_thigh * n_shin
+    beta = np.cross(axis, held) @ thigh
     delta = (reach**2 - thigh @ thigh - shin @ shin) / 2.0 - n_thigh * n_shin
     radius = np.hypot(alpha, beta)
     ratio = np.divide(delta, radius, out=np.full_like(delta, np.inf), where=radius > 1e-12)
@@ -396,10 +389,17 @@ def _hinge_bend(rotvecs, thigh, shin, reach, knee: str) -> np.ndarray:
             f"crouch: the {knee} cannot bend about its axis to reach frame {frame}"
         )
     centre, spread = np.arctan2(beta, alpha), np.arccos(np.clip(ratio, -1.0, 1.0))
-    choices = np.stack([centre + spread, centre - spread], axis=1) - angle[:, None]
-    choices = (choices + np.pi) % (2.0 * np.pi) - np.pi  # change from the old angle, wrapped
-    change = np.take_along_axis(choices, np.abs(choices).argmin(axis=1)[:, None], axis=1)[:, 0]
-    return Rotation.from_rotvec(axis * (angle + change)[:, None]).as_matrix()
+    offset = _wrap(-centre)  # where the knee is (φ = 0) from the straight leg
+    bent = np.abs(offset) > 1e-6  # a straight knee (mocap clamps them) takes the usual side
+    usual = float(np.sign(np.median(offset[bent]))) if bent.any() else 1.0
+    side = np.where(bent, np.sign(offset), usual or 1.0)
+    turn = _wrap(centre + side * spread)
+    new = Rotation.from_rotvec(np.outer(turn, axis)) * old
+    return _nearest_branch(new.as_rotvec(), rotvecs)
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _forward(track: TargetTrack, skeleton: Skeleton, local: np.ndarray):
