@@ -23,9 +23,10 @@ operations on a target track's channels, each a function of the source clip alon
   styles Hsu et al. recorded (§7.2);
 - ``crouch`` (skeleton mode): the root lowered by ``amount`` cm × gate with every
   ``targets`` ankle held where it was in the world (position and orientation), its
-  knee and hip re-solved by :func:`crouch_legs` (bone lengths kept: the two-bone case of
-  :func:`rigmap.edits.authoring.bone_length_ik`, in closed form). In rig mode a crouch
-  is an ``offset`` of the COG's height: the rig's own leg IK bends the knees.
+  knee bent about its hinge axis and its hip turned by :func:`crouch_legs` (bone lengths
+  kept: a two-bone IK with hip and ankle pinned, in closed form, as
+  :func:`rigmap.edits.authoring.bone_length_ik` solves it in general). In rig mode a
+  crouch is an ``offset`` of the COG's height: the rig's own leg IK bends the knees.
 
 ``scale`` and ``amplify`` take a ``gate`` too (default ``always``).
 
@@ -286,7 +287,8 @@ def _nearest_branch(out: np.ndarray, old: np.ndarray) -> np.ndarray:
 def gait_phase(values: np.ndarray, fps: float, window_s: float) -> np.ndarray:
     """``φ(t)`` (radians) of a channel's swing about its ``window_s`` moving average: the
     angle of the swing's analytic signal (Hilbert transform), so a swing ``A cos(ωt)``
-    gives ``φ = ωt`` (wrapped). A channel that does not swing gives ``φ = 0``."""
+    gives ``φ = ωt`` (wrapped). A channel that does not swing gives ``φ = 0``. The paper
+    defines no gait phase: this one, the channels and windows it is used with are ours."""
     values = np.asarray(values, dtype=np.float64)
     size = max(1, round(window_s * fps))
     swing = values - uniform_filter1d(values, size=size, mode="nearest")
@@ -299,15 +301,17 @@ def crouch_legs(
     """A skeleton-mode track with the root ``drop`` lower (length units, per frame) and each
     ankle of ``ankles`` where it was in the world, position and orientation, thigh and
     shin at their lengths (a two-bone IK with the hip and ankle pinned, in closed form):
-    per frame the knee keeps its rotation axis and changes only its angle, to the one
-    that puts the ankle at its distance from the lowered hip (a hinge knee stays a hinge:
-    the CMU knees' third exp-map channel stays 0), the hip turns by the minimal rotation
+    per frame the knee turns further about the clip's knee axis (:func:`_hinge_bend`), by
+    the angle that puts the ankle at its distance from the lowered hip (a hinge knee stays
+    a hinge: the CMU knees' third exp-map channel stays at its 1e-6 rad of noise), the
+    hip turns by the minimal rotation
     that points the hip → ankle chain at the ankle (the leg's twist kept, Fig 5's minimal
     rotations), and the ankle's local rotation undoes the change so the foot keeps its
     world rotation. Everything else is the source's. A leg that cannot reach raises
     :class:`EditConfigError` naming the frame. (Putting the knee at the point nearest
     its old place instead, as :func:`rigmap.edits.authoring.bone_length_ik` would, flips
-    the bend plane where the source leg is nearly straight: the hip turned by 180°.)"""
+    the bend plane where the source leg is nearly straight: the hip turned by 180°.)
+    These choices are ours: §5's artist drags joints by hand."""
     if track.channels != skeleton.channels():
         raise EditConfigError(f"{track.source}: its channels are not this skeleton's")
     drop = np.broadcast_to(np.asarray(drop, dtype=np.float64), (track.n_frames,))
