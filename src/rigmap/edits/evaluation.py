@@ -40,7 +40,7 @@ def evaluate_edit(
 ) -> dict:
     """Scores, ablation rows and context measures of one edit (see the module docstring)."""
     cm = data.subject.cm_per_unit
-    truths = [edit.apply(source.track, cm) for source in data.heldout]
+    truths = [edit.apply(source.track, cm, data.subject.skeleton) for source in data.heldout]
     total = Tally()
     clips = {}
     for source, truth, result in zip(data.heldout, truths, results, strict=True):
@@ -94,7 +94,7 @@ def context_dependence(data: StudyData, edit: Edit, truths, results) -> dict:
     full = edit.full()
     speeds, predicted, true = [], [], []
     for source, truth, result in zip(data.heldout, truths, results, strict=True):
-        strongest = full.apply(source.track, cm)
+        strongest = full.apply(source.track, cm, data.subject.skeleton)
         speeds.append(edit.root_speed_cm_s(source.track, cm))
         predicted.append(edit_fraction(source.track, result, strongest, data.scale))
         true.append(edit_fraction(source.track, truth, strongest, data.scale))

@@ -142,6 +142,7 @@ class SharedGP:
         self._sq = _squared_distances(self.X_, self.X_)
         n = len(self.X_)
         self._lower = np.tril(np.full((n, n), 2.0), -1) + np.eye(n)  # see _objective
+        self.__dict__.pop("_work", None)  # _objective's work arrays: made for these data
         start = {**INITIAL, **(initial or {})}
         theta = np.log([start["length_scale"], start["signal"], start["noise"]])
         self.iterations_ = self.evaluations_ = 0
@@ -151,6 +152,7 @@ class SharedGP:
             theta, self.iterations_ = result.x, int(result.nit)
         elif self.optimize:
             theta = self._fit_profile(theta[0])
+        self.__dict__.pop("_work", None)  # n² arrays the fitted GP does not need
         self.length_scale_, self.signal_, self.noise_ = (float(v) for v in np.exp(theta))
         self._factor = cho_factor(self._gram(theta), lower=True)
         self._alpha = cho_solve(self._factor, self.Y_)
@@ -176,7 +178,11 @@ class SharedGP:
         The gradient ``−½ Σ (ααᵀ − D K⁻¹) ∘ ∂K`` sums over the lower triangle only (every
         matrix in it is symmetric): ``K⁻¹`` from LAPACK ``potri`` and ``ααᵀ`` from
         ``syrk`` fill just that half, and ``self._lower`` (2 below the diagonal, 1 on it,
-        0 above) weighs it back to the whole sum — half the work of full matrices."""
+        0 above) weighs it back to the whole sum — half the work of full matrices. The
+        RBF and Gram matrices go into arrays made once per fit (``_work``, with ``-½ sq``;
+        dropped when the fit ends): the same operations in the same order as on fresh
+        arrays each call (bit-identical values), about 5 % less CPU per evaluation at
+        1 100 frames (measured in s28: 78.6 → 74.7 ms and 76.7 → 73.0 ms)."""
         with np.errstate(over="ignore"):
             length, signal, noise = np.exp(theta)
             scales = np.array([length**2, signal**2, noise**2])
@@ -184,8 +190,14 @@ class SharedGP:
             return 1e300, np.zeros(3)  # a line search's step out of range: reject it
         n, d = self.Y_.shape
         sq = self._sq
-        rbf = signal**2 * np.exp(-0.5 * sq / length**2)
-        K = rbf.copy()
+        work = self.__dict__.get("_work")
+        if work is None or work[0].shape != sq.shape:
+            work = self._work = (-0.5 * sq, np.empty_like(sq), np.empty_like(sq))
+        half_sq, rbf, K = work
+        np.divide(half_sq, length**2, out=rbf)  # −½ sq / ℓ²
+        np.exp(rbf, out=rbf)
+        rbf *= signal**2
+        np.copyto(K, rbf)
         K[np.diag_indices_from(K)] += noise**2 + _JITTER
         try:
             factor = cho_factor(K, lower=True, overwrite_a=True, check_finite=False)
@@ -200,7 +212,8 @@ class SharedGP:
         if info != 0:
             return 1e300, np.zeros(3)
         inner = blas.dsyrk(1.0, A, lower=1)  # ααᵀ, lower half (the upper stays 0)
-        inner -= d * inverse  # (ααᵀ − D K⁻¹); above the diagonal: ignored
+        inverse *= d
+        inner -= inverse  # (ααᵀ − D K⁻¹); above the diagonal: ignored
         trace = float(np.trace(inner))
         inner *= rbf
         inner *= self._lower  # (ααᵀ − D K⁻¹) ∘ rbf, weighted to the whole sum

@@ -92,8 +92,9 @@ def _add(config: dict, subject: str, layout: Layout) -> Path:
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
     for name, edit in edits.items():
-        examples = [(source, edit.apply(source.track, cm)) for source in data.train]
-        truths = [edit.apply(source.track, cm) for source in data.heldout]
+        skeleton = data.subject.skeleton
+        examples = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
+        truths = [edit.apply(source.track, cm, skeleton) for source in data.heldout]
         report = {}
         for choice in ("variance", "random"):
             model = EditModel(

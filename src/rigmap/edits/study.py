@@ -105,8 +105,8 @@ def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
 
 def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, dict]:
     """Fit one edit's model on the examples; returns it and what the fit found."""
-    cm = data.subject.cm_per_unit
-    pairs = [(source, edit.apply(source.track, cm)) for source in data.train]
+    cm, skeleton = data.subject.cm_per_unit, data.subject.skeleton
+    pairs = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
     model = EditModel(
         data.subject.joints,
         weights_from(settings["weights"]),
