@@ -34,8 +34,9 @@ from rigmap.rigs import load
 CONFIG = Path(__file__).resolve().parents[1] / "conf" / "regressor" / "nn_joint_space.yaml"
 
 #: name -> overrides of the config's settings
+_ONE_CYCLE = {"joint_learning_rate": 3e-3, "warmup": 0.1, "final_fraction": 0.01}
 VARIANTS: dict[str, dict] = {
-    "default": {},
+    "default": {},  # the config as it is (before this benchmark: 2 epochs of 512, 1e-3 cosine)
     # the joint-space phase longer, same schedule
     "e20": {"epochs": 20},
     # one-cycle: warm-up, higher peak, decay to a hundredth
@@ -73,6 +74,9 @@ VARIANTS: dict[str, dict] = {
         "warmup": 0.1,
         "final_fraction": 0.01,
     },
+    "e8_b64_oc3": {"epochs": 8, "batch_size": 64, **_ONE_CYCLE},
+    "e8_b128_oc3_w02": {"epochs": 8, "batch_size": 128, "control_weight": 0.02, **_ONE_CYCLE},
+    "e8_b128_oc3_h1024": {"epochs": 8, "batch_size": 128, "hidden": 1024, **_ONE_CYCLE},
 }
 
 
