@@ -77,6 +77,9 @@ VARIANTS: dict[str, dict] = {
     "e8_b64_oc3": {"epochs": 8, "batch_size": 64, **_ONE_CYCLE},
     "e8_b128_oc3_w02": {"epochs": 8, "batch_size": 128, "control_weight": 0.02, **_ONE_CYCLE},
     "e8_b128_oc3_h1024": {"epochs": 8, "batch_size": 128, "hidden": 1024, **_ONE_CYCLE},
+    # over the session-28 default (the config now): a lower control weight, a shorter pretraining
+    "w01": {"control_weight": 0.01},
+    "pre5": {"pretrain_epochs": 5},
 }
 
 
