@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -208,3 +210,27 @@ def test_tuning_on_the_target_lowers_its_joint_error_and_keeps_the_model(tiny):
     assert after < 0.2 * before
     assert report["last"]["joint"] < 0.2 * report["first"]["joint"]
     np.testing.assert_array_equal(mapping.predict(targets), prediction)  # the original is kept
+
+
+def test_the_joint_space_schedule_warms_up_to_its_peak_and_decays_to_its_final_fraction():
+    model = JointSpaceNetworkRegressor(
+        learning_rate=1e-3, joint_learning_rate=4e-3, warmup=0.2, final_fraction=0.01
+    )
+    model.network_ = torch.nn.Linear(2, 2)
+    optimizer, schedule = model._joint_schedule(100)
+    rates = []
+    for _ in range(100):
+        rates.append(optimizer.param_groups[0]["lr"])
+        optimizer.step()
+        schedule.step()
+    rates.append(optimizer.param_groups[0]["lr"])
+    assert rates[0] == pytest.approx(4e-4)  # a tenth of the peak
+    assert max(rates) == pytest.approx(4e-3) and int(np.argmax(rates)) == 20
+    assert all(a <= b for a, b in itertools.pairwise(rates[:21]))
+    assert all(a >= b for a, b in itertools.pairwise(rates[20:]))
+    assert rates[-1] == pytest.approx(4e-5)  # final_fraction of the peak
+    # without its own rate the joint-space phase runs at learning_rate
+    assert JointSpaceNetworkRegressor(learning_rate=2e-3).joint_rate == 2e-3
+    for bad in ({"warmup": 1.5}, {"final_fraction": -0.1}, {"joint_learning_rate": 0.0}):
+        with pytest.raises(ValueError, match="must be"):
+            JointSpaceNetworkRegressor(**bad)._check_params()

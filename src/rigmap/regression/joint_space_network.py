@@ -156,7 +156,12 @@ class JointSpaceNetworkRegressor(Regressor):
     - ``control_weight``: ``w``, the control term on rows with known controls.
     - ``control_rows``: ``known`` (the given rows) or ``natural`` (those and the draws
       around the corpus) carry the control term in the joint-space phase.
-    - ``learning_rate``: Adam's, decayed to a tenth over each phase (cosine).
+    - ``learning_rate``: Adam's, decayed to a tenth over the control-space phase (cosine).
+    - ``joint_learning_rate``, ``warmup``, ``final_fraction``: the joint-space phase's peak
+      rate (default ``learning_rate``), reached by a linear warm-up from a tenth of it over
+      the first ``warmup`` fraction of its steps, then cosine-decayed to ``final_fraction``
+      of it (``warmup=0, final_fraction=0.1``: plain cosine to a tenth; a warm-up and a
+      small final fraction: a one-cycle schedule).
     - ``seed``, ``progress``, ``threads``: as the paper's network.
     """
 
@@ -177,6 +182,9 @@ class JointSpaceNetworkRegressor(Regressor):
         control_weight: float = 0.05,
         control_rows: str = "natural",
         learning_rate: float = 1e-3,
+        joint_learning_rate: float | None = None,
+        warmup: float = 0.0,
+        final_fraction: float = 0.1,
         seed: int = 0,
         progress: bool = True,
         threads: int | None = 1,
@@ -193,6 +201,9 @@ class JointSpaceNetworkRegressor(Regressor):
         self.control_weight = control_weight
         self.control_rows = control_rows
         self.learning_rate = learning_rate
+        self.joint_learning_rate = joint_learning_rate
+        self.warmup = warmup
+        self.final_fraction = final_fraction
         self.seed = seed
         self.progress = progress
         self.threads = threads
@@ -214,8 +225,14 @@ class JointSpaceNetworkRegressor(Regressor):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{type(self).__name__}: {name} must be >= 0, got {value}")
-        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
-            raise ValueError(f"{type(self).__name__}: learning_rate must be > 0")
+        for name in ("learning_rate", "joint_rate"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{type(self).__name__}: {name} must be > 0, got {value}")
+        for name in ("warmup", "final_fraction"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and 0 <= value <= 1):
+                raise ValueError(f"{type(self).__name__}: {name} must be in [0, 1], got {value}")
         if self.control_rows not in CONTROL_ROWS:
             raise ValueError(
                 f"{type(self).__name__}: control_rows must be one of {CONTROL_ROWS}, "
@@ -287,6 +304,27 @@ class JointSpaceNetworkRegressor(Regressor):
         network.start_at(data.targets.numpy()[data.known].astype(np.float64))
         return network
 
+    @property
+    def joint_rate(self) -> float:
+        """The joint-space phase's peak learning rate."""
+        rate = self.joint_learning_rate
+        return float(self.learning_rate if rate is None else rate)
+
+    def _joint_schedule(self, steps: int):
+        """Adam at ``joint_rate``: a linear warm-up from a tenth, then cosine down to
+        ``final_fraction`` of it."""
+        peak, warm = self.joint_rate, round(float(self.warmup) * steps)
+        final, rest = float(self.final_fraction), max(steps - warm, 1)
+
+        def factor(step: int) -> float:
+            if step < warm:
+                return 0.1 + 0.9 * step / warm
+            done = min((step - warm) / rest, 1.0)
+            return final + (1 - final) * 0.5 * (1 + math.cos(math.pi * done))
+
+        optimizer = _adam(list(self.network_.parameters()), peak)
+        return optimizer, torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
+
     def _schedule(self, steps: int):
         optimizer = _adam(list(self.network_.parameters()), float(self.learning_rate))
         decay = torch.optim.lr_scheduler.CosineAnnealingLR(
@@ -323,7 +361,7 @@ class JointSpaceNetworkRegressor(Regressor):
         n, batch = len(data.inputs), int(self.batch_size)
         on = data.natural if self.control_rows == "natural" else data.known
         steps = int(self.epochs) * math.ceil(n / batch)
-        optimizer, decay = self._schedule(steps)
+        optimizer, decay = self._joint_schedule(steps)
         history = []
         bar = tqdm(
             total=steps, desc="through the rig", unit="step", disable=not self.progress, leave=False
