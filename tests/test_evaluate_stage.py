@@ -167,6 +167,7 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
         differences="forward",
         sparsity="coloured",
         solver="block_cholesky",
+        traced=True,  # the refine config default (a Blender rig ignores it)
     )
     assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
     assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"
