@@ -138,8 +138,7 @@ class LearnedJacobian(Regressor):
             raise RuntimeError("LearnedJacobian is not fitted: call fit(X, jacobians) first")
         X, squeeze = self.fingerprint_.check_inputs(X, "LearnedJacobian")
         gpr = self.regressor_
-        self.nonzero_entries()
-        weights, mean = self.__dict__["_compact"]
+        weights, mean = self._compact_weights()
         values = np.empty((len(X), len(mean)))
         for start in range(0, len(X), PREDICT_CHUNK):
             Xn = (X[start : start + PREDICT_CHUNK] - gpr.x_mean_) / gpr.x_std_
@@ -160,6 +159,11 @@ class LearnedJacobian(Regressor):
             self.__dict__["_compact"] = (gpr.weights_[:, cached] * scale, mean[cached].copy())
             self.__dict__["_nonzero_entries"] = cached
         return cached
+
+    def _compact_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """The GPR's weights and mean on :meth:`nonzero_entries` only, output scale folded in."""
+        self.nonzero_entries()  # builds them with the entries (cached together)
+        return self.__dict__["_compact"]
 
     def pattern(self) -> np.ndarray:
         """``(R, C)`` bool: the entries a predicted Jacobian can make non-zero."""
