@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import hydra
 import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
@@ -18,7 +19,7 @@ from hydra import compose, initialize_config_dir
 from rigmap.animation.corpus import Corpus
 from rigmap.cli import main as rigmap_main
 from rigmap.evaluation.methods import Method, TestSet, run_method
-from rigmap.evaluation.sample_sweep import joint_space_sweep
+from rigmap.evaluation.sample_sweep import fitted_model, joint_space_sweep
 from rigmap.refine import jacobian
 from rigmap.regression import (
     FeedForwardRegressor,
@@ -141,6 +142,7 @@ def test_gpr_folder_holds_model_fit_json_and_learned_jacobian(gpr_fit, data_dir,
         "corpus": n_corpus,
         "rest_pose_added": 1,
         "samples": 0,
+        "sha256": load_training_data(biped, data_dir, "none").digest(),
     }
     assert record["features"]["width"] == 3 * biped.n_joints + 12
     # the biped's root channels were found on the rig and are solved, not regressed
@@ -355,6 +357,37 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
         staged.result.average()["joint_error"], rel=1e-9
     )
     assert results[0]["average"]["joint_error"] != results[1]["average"]["joint_error"]
+
+
+def test_joint_space_sweep_scores_the_fit_stages_model_when_it_is_the_same_fit(
+    data_dir, biped, tmp_path, capsys
+):
+    cfg = fit_config(
+        data_dir, tmp_path / "models", *JOINT_SPACE_TINY,
+        f"paths.metrics={tmp_path / 'metrics'}", "+sweep.fractions=[0.5,1.0]",
+    )  # fmt: skip
+    _stage("fit").run(cfg)
+    capsys.readouterr()
+    reused = _stage("sample_sweep").run(cfg)
+    log = capsys.readouterr().out
+    assert log.count("scoring the fit stage's model") == 1 and "+ 60 draws: scoring" in log
+    layout = Layout(data=data_dir, models=tmp_path / "models", metrics=tmp_path / "refit")
+    make = lambda: hydra.utils.instantiate(cfg.regressor, _convert_="all")  # noqa: E731
+    refitted = joint_space_sweep(biped, layout, make, fractions=[0.5, 1.0], reuse_fit=False)
+    for a, b in zip(reused, refitted, strict=True):
+        scores = [json.loads(p.read_text())["average"] for p in (a, b)]
+        for key in ("joint_error", "ground_truth_error"):
+            assert scores[0][key] == scores[1][key]
+    # another network, or other training rows: the saved model is not that fit
+    data = load_training_data(biped, data_dir, "none")
+    folder = tmp_path / "models" / "biped" / "nn_joint_space-none-none"
+    assert fitted_model(folder, make(), biped, data) is not None
+    assert fitted_model(folder, make().set_params(epochs=2), biped, data) is None
+    data.controls[0, 0] += 1e-9
+    assert fitted_model(folder, make(), biped, data) is None
+    (folder / "fit.json").write_text("{")
+    with pytest.raises(ValueError, match=r"fit\.json: not valid JSON"):
+        fitted_model(folder, make(), biped, data)
 
 
 def test_joint_space_sweep_refuses_another_regressor_or_no_draws(data_dir, tmp_path):

@@ -14,17 +14,22 @@ are scaled, ``n_gaussian = round(f x G)`` and ``n_wide = round(f x W)``, a fresh
 fitted and scored, into ``metrics/<rig>/sample_sweep_joint_space/nn_joint_space-draws-<n>.json``
 (``n`` the draws in all). As in the network's sweep the epochs are fixed, so more samples
 also mean more optimiser steps: the curve is what a user gets by asking for more samples.
+The fraction 1 is the fit stage's own network: when ``models/<rig>/nn_joint_space-none-none``
+holds a fit with the same parameters on the same training rows (``fit.json``'s digest), the
+sweep scores that model instead of fitting it again (the same seeded fit, so the same
+scores; it was about half the sweep's time).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from rigmap.errors import RigmapError
-from rigmap.store import Layout, write_folder_atomic
+from rigmap.store import Layout, ModelId, write_folder_atomic
 
 DEFAULT_FRACTIONS = (0.0625, 0.125, 0.25, 0.5, 1.0)
 SWEEP_FOLDER = "sample_sweep"
@@ -114,9 +119,14 @@ def joint_space_sweep(
     make_network: Callable[[], Any],
     *,
     fractions: Sequence[float] = DEFAULT_FRACTIONS,
+    reuse_fit: bool = True,
     log: Log = _print,
 ) -> list[Path]:
-    """Fit a fresh joint-space network per fraction of its draws, score it, write the folder."""
+    """Fit a fresh joint-space network per fraction of its draws, score it, write the folder.
+
+    With ``reuse_fit`` a fraction whose network the fit stage already trained on these rows
+    (:func:`fitted_model`) is scored from ``models/`` instead of being fitted again.
+    """
     from rigmap.evaluation.methods import Method, TestSet, run_method
     from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
 
@@ -142,13 +152,21 @@ def joint_space_sweep(
     placement = placement_of(rig, data)
     test_set = TestSet.load(rig, layout.rig_data(rig.name))
     method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    fitted_folder = layout.model(rig.name, ModelId("nn_joint_space"))
     folder = layout.metrics_folder(rig.name, JOINT_SPACE_SWEEP_FOLDER)
     names: list[str] = []
 
     def fill(staging: Path) -> None:
         for n_gaussian, n_wide in draws:
             network = make_network().set_params(n_gaussian=n_gaussian, n_wide=n_wide)
-            mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
+            mapping = fitted_model(fitted_folder, network, rig, data) if reuse_fit else None
+            if mapping is not None:
+                log(
+                    f"{rig.name} nn_joint_space + {n_gaussian + n_wide} draws: scoring the fit "
+                    f"stage's model {fitted_folder} (same parameters, same training rows)"
+                )
+            else:
+                mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
             n = n_gaussian + n_wide
             evaluation = run_method(
                 rig, method, test_set, regressor=mapping, sampler="none",
@@ -166,3 +184,38 @@ def joint_space_sweep(
 
     write_folder_atomic(folder, fill)
     return [folder / name for name in names]
+
+
+#: parameters that change what a fit prints, not what it learns
+_PRESENTATION_PARAMS = frozenset({"progress"})
+
+
+def fitted_model(folder: Path, network, rig, data) -> Any | None:
+    """The mapping saved in ``folder`` if it is ``network`` fitted on ``data``'s rows, else None.
+
+    Both must hold: ``fit.json`` records the same training-row digest
+    (:meth:`~rigmap.regression.fitting.TrainingData.digest`) and the saved regressor's
+    parameters equal ``network``'s (all but :data:`_PRESENTATION_PARAMS`). A fit is seeded,
+    so such a model is what fitting ``network`` again would give.
+    """
+    from rigmap.regression import load_regressor
+
+    record_path = folder / "fit.json"
+    if not record_path.is_file():
+        return None
+    try:
+        record = json.loads(record_path.read_text())
+    except json.JSONDecodeError as error:
+        raise SweepInputError(
+            f"{record_path}: not valid JSON ({error}); re-run the fit stage "
+            f"(`dvc repro fit_nn_joint_space`) or delete {folder}"
+        ) from None
+    if record.get("rows", {}).get("sha256") != data.digest():
+        return None
+    mapping = load_regressor(folder, rig=rig)
+    saved, wanted = mapping.regressor.get_params(), network.get_params()
+    if {k: v for k, v in saved.items() if k not in _PRESENTATION_PARAMS} != {
+        k: v for k, v in wanted.items() if k not in _PRESENTATION_PARAMS
+    }:
+        return None
+    return mapping

@@ -27,6 +27,7 @@ a killed fit never leaves a half-written model behind.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -86,6 +87,16 @@ class TrainingData:
     @property
     def rows(self) -> int:
         return len(self.features)
+
+    def digest(self) -> str:
+        """SHA-256 of the rows (features and controls), so a later stage can tell whether a
+        saved fit was trained on exactly these rows."""
+        hasher = hashlib.sha256()
+        for array in (self.features, self.controls):
+            values = np.ascontiguousarray(array, dtype=np.float64)
+            hasher.update(repr(values.shape).encode())
+            hasher.update(values.tobytes())
+        return hasher.hexdigest()
 
 
 def training_files(data_dir: str | os.PathLike, rig_name: str, sampler: str) -> dict[str, Path]:
@@ -350,6 +361,7 @@ def _fit_record(
             "corpus": data.corpus_rows,
             "rest_pose_added": int(data.rest_pose_added),
             "samples": data.sample_rows,
+            "sha256": data.digest(),
         },
         "rest_pose": {
             "index": data.rest_index,
