@@ -259,3 +259,67 @@ def test_one_trace_replays_batches_of_every_size(name):
             replayed = rig.pose(Y)
         for got, want in zip(replayed, eager, strict=True):
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+
+
+def _matmul_product(rotations):
+    """The axis rotations' product by batched matmuls (``R_k @ … @ R_1``)."""
+    from rigmap.rigs.engine.transforms import axis_rotation
+
+    R = axis_rotation(*rotations[0])
+    for angle, axis in rotations[1:]:
+        R = axis_rotation(angle, axis) @ R
+    return R
+
+
+def test_rotation_product_equals_the_matmul_product_to_the_last_bit():
+    """Euler matrices and two-axis rotations written out entry by entry are the batched
+    matmuls of the axis matrices exactly (every order; angles across several turns), and
+    their gradients agree."""
+    from rigmap.rigs.engine.transforms import ROTATION_ORDERS, euler_matrix, rotation_product
+
+    rng = np.random.default_rng(3)
+    angles = torch.from_numpy(rng.uniform(-7.0, 7.0, (257, 4, 3)))
+    for order in ROTATION_ORDERS:
+        want = _matmul_product([(angles[..., "xyz".index(a)], a) for a in order])
+        assert torch.equal(euler_matrix(angles, order), want), order
+    for first, second in itertools.permutations("xyz", 2):
+        pair = [(angles[..., 0], first), (angles[..., 1], second)]
+        assert torch.equal(rotation_product(pair), _matmul_product(pair)), (first, second)
+    x = angles[:5, 0].clone().requires_grad_(True)
+    (rotation_product([(x[:, 0], "z"), (x[:, 2], "x")]) ** 2).sum().backward()
+    y = angles[:5, 0].clone().requires_grad_(True)
+    (_matmul_product([(y[:, 0], "z"), (y[:, 2], "x")]) ** 2).sum().backward()
+    torch.testing.assert_close(x.grad, y.grad, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="rotation order"):
+        euler_matrix(angles, "xxy")
+
+
+@pytest.mark.parametrize("name", ["biped", "quadruped"])
+def test_rigs_pose_as_with_matmul_rotations(name, monkeypatch):
+    """The built-in rigs give the positions of their matmul-product rotations (before session
+    29) to the last bit, eager and traced."""
+    from rigmap.rigs import load
+    from rigmap.rigs.engine import builder
+    from rigmap.rigs.features import chain_attributes, foot_roll
+
+    rng = np.random.default_rng(11)
+    rig = load(name)
+    used = rig.controls.used_indices
+    Y = np.repeat(rig.controls.defaults[None], 40, axis=0)
+    Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (40, len(used)))
+    new = rig.pose(Y)
+    with rig.replaying_traces():
+        new_traced = rig.pose(Y)
+    monkeypatch.setattr(
+        builder,
+        "euler_matrix",
+        lambda angles, order="xyz": _matmul_product(
+            [(angles[..., "xyz".index(a)], a) for a in order]
+        ),
+    )
+    monkeypatch.setattr(chain_attributes, "rotation_product", _matmul_product)
+    monkeypatch.setattr(foot_roll, "rotation_product", _matmul_product)
+    old = load(name).pose(Y)
+    for got, traced, want in zip(new, new_traced, old, strict=True):
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(traced, want)

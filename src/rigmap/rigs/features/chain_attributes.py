@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import torch
 
 from rigmap.rigs.engine.builder import Attribute, EvalContext, RigBuilder
-from rigmap.rigs.engine.transforms import axis_rotation
+from rigmap.rigs.engine.transforms import axis_rotation, rotation_product
 
 
 @dataclass
@@ -44,10 +44,11 @@ class ChainAttributes:
                 bend = bend + wave
             else:
                 side = side + wave
-        R = axis_rotation(self.bend_sign * bend, self.bend_axis)
-        if side is not None:
-            R = axis_rotation(self.side_sign * side, self.side_axis) @ R
-        return R
+        if side is None:
+            return axis_rotation(self.bend_sign * bend, self.bend_axis)
+        return rotation_product(
+            [(self.bend_sign * bend, self.bend_axis), (self.side_sign * side, self.side_axis)]
+        )
 
 
 def chain_attributes(
