@@ -31,8 +31,8 @@ timing, warm-up and rig counting) in the same process, once per variant:
   prediction, a traced rig pads each batch to one of its per-size traces), for a
   same-run comparison of session 28's changes;
 - ``fast_s28``: ``fast`` with the code of session 28 (``s28_code``: the rig's Euler
-  matrices and two-axis rotations by axis matrices and batched matmuls again), for a
-  same-run comparison of session 29's changes;
+  matrices and two-axis rotations by axis matrices and batched matmuls again, layered
+  chains joint by joint), for a same-run comparison of session 29's changes;
 - ``block_forward``: ``block`` with one-sided differences even where the rig's
   conf asks for central ones (the Blender rigs).
 
@@ -248,14 +248,16 @@ def s28_code(active: bool, rig):
 
     Switches off, for the duration: the rig's Euler matrices and two-axis rotations written
     out entry by entry (``transforms.rotation_product``: axis matrices and batched matmuls
-    again, :func:`matmul_rotation_product`). ``rig``'s traces are recorded from the code they
-    replay, so the variant keeps its own trace cache (built in its untimed warm-up).
+    again, :func:`matmul_rotation_product`) and a layered FK chain's rotations for all its
+    joints at once (``fk_chain.BATCHED_LAYERS``: joint by joint again). ``rig``'s traces are
+    recorded from the code they replay, so the variant keeps its own trace cache (built in its
+    untimed warm-up).
     """
     if not active:
         yield
         return
     from rigmap.rigs.engine import builder
-    from rigmap.rigs.features import chain_attributes, foot_roll
+    from rigmap.rigs.features import chain_attributes, fk_chain, foot_roll
 
     def matmul_euler(angles, order="xyz"):
         return matmul_rotation_product([(angles[..., "xyz".index(a)], a) for a in order])
@@ -267,12 +269,14 @@ def s28_code(active: bool, rig):
     modules = (chain_attributes, foot_roll)
     saved = builder.euler_matrix, [m.rotation_product for m in modules]
     builder.euler_matrix = matmul_euler
+    fk_chain.BATCHED_LAYERS = False
     for module in modules:
         module.rotation_product = matmul_rotation_product
     try:
         yield
     finally:
         builder.euler_matrix = saved[0]
+        fk_chain.BATCHED_LAYERS = True
         for module, product in zip(modules, saved[1], strict=True):
             module.rotation_product = product
         inner.__dict__["_s28_traces"] = {

@@ -295,12 +295,12 @@ def test_rotation_product_equals_the_matmul_product_to_the_last_bit():
 
 
 @pytest.mark.parametrize("name", ["biped", "quadruped"])
-def test_rigs_pose_as_with_matmul_rotations(name, monkeypatch):
-    """The built-in rigs give the positions of their matmul-product rotations (before session
-    29) to the last bit, eager and traced."""
+def test_rigs_pose_as_with_session_28s_code(name, monkeypatch):
+    """The built-in rigs give the positions of session 28's code (matmul-product rotations,
+    layered chains joint by joint) to the last bit, eager and traced."""
     from rigmap.rigs import load
     from rigmap.rigs.engine import builder
-    from rigmap.rigs.features import chain_attributes, foot_roll
+    from rigmap.rigs.features import chain_attributes, fk_chain, foot_roll
 
     rng = np.random.default_rng(11)
     rig = load(name)
@@ -319,7 +319,35 @@ def test_rigs_pose_as_with_matmul_rotations(name, monkeypatch):
     )
     monkeypatch.setattr(chain_attributes, "rotation_product", _matmul_product)
     monkeypatch.setattr(foot_roll, "rotation_product", _matmul_product)
+    monkeypatch.setattr(fk_chain, "BATCHED_LAYERS", False)
     old = load(name).pose(Y)
     for got, traced, want in zip(new, new_traced, old, strict=True):
         np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(traced, want)
+
+
+@pytest.mark.parametrize("side", [False, True])
+@pytest.mark.parametrize("wave", [False, True])
+def test_chain_layer_rotations_at_once_equal_the_joint_by_joint_ones(side, wave):
+    """``ChainAttributes.rotations`` (every joint of a chain in one batch) gives each joint's
+    ``rotation`` to the last bit, with and without side curl and wave."""
+    from rigmap.rigs.engine.builder import Attribute
+    from rigmap.rigs.features.chain_attributes import ChainAttributes
+
+    rng = np.random.default_rng(4)
+    layer = ChainAttributes(
+        curl=Attribute("curl", 0),
+        side_curl=Attribute("side", 1) if side else None,
+        wave_amplitude=Attribute("amplitude", 2) if wave else None,
+        wave_phase=Attribute("phase", 3) if wave else None,
+        bend_axis="z",
+        side_axis="y",
+        wavelength=1.3,
+        bend_sign=-1.0,
+    )
+    ctx = EvalContext(torch.from_numpy(rng.uniform(-4.0, 4.0, (33, 4))))
+    count = 7
+    together = layer.rotations(ctx, count)
+    assert together.shape == (33, count, 3, 3)
+    for index in range(count):
+        assert torch.equal(together[:, index], layer.rotation(ctx, index, count)), index
