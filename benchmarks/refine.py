@@ -32,7 +32,8 @@ timing, warm-up and rig counting) in the same process, once per variant:
   same-run comparison of session 28's changes;
 - ``fast_s28``: ``fast`` with the code of session 28 (``s28_code``: the rig's Euler
   matrices and two-axis rotations by axis matrices and batched matmuls again, layered
-  chains joint by joint), for a same-run comparison of session 29's changes;
+  chains joint by joint, the control objects' local transforms pose-major), for a same-run
+  comparison of session 29's changes;
 - ``block_forward``: ``block`` with one-sided differences even where the rig's
   conf asks for central ones (the Blender rigs).
 
@@ -248,8 +249,10 @@ def s28_code(active: bool, rig):
 
     Switches off, for the duration: the rig's Euler matrices and two-axis rotations written
     out entry by entry (``transforms.rotation_product``: axis matrices and batched matmuls
-    again, :func:`matmul_rotation_product`) and a layered FK chain's rotations for all its
-    joints at once (``fk_chain.BATCHED_LAYERS``: joint by joint again). ``rig``'s traces are
+    again, :func:`matmul_rotation_product`), a layered FK chain's rotations for all its
+    joints at once (``fk_chain.BATCHED_LAYERS``: joint by joint again) and the control
+    objects' local transforms control by control (``builder.CONTROL_MAJOR_LOCALS``: the
+    pose-major ``(N, K, 3, 3)`` layout again). ``rig``'s traces are
     recorded from the code they replay, so the variant keeps its own trace cache (built in its
     untimed warm-up).
     """
@@ -269,14 +272,14 @@ def s28_code(active: bool, rig):
     modules = (chain_attributes, foot_roll)
     saved = builder.euler_matrix, [m.rotation_product for m in modules]
     builder.euler_matrix = matmul_euler
-    fk_chain.BATCHED_LAYERS = False
+    fk_chain.BATCHED_LAYERS = builder.CONTROL_MAJOR_LOCALS = False
     for module in modules:
         module.rotation_product = matmul_rotation_product
     try:
         yield
     finally:
         builder.euler_matrix = saved[0]
-        fk_chain.BATCHED_LAYERS = True
+        fk_chain.BATCHED_LAYERS = builder.CONTROL_MAJOR_LOCALS = True
         for module, product in zip(modules, saved[1], strict=True):
             module.rotation_product = product
         inner.__dict__["_s28_traces"] = {

@@ -297,7 +297,8 @@ def test_rotation_product_equals_the_matmul_product_to_the_last_bit():
 @pytest.mark.parametrize("name", ["biped", "quadruped"])
 def test_rigs_pose_as_with_session_28s_code(name, monkeypatch):
     """The built-in rigs give the positions of session 28's code (matmul-product rotations,
-    layered chains joint by joint) to the last bit, eager and traced."""
+    layered chains joint by joint, pose-major local transforms) to the last bit, eager and
+    traced, and one trace still replays every batch size."""
     from rigmap.rigs import load
     from rigmap.rigs.engine import builder
     from rigmap.rigs.features import chain_attributes, fk_chain, foot_roll
@@ -308,6 +309,7 @@ def test_rigs_pose_as_with_session_28s_code(name, monkeypatch):
     Y = np.repeat(rig.controls.defaults[None], 40, axis=0)
     Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (40, len(used)))
     new = rig.pose(Y)
+    assert rig.generic_trace() is not None
     with rig.replaying_traces():
         new_traced = rig.pose(Y)
     monkeypatch.setattr(
@@ -320,6 +322,7 @@ def test_rigs_pose_as_with_session_28s_code(name, monkeypatch):
     monkeypatch.setattr(chain_attributes, "rotation_product", _matmul_product)
     monkeypatch.setattr(foot_roll, "rotation_product", _matmul_product)
     monkeypatch.setattr(fk_chain, "BATCHED_LAYERS", False)
+    monkeypatch.setattr(builder, "CONTROL_MAJOR_LOCALS", False)
     old = load(name).pose(Y)
     for got, traced, want in zip(new, new_traced, old, strict=True):
         np.testing.assert_array_equal(got, want)
