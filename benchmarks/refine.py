@@ -30,6 +30,10 @@ timing, warm-up and rig counting) in the same process, once per variant:
   solver reads a batch's pattern by torch, a learned Jacobian is turned on its dense
   prediction, a traced rig pads each batch to one of its per-size traces), for a
   same-run comparison of session 28's changes;
+- ``fast_s28``: ``fast`` with the code of session 28 (``s28_code``: the rig's Euler
+  matrices and two-axis rotations by axis matrices and batched matmuls again, layered
+  chains joint by joint, the control objects' local transforms pose-major), for a same-run
+  comparison of session 29's changes;
 - ``block_forward``: ``block`` with one-sided differences even where the rig's
   conf asks for central ones (the Blender rigs).
 
@@ -40,7 +44,8 @@ settings (conf/rig/<rig>.yaml ``evaluate.methods``: the Blender rigs' central
 differences) apply to every variant but ``old``. The JSON gives, per rig, method
 and variant: frames/s, rig evaluations per frame, joint error (cm²),
 ground-truth error, and the speed-up over ``old``, ``today`` and
-``today_one_thread`` where they ran (and, of medians, over a ``_before`` or ``_s27`` twin).
+``today_one_thread`` where they ran (and, of medians, over a ``_before``, ``_s27`` or
+``_s28`` twin).
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/refine.py \\
         --data /tmp/refine_data --models /tmp/refine_models \\
@@ -129,6 +134,14 @@ VARIANTS = {
         "sparsity": "coloured",
         "traced": True,
         "before": "s27",
+    },
+    # the same settings with session 29's changes switched off (see s28_code)
+    "fast_s28": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "traced": True,
+        "before": "s28",
     },
 }
 
@@ -219,6 +232,62 @@ def s27_code(active: bool):
         torch_rig.GENERIC_TRACE = saved_generic
 
 
+def matmul_rotation_product(rotations):
+    """Session 28's product of axis rotations: :func:`axis_rotation` matrices and batched
+    matmuls (``R = R_k @ … @ R_1``), the same values as ``rotation_product`` to the last bit."""
+    from rigmap.rigs.engine.transforms import axis_rotation
+
+    R = axis_rotation(*rotations[0])
+    for angle, axis in rotations[1:]:
+        R = axis_rotation(angle, axis) @ R
+    return R
+
+
+@contextmanager
+def s28_code(active: bool, rig):
+    """The refinement code of session 28 (before session 29's changes), for a same-run comparison.
+
+    Switches off, for the duration: the rig's Euler matrices and two-axis rotations written
+    out entry by entry (``transforms.rotation_product``: axis matrices and batched matmuls
+    again, :func:`matmul_rotation_product`), a layered FK chain's rotations for all its
+    joints at once (``fk_chain.BATCHED_LAYERS``: joint by joint again) and the control
+    objects' local transforms control by control (``builder.CONTROL_MAJOR_LOCALS``: the
+    pose-major ``(N, K, 3, 3)`` layout again). ``rig``'s traces are
+    recorded from the code they replay, so the variant keeps its own trace cache (built in its
+    untimed warm-up).
+    """
+    if not active:
+        yield
+        return
+    from rigmap.rigs.engine import builder
+    from rigmap.rigs.features import chain_attributes, fk_chain, foot_roll
+
+    def matmul_euler(angles, order="xyz"):
+        return matmul_rotation_product([(angles[..., "xyz".index(a)], a) for a in order])
+
+    inner = getattr(rig, "wrapped", rig)
+    caches = ("_traces", "_generic_traces")
+    saved_caches = {key: inner.__dict__.pop(key, None) for key in caches}
+    inner.__dict__.update(inner.__dict__.pop("_s28_traces", {}))
+    modules = (chain_attributes, foot_roll)
+    saved = builder.euler_matrix, [m.rotation_product for m in modules]
+    builder.euler_matrix = matmul_euler
+    fk_chain.BATCHED_LAYERS = builder.CONTROL_MAJOR_LOCALS = False
+    for module in modules:
+        module.rotation_product = matmul_rotation_product
+    try:
+        yield
+    finally:
+        builder.euler_matrix = saved[0]
+        fk_chain.BATCHED_LAYERS = builder.CONTROL_MAJOR_LOCALS = True
+        for module, product in zip(modules, saved[1], strict=True):
+            module.rotation_product = product
+        inner.__dict__["_s28_traces"] = {
+            k: inner.__dict__.pop(k) for k in caches if k in inner.__dict__
+        }
+        inner.__dict__.update({k: v for k, v in saved_caches.items() if v is not None})
+
+
 def rig_refine_overrides(name: str, method: str) -> dict:
     """conf/rig/<name>.yaml's ``_overrides_.method.<method>.refine`` (e.g. central differences)."""
     from omegaconf import OmegaConf
@@ -252,7 +321,7 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
     learned = models["learned"] if "learned" in method else None
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    with previous_code(before is True), s27_code(before == "s27"):
+    with previous_code(before is True), s27_code(before == "s27"), s28_code(before == "s28", rig):
         evaluation = run_method(
             rig, method, test_set, regressor=regressor, learned_jacobian=learned, refine=settings
         )
@@ -261,9 +330,11 @@ def measure(rig, method: str, test_set: TestSet, models: dict, variant: str, ite
         "method": method,
         "variant": variant,
         "settings": settings.to_dict(),
-        "code": {True: "before session 27", "s27": "session 27 (before session 28)"}.get(
-            before, "this commit"
-        ),
+        "code": {
+            True: "before session 27",
+            "s27": "session 27 (before session 28)",
+            "s28": "session 28 (before session 29)",
+        }.get(before, "this commit"),
         "frames": test_set.frames,
         "fps": round(average["fps"], 2),
         "rig_evaluations_per_frame": round(average["rig_evaluations"] / test_set.frames, 1),
@@ -321,7 +392,7 @@ def benchmark_rig(name: str, args) -> list[dict]:
                 best[v]["fps_runs"] = runs[v]
                 best[v]["fps_median"] = round(float(np.median(runs[v])), 2)
             for v in variants:
-                for suffix in ("before", "s27"):  # the same settings on the previous code
+                for suffix in ("before", "s27", "s28"):  # the same settings on the previous code
                     twin = best.get(f"{v}_{suffix}")
                     if twin is not None:
                         best[v][f"speedup_over_{suffix}_median"] = round(

@@ -259,3 +259,98 @@ def test_one_trace_replays_batches_of_every_size(name):
             replayed = rig.pose(Y)
         for got, want in zip(replayed, eager, strict=True):
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+
+
+def _matmul_product(rotations):
+    """The axis rotations' product by batched matmuls (``R_k @ … @ R_1``)."""
+    from rigmap.rigs.engine.transforms import axis_rotation
+
+    R = axis_rotation(*rotations[0])
+    for angle, axis in rotations[1:]:
+        R = axis_rotation(angle, axis) @ R
+    return R
+
+
+def test_rotation_product_equals_the_matmul_product_to_the_last_bit():
+    """Euler matrices and two-axis rotations written out entry by entry are the batched
+    matmuls of the axis matrices exactly (every order; angles across several turns), and
+    their gradients agree."""
+    from rigmap.rigs.engine.transforms import ROTATION_ORDERS, euler_matrix, rotation_product
+
+    rng = np.random.default_rng(3)
+    angles = torch.from_numpy(rng.uniform(-7.0, 7.0, (257, 4, 3)))
+    for order in ROTATION_ORDERS:
+        want = _matmul_product([(angles[..., "xyz".index(a)], a) for a in order])
+        assert torch.equal(euler_matrix(angles, order), want), order
+    for first, second in itertools.permutations("xyz", 2):
+        pair = [(angles[..., 0], first), (angles[..., 1], second)]
+        assert torch.equal(rotation_product(pair), _matmul_product(pair)), (first, second)
+    x = angles[:5, 0].clone().requires_grad_(True)
+    (rotation_product([(x[:, 0], "z"), (x[:, 2], "x")]) ** 2).sum().backward()
+    y = angles[:5, 0].clone().requires_grad_(True)
+    (_matmul_product([(y[:, 0], "z"), (y[:, 2], "x")]) ** 2).sum().backward()
+    torch.testing.assert_close(x.grad, y.grad, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="rotation order"):
+        euler_matrix(angles, "xxy")
+
+
+@pytest.mark.parametrize("name", ["biped", "quadruped"])
+def test_rigs_pose_as_with_session_28s_code(name, monkeypatch):
+    """The built-in rigs give the positions of session 28's code (matmul-product rotations,
+    layered chains joint by joint, pose-major local transforms) to the last bit, eager and
+    traced, and one trace still replays every batch size."""
+    from rigmap.rigs import load
+    from rigmap.rigs.engine import builder
+    from rigmap.rigs.features import chain_attributes, fk_chain, foot_roll
+
+    rng = np.random.default_rng(11)
+    rig = load(name)
+    used = rig.controls.used_indices
+    Y = np.repeat(rig.controls.defaults[None], 40, axis=0)
+    Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used], (40, len(used)))
+    new = rig.pose(Y)
+    assert rig.generic_trace() is not None
+    with rig.replaying_traces():
+        new_traced = rig.pose(Y)
+    monkeypatch.setattr(
+        builder,
+        "euler_matrix",
+        lambda angles, order="xyz": _matmul_product(
+            [(angles[..., "xyz".index(a)], a) for a in order]
+        ),
+    )
+    monkeypatch.setattr(chain_attributes, "rotation_product", _matmul_product)
+    monkeypatch.setattr(foot_roll, "rotation_product", _matmul_product)
+    monkeypatch.setattr(fk_chain, "BATCHED_LAYERS", False)
+    monkeypatch.setattr(builder, "CONTROL_MAJOR_LOCALS", False)
+    old = load(name).pose(Y)
+    for got, traced, want in zip(new, new_traced, old, strict=True):
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(traced, want)
+
+
+@pytest.mark.parametrize("side", [False, True])
+@pytest.mark.parametrize("wave", [False, True])
+def test_chain_layer_rotations_at_once_equal_the_joint_by_joint_ones(side, wave):
+    """``ChainAttributes.rotations`` (every joint of a chain in one batch) gives each joint's
+    ``rotation`` to the last bit, with and without side curl and wave."""
+    from rigmap.rigs.engine.builder import Attribute
+    from rigmap.rigs.features.chain_attributes import ChainAttributes
+
+    rng = np.random.default_rng(4)
+    layer = ChainAttributes(
+        curl=Attribute("curl", 0),
+        side_curl=Attribute("side", 1) if side else None,
+        wave_amplitude=Attribute("amplitude", 2) if wave else None,
+        wave_phase=Attribute("phase", 3) if wave else None,
+        bend_axis="z",
+        side_axis="y",
+        wavelength=1.3,
+        bend_sign=-1.0,
+    )
+    ctx = EvalContext(torch.from_numpy(rng.uniform(-4.0, 4.0, (33, 4))))
+    count = 7
+    together = layer.rotations(ctx, count)
+    assert together.shape == (33, count, 3, 3)
+    for index in range(count):
+        assert torch.equal(together[:, index], layer.rotation(ctx, index, count)), index

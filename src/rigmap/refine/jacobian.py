@@ -177,10 +177,11 @@ def _coloured_difference(
         n = len(Yc)
         pose = Yc[:, None, :]
         if central:
-            parts = [pose + direction, pose - direction]
-        else:  # the pose itself only when its positions are not given
-            parts = [pose + direction] if base is not None else [pose + direction, pose]
-        perturbed = np.concatenate(parts, axis=1)  # (n, 2g, g+1 or g, C)
+            perturbed = np.concatenate([pose + direction, pose - direction], axis=1)  # (n, 2g, C)
+        elif base is not None:  # the positions at the pose are given: (n, g, C), not copied
+            perturbed = pose + direction
+        else:  # the pose itself too: (n, g + 1, C)
+            perturbed = np.concatenate([pose + direction, pose], axis=1)
         X = rig.evaluate(perturbed.reshape(n * perturbed.shape[1], -1)).reshape(n, -1, J.shape[1])
         ahead = X[:, :g]
         if central:

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from rigmap.rigs.base import Control
-from rigmap.rigs.engine.transforms import Transform, euler_matrix
+from rigmap.rigs.engine.transforms import Transform, euler_matrix, rotation_product
 
 TRANSLATE = ("tx", "ty", "tz")
 ROTATE = ("rx", "ry", "rz")
@@ -77,6 +77,14 @@ class TransformControl:
         return Transform(R * s[:, None, :], t)
 
 
+#: the control objects' local transforms computed control by control (``(K, N, 3, 3)``), so
+#: each one's ``R`` and ``t`` are contiguous: a batched 3 × 3 product with a strided slice of
+#: the pose-major ``(N, K, 3, 3)`` array cost about 1.5x a contiguous one (ours, 1 024 poses).
+#: The same values to the last bit; off: session 28's pose-major layout (for
+#: ``benchmarks/refine.py``'s same-run comparison)
+CONTROL_MAJOR_LOCALS = True
+
+
 def batched_locals(controls: list[TransformControl]):
     """Precompute every control's local transform with one Euler pass per rotation order.
 
@@ -94,6 +102,20 @@ def batched_locals(controls: list[TransformControl]):
         plans.append((order, [c.name for c in group], cols, offsets))
 
     def fill(ctx: EvalContext) -> None:
+        if not CONTROL_MAJOR_LOCALS:
+            return _fill_pose_major(ctx)
+        for order, names, cols, offsets in plans:
+            # channel by channel, (9, K, N): each control's R and t come out contiguous
+            index = torch.as_tensor(cols.T.reshape(-1))
+            values = ctx.Y.t().index_select(0, index).reshape(9, len(names), ctx.n)
+            t = torch.stack([values[0], values[1], values[2]], dim=-1) + ctx.const(offsets)[:, None]
+            angles = [(values[3 + "xyz".index(axis)], axis) for axis in order]
+            scale = torch.stack([values[6], values[7], values[8]], dim=-1)[..., None, :]
+            R = rotation_product(angles) * scale  # (K, N, 3, 3)
+            for k, name in enumerate(names):
+                ctx.local[name] = Transform(R[k], t[k])
+
+    def _fill_pose_major(ctx: EvalContext) -> None:  # session 28's layout, (N, K, ...)
         for order, names, cols, offsets in plans:
             values = ctx.Y[:, torch.as_tensor(cols.reshape(-1))].reshape(ctx.n, len(names), 9)
             t = values[..., 0:3] + ctx.const(offsets)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import torch
 
 from rigmap.rigs.engine.builder import Attribute, EvalContext, RigBuilder
-from rigmap.rigs.engine.transforms import axis_rotation
+from rigmap.rigs.engine.transforms import axis_rotation, rotation_product
 
 
 @dataclass
@@ -44,10 +44,38 @@ class ChainAttributes:
                 bend = bend + wave
             else:
                 side = side + wave
-        R = axis_rotation(self.bend_sign * bend, self.bend_axis)
-        if side is not None:
-            R = axis_rotation(self.side_sign * side, self.side_axis) @ R
-        return R
+        if side is None:
+            return axis_rotation(self.bend_sign * bend, self.bend_axis)
+        return rotation_product(
+            [(self.bend_sign * bend, self.bend_axis), (self.side_sign * side, self.side_axis)]
+        )
+
+    def rotations(self, ctx: EvalContext, count: int) -> torch.Tensor:
+        """Every joint's :meth:`rotation` of a ``count``-joint chain at once, ``(N, count, 3,
+        3)``: the same arithmetic on a ``(N, count)`` batch of angles, so equal to the
+        joint-by-joint rotations to the last bit, in a few operations per chain instead of
+        a few dozen per joint (without a wave, one rotation serves every joint)."""
+        bend = self.curl(ctx) / count
+        side = self.side_curl(ctx) / count if self.side_curl is not None else None
+        if self.wave_amplitude is None:
+            return self._rotation_of(bend, side)[:, None].expand(-1, count, 3, 3)
+        position = ctx.const([2 * math.pi * index / (count * self.wavelength)
+                              for index in range(count)])  # fmt: skip
+        if self.wave_phase is not None:
+            position = position + self.wave_phase(ctx)[:, None]
+        wave = self.wave_amplitude(ctx)[:, None] * torch.sin(position)
+        if side is None:
+            bend = bend[:, None] + wave
+        else:
+            bend, side = bend[:, None].expand_as(wave), side[:, None] + wave
+        return self._rotation_of(bend, side)
+
+    def _rotation_of(self, bend: torch.Tensor, side: torch.Tensor | None) -> torch.Tensor:
+        if side is None:
+            return axis_rotation(self.bend_sign * bend, self.bend_axis)
+        return rotation_product(
+            [(self.bend_sign * bend, self.bend_axis), (self.side_sign * side, self.side_axis)]
+        )
 
 
 def chain_attributes(

@@ -10,10 +10,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import torch
 
 from rigmap.rigs.engine.builder import EvalContext, RigBuilder, TransformControl
 from rigmap.rigs.engine.transforms import Transform
 from rigmap.rigs.features.chain_attributes import ChainAttributes
+
+#: a layered chain's rotations computed for all its joints at once (``ChainAttributes.rotations``
+#: and one batched product), equal to the joint-by-joint ones to the last bit (ours; off: the
+#: joint-by-joint code, kept for ``benchmarks/refine.py``'s same-run comparison)
+BATCHED_LAYERS = True
 
 
 def fk_chain(
@@ -83,9 +89,15 @@ def fk_chain(
 
     def step(ctx: EvalContext) -> None:
         world = ctx.xf[parent]
+        layered = None
+        if layer is not None and BATCHED_LAYERS:  # every joint's R_layer ∘ R(r) ∘ S(s) at once
+            rotations = torch.stack([ctrl.local(ctx).R for ctrl in controls], dim=1)
+            layered = layer.rotations(ctx, count) @ rotations
         for index, (joint, ctrl) in enumerate(zip(joints, controls, strict=True)):
             local = ctrl.local(ctx)
-            if layer is not None:
+            if layered is not None:
+                local = Transform(layered[:, index], local.t)
+            elif layer is not None:
                 local = Transform(layer.rotation(ctx, index, count) @ local.R, local.t)
             world = world.compose(local)
             ctx.xf[xform_prefix + joint] = world

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from rigmap.rigs.engine.builder import Attribute, EvalContext, RigBuilder
-from rigmap.rigs.engine.transforms import Transform, axis_rotation
+from rigmap.rigs.engine.transforms import Transform, axis_rotation, rotation_product
 
 
 @dataclass(frozen=True)
@@ -101,12 +101,10 @@ def reverse_foot(
     toe_roll = torch.clamp(roll - ball_break, min=0.0)
 
     heel = Transform.pivot(
-        axis_rotation(attrs.heel_twist(ctx), "y") @ axis_rotation(heel_roll, "x"), p["heel"]
+        rotation_product([(heel_roll, "x"), (attrs.heel_twist(ctx), "y")]), p["heel"]
     )
     toe = heel.compose(
-        Transform.pivot(
-            axis_rotation(attrs.toe_twist(ctx), "y") @ axis_rotation(toe_roll, "x"), p["toe"]
-        )
+        Transform.pivot(rotation_product([(toe_roll, "x"), (attrs.toe_twist(ctx), "y")]), p["toe"])
     )
     bank = attrs.bank(ctx)
     # positive bank rocks onto the inner edge (the outer one lifts), negative onto the outer
