@@ -23,7 +23,8 @@ fitted several ways in the same run (``--methods``, alternated repeat by repeat)
 
 Each method's optima, and the largest differences of its predictions and propagated clip
 from ``s28``'s, are printed; prediction is both GPs plus the banded solve on the whole
-second clip (1 247 frames at 120 fps). The machine may be shared: the 1-minute load
+second clip (1 247 frames at 120 fps). ``gil_share``: which LAPACK/BLAS calls let the
+other thread run (:func:`gil_share`). The machine may be shared: the 1-minute load
 average before and after each method, the CPU seconds of this process, of each GP's
 fitting thread and of every other process during the refit (``/proc/stat``) are printed
 beside the wall-clock seconds.
@@ -178,6 +179,56 @@ def busy_cpu_s() -> float:
     return (user + nice + system + irq + softirq) / os.sysconf("SC_CLK_TCK")
 
 
+def gil_share(n: int = 2000, outputs: int = 98) -> dict:
+    """Which LAPACK/BLAS calls of the objective let other Python threads run: while this
+    thread makes one call on an ``n × n`` SPD matrix (synthetic, seeded; large so each call
+    lasts long against the interpreter's 5 ms switch interval), another thread counts in a
+    pure-Python loop; its count during the call over its count during an equally long
+    sleep right after is the share of the call's time other Python code could run: near 0
+    for a call that holds the GIL; for one that releases it about 1 with a core to spare,
+    lower on a loaded machine (one BLAS thread)."""
+    import threading
+
+    from rigmap.edits import nogil
+
+    rng = np.random.default_rng(0)
+    M = rng.normal(size=(n, n))
+    K = np.asfortranarray(M @ M.T + n * np.eye(n))
+    factor = lapack.dpotrf(K, lower=1)[0]
+    Y = rng.normal(size=(n, outputs))
+    A = np.asfortranarray(Y)
+    calls = {
+        "scipy_dpotrf": lambda: lapack.dpotrf(K, lower=1),
+        "scipy_dpotri": lambda: lapack.dpotri(factor, lower=1),
+        "scipy_dpotrs": lambda: lapack.dpotrs(factor, Y, lower=1),
+        "scipy_dsyrk": lambda: blas.dsyrk(1.0, A, lower=1),
+        "nogil_potri": lambda: nogil.potri_lower(factor.copy(order="F")),
+        "nogil_potrs": lambda: nogil.potrs_lower(factor, Y),
+        "nogil_syrk": lambda: nogil.syrk_lower(A),
+    }
+    count, stop = [0], threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            count[0] += 1
+
+    out = {}
+    with threadpool_limits(limits=1, user_api="blas"):
+        spinner = threading.Thread(target=spin)
+        spinner.start()
+        for name, call in calls.items():
+            before, start = count[0], time.perf_counter()
+            call()
+            wall, during = time.perf_counter() - start, count[0] - before
+            before = count[0]
+            time.sleep(wall)
+            out[name] = {"other_thread_share": during / max(count[0] - before, 1),
+                         "call_ms": 1e3 * wall}  # fmt: skip
+        stop.set()
+        spinner.join()
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
@@ -273,6 +324,7 @@ def main() -> None:
             m: results["s28"]["refit_s_min"] / results[m]["refit_s_min"] for m in methods
         },
         "methods": results,
+        "gil_share": gil_share(),
         "predicted_frames": heldout.track.n_frames,
         "real_time_fps": heldout.track.fps,
         "cpus": os.cpu_count(),
