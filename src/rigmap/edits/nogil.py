@@ -4,9 +4,9 @@
 helps if the linear algebra runs outside the GIL. SciPy's ``lapack.dpotrf`` releases it,
 but its ``lapack.dpotri`` (the inverse ``K⁻¹`` the gradient needs, the largest part of
 an evaluation), ``lapack.dpotrs`` (``K⁻¹Y``) and ``blas.dsyrk`` (``ααᵀ``) hold it for
-the whole call (measured with SciPy 1.17: a thread sleeping 1 ms waited 28–42 ms while
-another ran ``dpotri`` at 1 100 frames, 1.1 ms while it ran ``dpotrf``), so the two fits
-took turns in them. Here the same routines of the same library — SciPy's
+the whole call (SciPy 1.17; ``benchmarks/edits.py``'s ``gil_share``: another Python
+thread ran during 0.04–0.05 of a ``dpotri`` call's time, 0.55–0.85 of this module's), so
+the two fits took turns in them. Here the same routines of the same library — SciPy's
 ``cython_lapack`` / ``cython_blas`` function pointers, the ones numba also calls — are
 called through :mod:`ctypes`, which releases the GIL around a foreign call. Same
 routines, same arguments, same memory layout: the results are bit-identical to SciPy's
