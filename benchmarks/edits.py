@@ -3,18 +3,33 @@
 The paper: "Estimating the parameters for the Gaussian processes consumes around 30
 seconds, and producing frame estimations … proceeds at 2–3 frames per second", with the
 training data mirrored (550 frames → 1 100). Here: the skeleton-mode CMU walks, two
-550-frame walking stretches (one of each clip, 1 100 frames, 837 kinematic features) and
-the ``arms_forward_walking`` edit; the refit is both GPs (≤ 100 L-BFGS-B iterations
-each), fitted three ways in the same run: ``"first"``, the first implementation's
-objective (full-matrix gradient, kept here to measure against), ``"lbfgs"``, the default
-(the same 3-D L-BFGS-B, lower-triangle gradient sums), and ``"profile"`` (ℓ searched with
-σ_f and σ_n profiled out by one eigendecomposition per ℓ, ``rigmap.edits.gp``); the
-optima beside each other and the largest differences of their predictions are printed;
-prediction is both GPs plus the banded solve on the whole second clip (1 247 frames at
-120 fps). The machine may be shared: the 1-minute load average is printed, and CPU
-seconds of this process beside the wall-clock ones.
+550-frame walking stretches (one of each clip, 1 100 frames) and the
+``arms_forward_walking`` edit; the refit is both GPs (≤ 100 L-BFGS-B iterations each),
+fitted several ways in the same run (``--methods``, alternated repeat by repeat):
 
-    PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits.py [--repeats 3]
+- ``s28``: the default up to s28, verbatim: the objective through SciPy's ``dpotri``,
+  ``dpotrs`` and ``dsyrk`` wrappers, which hold the GIL, so the two fits' threads took
+  turns in them;
+- ``lbfgs``, the default: the same objective with those three calls made without the
+  GIL (:mod:`rigmap.edits.nogil`; bit-identical values, so the same optima);
+- ``sequential``: the default's GPs one after the other (one BLAS thread): what the two
+  threads buy;
+- ``sequential_blas2`` (not run unless asked): one after the other, each on two BLAS
+  threads (other rounding: the optima move in the last digits; on the loaded machine one
+  such acceleration fit took 95 s wall, 63 s CPU, against 5 s on one thread);
+- ``profile``: ℓ searched with σ_f and σ_n profiled out (``rigmap.edits.gp``; another
+  optimum, not the default);
+- ``first`` (not run unless asked): the first implementation's full-matrix objective.
+
+Each method's optima, and the largest differences of its predictions and propagated clip
+from ``s28``'s, are printed; prediction is both GPs plus the banded solve on the whole
+second clip (1 247 frames at 120 fps). ``gil_share``: which LAPACK/BLAS calls let the
+other thread run (:func:`gil_share`). The machine may be shared: the 1-minute load
+average before and after each method, the CPU seconds of this process, of each GP's
+fitting thread and of every other process during the refit (``/proc/stat``) are printed
+beside the wall-clock seconds.
+
+    PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits.py [--repeats 3] [--methods ...]
 """
 
 from __future__ import annotations
@@ -27,7 +42,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from scipy.linalg import cho_factor, cho_solve, lapack
+from scipy.linalg import blas, cho_factor, cho_solve, lapack
+from threadpoolctl import threadpool_limits
 
 import rigmap.rigs
 from rigmap.edits.gp import SharedGP
@@ -38,12 +54,84 @@ from rigmap.edits.subjects import leg_length_cm_per_unit, skeleton_clip, skeleto
 
 ROOT = Path(__file__).resolve().parents[1]
 MOCAP = ROOT.parent / "shared" / "mocap"
+METHODS = ("s28", "lbfgs", "sequential", "sequential_blas2", "profile", "first")
+DEFAULT_METHODS = "s28,lbfgs,sequential,profile"
 
 
-class FirstSharedGP(SharedGP):
+class TimedGP(SharedGP):
+    """The default GP, recording its fitting thread's CPU seconds and evaluations."""
+
+    blas_threads = 1
+
+    def fit(self, X, Y, *, initial=None):
+        start, self.evaluations_ = time.thread_time(), 0
+        with threadpool_limits(limits=self.blas_threads, user_api="blas"):
+            self._fit(X, Y, initial)
+        self.thread_cpu_s_ = time.thread_time() - start
+        return self
+
+    def _objective(self, theta):
+        self.evaluations_ += 1
+        return super()._objective(theta)
+
+
+class TwoBlasThreadsGP(TimedGP):
+    blas_threads = 2
+
+
+class S28SharedGP(TimedGP):
+    """s28's objective, verbatim: SciPy's ``cho_factor`` / ``cho_solve`` / ``dpotri`` /
+    ``dsyrk`` wrappers (the last three hold the GIL), C-ordered work arrays."""
+
+    def _objective(self, theta):
+        self.evaluations_ += 1
+        with np.errstate(over="ignore"):
+            length, signal, noise = np.exp(theta)
+            scales = np.array([length**2, signal**2, noise**2])
+        if not (np.isfinite(scales).all() and scales[0] > 0):
+            return 1e300, np.zeros(3)
+        n, d = self.Y_.shape
+        sq = self._sq
+        work = self.__dict__.get("_work")
+        if work is None or work[0].shape != sq.shape:
+            work = self._work = (-0.5 * sq, np.empty_like(sq), np.empty_like(sq))
+        half_sq, rbf, K = work
+        np.divide(half_sq, length**2, out=rbf)
+        np.exp(rbf, out=rbf)
+        rbf *= signal**2
+        np.copyto(K, rbf)
+        K[np.diag_indices_from(K)] += noise**2 + 1e-10
+        try:
+            factor = cho_factor(K, lower=True, overwrite_a=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            return 1e300, np.zeros(3)
+        A = cho_solve(factor, self.Y_, check_finite=False)
+        log_det = 2.0 * np.log(np.diag(factor[0])).sum()
+        value = (
+            0.5 * float((self.Y_ * A).sum()) + 0.5 * d * log_det + 0.5 * n * d * np.log(2 * np.pi)
+        )
+        inverse, info = lapack.dpotri(factor[0], lower=1, overwrite_c=1)
+        if info != 0:
+            return 1e300, np.zeros(3)
+        inner = blas.dsyrk(1.0, A, lower=1)
+        inverse *= d
+        inner -= inverse
+        trace = float(np.trace(inner))
+        inner *= rbf
+        inner *= self._lower
+        gradient = np.array([
+            -0.5 * float(np.vdot(inner, sq)) / length**2,
+            -float(inner.sum()),
+            -noise**2 * trace,
+        ])  # fmt: skip
+        return value, gradient
+
+
+class FirstSharedGP(TimedGP):
     """The first implementation's objective, verbatim: full matrices, ``K⁻¹`` symmetrised."""
 
     def _objective(self, theta):
+        self.evaluations_ += 1
         length, signal, noise = np.exp(theta)
         n, d = self.Y_.shape
         sq = self._sq
@@ -66,15 +154,90 @@ class FirstSharedGP(SharedGP):
         return value, np.array([-0.5 * float((inner * g).sum()) for g in dK])
 
 
-class FirstEditModel(EditModel):
+GP_CLASSES = {"s28": S28SharedGP, "lbfgs": TimedGP, "sequential": TimedGP,
+              "sequential_blas2": TwoBlasThreadsGP, "profile": TimedGP,
+              "first": FirstSharedGP}  # fmt: skip
+
+
+class BenchModel(EditModel):
+    """:class:`EditModel` with the benchmark's GP class and thread arrangement."""
+
+    def __init__(self, *args, method: str, **kwargs):
+        super().__init__(*args, gp_method="profile" if method == "profile" else "lbfgs", **kwargs)
+        self.gp_class = GP_CLASSES[method]
+        self.fit_threads = 1 if method.startswith("sequential") else 2
+
     def _estimator(self, center):
-        return FirstSharedGP(self.max_iterations, center=center, method="lbfgs")
+        return self.gp_class(self.max_iterations, center=center, method=self.gp_method)
+
+
+def busy_cpu_s() -> float:
+    """CPU seconds every process of the machine has used since boot (``/proc/stat``)."""
+    with open("/proc/stat") as stat:
+        fields = [int(v) for v in stat.readline().split()[1:]]
+    user, nice, system, _, _, irq, softirq = fields[:7]
+    return (user + nice + system + irq + softirq) / os.sysconf("SC_CLK_TCK")
+
+
+def gil_share(n: int = 2000, outputs: int = 98) -> dict:
+    """Which LAPACK/BLAS calls of the objective let other Python threads run: while this
+    thread makes one call on an ``n × n`` SPD matrix (synthetic, seeded; large so each call
+    lasts long against the interpreter's 5 ms switch interval), another thread counts in a
+    pure-Python loop; its count during the call over its count during an equally long
+    sleep right after is the share of the call's time other Python code could run: near 0
+    for a call that holds the GIL; for one that releases it about 1 with a core to spare,
+    lower on a loaded machine (one BLAS thread)."""
+    import threading
+
+    from rigmap.edits import nogil
+
+    rng = np.random.default_rng(0)
+    M = rng.normal(size=(n, n))
+    K = np.asfortranarray(M @ M.T + n * np.eye(n))
+    factor = lapack.dpotrf(K, lower=1)[0]
+    Y = rng.normal(size=(n, outputs))
+    A = np.asfortranarray(Y)
+    calls = {
+        "scipy_dpotrf": lambda: lapack.dpotrf(K, lower=1),
+        "scipy_dpotri": lambda: lapack.dpotri(factor, lower=1),
+        "scipy_dpotrs": lambda: lapack.dpotrs(factor, Y, lower=1),
+        "scipy_dsyrk": lambda: blas.dsyrk(1.0, A, lower=1),
+        "nogil_potri": lambda: nogil.potri_lower(factor.copy(order="F")),
+        "nogil_potrs": lambda: nogil.potrs_lower(factor, Y),
+        "nogil_syrk": lambda: nogil.syrk_lower(A),
+    }
+    count, stop = [0], threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            count[0] += 1
+
+    out = {}
+    with threadpool_limits(limits=1, user_api="blas"):
+        spinner = threading.Thread(target=spin)
+        spinner.start()
+        for name, call in calls.items():
+            before, start = count[0], time.perf_counter()
+            call()
+            wall, during = time.perf_counter() - start, count[0] - before
+            before = count[0]
+            time.sleep(wall)
+            out[name] = {"other_thread_share": during / max(count[0] - before, 1),
+                         "call_ms": 1e3 * wall}  # fmt: skip
+        stop.set()
+        spinner.join()
+    return out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--methods", default=DEFAULT_METHODS,
+                        help=f"comma-separated, from {', '.join(METHODS)}; s28 first")  # fmt: skip
     args = parser.parse_args()
+    methods = args.methods.split(",")
+    if methods[0] != "s28" or not set(methods) <= set(METHODS):
+        parser.error(f"--methods: s28 first, then any of {METHODS}")
     first, second = MOCAP / "cmu_131_01_walk.bvh", MOCAP / "cmu_131_02_walk.bvh"
     cm = leg_length_cm_per_unit(rigmap.rigs.load("biped"), first)
     subject = skeleton_subject(first, cm, "cmu_131")
@@ -85,61 +248,85 @@ def main() -> None:
     pairs = [(subject.source(s), edit.apply(s, cm)) for s in segments]
     scale = ChannelScale.fit(clips)
     heldout = subject.source(clips[1])
-    results, predictions = {}, {}
-    for method in ("first", "lbfgs", "profile"):
-        kind = FirstEditModel if method == "first" else EditModel
-        fits, fit_cpu, rates, rate_cpu = [], [], [], []
-        for _ in range(args.repeats):
-            start, cpu = time.perf_counter(), time.process_time()
-            gp_method = "lbfgs" if method == "first" else method
-            model = kind(subject.joints, residual=True, gp_method=gp_method).fit(pairs, scale)
-            fits.append(time.perf_counter() - start)
-            fit_cpu.append(time.process_time() - cpu)
+    runs = {m: {"refit_s": [], "refit_cpu_s": [], "others_cpu_s": [], "load_1min": [],
+                "thread_cpu_s": {"kinematic": [], "acceleration": []},
+                "predict_frames_per_s": [], "predict_frames_per_cpu_s": []}
+            for m in methods}  # fmt: skip
+    models = {}
+    for _ in range(args.repeats):
+        for method in methods:  # alternated, so a change of load hits every method alike
+            run = runs[method]
+            load = os.getloadavg()[0]
+            start, cpu, busy = time.perf_counter(), time.process_time(), busy_cpu_s()
+            model = BenchModel(subject.joints, residual=True, method=method).fit(pairs, scale)
+            wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+            run["refit_s"].append(wall)
+            run["refit_cpu_s"].append(cpu)
+            run["others_cpu_s"].append(max(busy_cpu_s() - busy - cpu, 0.0))
+            run["load_1min"].append([load, os.getloadavg()[0]])
+            for name in ("kinematic", "acceleration"):
+                gp = getattr(model, f"{name}_gp_")
+                run["thread_cpu_s"][name].append(gp.thread_cpu_s_)
             start, cpu = time.perf_counter(), time.process_time()
             model.apply(heldout)
-            rates.append(heldout.track.n_frames / (time.perf_counter() - start))
-            rate_cpu.append(heldout.track.n_frames / (time.process_time() - cpu))
+            run["predict_frames_per_s"].append(
+                heldout.track.n_frames / (time.perf_counter() - start)
+            )
+            run["predict_frames_per_cpu_s"].append(
+                heldout.track.n_frames / (time.process_time() - cpu)
+            )
+            models[method] = model
+    results, reference = {}, models["s28"]
+    reference_predictions = reference.predict(heldout)
+    reference_clip = reference.apply(heldout).values
+    for method in methods:
+        model, run = models[method], runs[method]
         gps = {"kinematic": model.kinematic_gp_, "acceleration": model.acceleration_gp_}
-        predictions[method] = model.predict(heldout)
-        results[method] = {
-            "refit_s": {"min": min(fits), "all": fits},
-            "refit_cpu_s": {"min": min(fit_cpu), "all": fit_cpu},
-            "optimum": {name: {"length_scale": gp.length_scale_, "signal": gp.signal_,
-                               "noise": gp.noise_, "iterations": gp.iterations_,
-                               "log_marginal_likelihood": gp.log_marginal_likelihood_}
-                        for name, gp in gps.items()},
-            "predict_frames_per_s": {"max": max(rates), "all": rates},
-            "predict_frames_per_cpu_s": {"max": max(rate_cpu), "all": rate_cpu},
-        }  # fmt: skip
-    agreement = {}
-    for method in ("lbfgs", "profile"):
-        for i, name in enumerate(("kinematic", "acceleration")):
-            old, new = predictions["first"][i], predictions[method][i]
-            a, b = results["first"]["optimum"][name], results[method]["optimum"][name]
-            agreement[f"{method}_vs_first_{name}"] = {
-                "log_marginal_likelihood_gain": b["log_marginal_likelihood"]
-                - a["log_marginal_likelihood"],
-                "hyper_relative_difference": max(
-                    abs(b[k] / a[k] - 1) for k in ("length_scale", "signal", "noise")
+        predictions = model.predict(heldout)
+        agreement = {
+            name: {
+                "same_optimum": all(
+                    getattr(gp, k) == getattr(getattr(reference, f"{name}_gp_"), k)
+                    for k in ("length_scale_", "signal_", "noise_")
                 ),
-                "mean_max_abs_difference_std": float(np.abs(new.mean - old.mean).max()),
+                "mean_max_abs_difference_std": float(
+                    np.abs(new.mean - old.mean).max()
+                ),
                 "variance_max_relative_difference": float(
                     np.abs(new.variance / old.variance - 1).max()
                 ),
             }
+            for (name, gp), new, old in zip(gps.items(), predictions, reference_predictions,
+                                            strict=True)
+        }  # fmt: skip
+        agreement["propagated_clip_max_abs_difference"] = float(
+            np.abs(model.apply(heldout).values - reference_clip).max()
+        )
+        results[method] = {
+            **{k: v for k, v in run.items() if k != "thread_cpu_s"},
+            "refit_s_min": min(run["refit_s"]),
+            "refit_cpu_s_min": min(run["refit_cpu_s"]),
+            "thread_cpu_s": run["thread_cpu_s"],
+            "predict_frames_per_s_max": max(run["predict_frames_per_s"]),
+            "optimum": {name: {"length_scale": gp.length_scale_, "signal": gp.signal_,
+                               "noise": gp.noise_, "iterations": gp.iterations_,
+                               "evaluations": gp.evaluations_,
+                               "log_marginal_likelihood": gp.log_marginal_likelihood_}
+                        for name, gp in gps.items()},
+            "vs_s28": agreement,
+        }  # fmt: skip
     print(json.dumps({
         "training_frames": sum(s.n_frames for s in segments),
         "kinematic_features": int(heldout.features(subject.joints)[0].shape[1]),
         "channels": len(scale.channels),
-        "refit_speedup_vs_first": {
-            m: results["first"]["refit_s"]["min"] / results[m]["refit_s"]["min"]
-            for m in ("lbfgs", "profile")
+        "repeats": args.repeats,
+        "refit_speedup_vs_s28": {
+            m: results["s28"]["refit_s_min"] / results[m]["refit_s_min"] for m in methods
         },
         "methods": results,
-        "agreement": agreement,
+        "gil_share": gil_share(),
         "predicted_frames": heldout.track.n_frames,
         "real_time_fps": heldout.track.fps,
-        "load_average_1min": os.getloadavg()[0],
         "cpus": os.cpu_count(),
     }, indent=2))  # fmt: skip
 

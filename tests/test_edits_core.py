@@ -199,3 +199,114 @@ def test_the_report_tables_the_edit_metrics_that_exist(tmp_path):
     assert table.rows == [
         ["Biped", "arm_swing", "0.000249", "0.000345", "2.37", "2.84", "0.38", "—"]
     ]
+
+
+def s28_objective(gp: SharedGP, theta):
+    """The objective as SciPy's wrappers computed it up to s28 (``dpotri``, ``dpotrs`` and
+    ``dsyrk`` holding the GIL), the reference for :mod:`rigmap.edits.nogil`'s path."""
+    from scipy.linalg import blas, cho_factor, cho_solve, lapack
+
+    length, signal, noise = np.exp(theta)
+    n, d = gp.Y_.shape
+    sq = gp._sq
+    rbf = np.exp(-0.5 * sq / length**2)
+    rbf *= signal**2
+    K = rbf.copy()
+    K[np.diag_indices_from(K)] += noise**2 + 1e-10
+    factor = cho_factor(K, lower=True, overwrite_a=True, check_finite=False)
+    A = cho_solve(factor, gp.Y_, check_finite=False)
+    log_det = 2.0 * np.log(np.diag(factor[0])).sum()
+    value = 0.5 * float((gp.Y_ * A).sum()) + 0.5 * d * log_det + 0.5 * n * d * np.log(2 * np.pi)
+    inverse, info = lapack.dpotri(factor[0], lower=1, overwrite_c=1)
+    assert info == 0
+    inner = blas.dsyrk(1.0, A, lower=1)
+    inverse *= d
+    inner -= inverse
+    trace = float(np.trace(inner))
+    inner *= rbf
+    inner *= gp._lower
+    return value, np.array(
+        [-0.5 * float(np.vdot(inner, sq)) / length**2, -float(inner.sum()), -(noise**2) * trace]
+    )
+
+
+@pytest.fixture(scope="module")
+def cmu_edit_data():
+    """The GPs' training data of ``benchmarks/edits.py`` at a third of its size: two
+    stretches of the CMU walk with ``arms_forward_walking``, residual targets."""
+    from pathlib import Path
+
+    import yaml
+
+    from rigmap.edits.procedural import Edit
+    from rigmap.edits.representation import ChannelScale
+    from rigmap.edits.subjects import skeleton_clip, skeleton_subject
+
+    root = Path(__file__).resolve().parents[1]
+    walk = root.parent / "shared/mocap/cmu_131_02_walk.bvh"
+    subject = skeleton_subject(walk, 6.0, "cmu")
+    clip = skeleton_clip(subject, walk)
+    config = yaml.safe_load((root / "conf/edit/arms_forward_walking.yaml").read_text())
+    edit = Edit.from_config("arms_forward_walking", config, "skeleton")
+    scale = ChannelScale.fit([clip])
+    xk, yk, xa, ya = [], [], [], []
+    for segment in (clip.frames(100, 280), clip.frames(600, 780)):
+        source = subject.source(segment)
+        target = scale.scaled(edit.apply(segment, 6.0)) - scale.scaled(segment)
+        kinematic, acceleration = source.features(subject.joints)
+        xk.append(kinematic)
+        yk.append(target)
+        xa.append(acceleration[1:-1])
+        ya.append(accelerations(target))
+    return {"kinematic": (np.vstack(xk), np.vstack(yk)),
+            "acceleration": (np.vstack(xa), np.vstack(ya))}  # fmt: skip
+
+
+def test_the_gil_free_lapack_calls_equal_scipys_wrappers_bit_for_bit(cmu_edit_data):
+    from scipy.linalg import blas, cho_factor, lapack
+
+    from rigmap.edits import nogil
+
+    gp = SharedGP(optimize=False, center=False).fit(*cmu_edit_data["kinematic"])
+    K = gp._gram(np.log([5.0, 0.5, 0.01]))
+    factor = cho_factor(K, lower=True, check_finite=False)[0]
+    assert factor.flags.f_contiguous
+    A = nogil.potrs_lower(factor, gp.Y_)
+    assert np.array_equal(A, lapack.dpotrs(factor, gp.Y_, lower=1)[0])
+    assert np.array_equal(nogil.syrk_lower(A), blas.dsyrk(1.0, A, lower=1))
+    expected, info = lapack.dpotri(factor.copy(order="F"), lower=1)
+    assert info == 0 and nogil.potri_lower(factor) == 0
+    assert np.array_equal(factor, expected)
+    with pytest.raises(ValueError, match="Fortran-ordered square"):
+        nogil.potri_lower(np.ascontiguousarray(K[:, :-1]))
+    with pytest.raises(ValueError, match="rows"):
+        nogil.potrs_lower(factor, gp.Y_[:-1])
+
+
+@pytest.mark.parametrize("name", ["kinematic", "acceleration"])
+def test_the_objective_and_the_fit_are_the_s28_ones_on_real_data(cmu_edit_data, name):
+    """The GIL-free path changes where LAPACK runs, not what it computes: the objective and
+    its gradient equal the s28 path's exactly, so the fitted optimum does too; and the
+    gradient matches finite differences (the real data's ill-conditioned optimum aside)."""
+    X, Y = cmu_edit_data[name]
+    gp = SharedGP(optimize=False, center=False).fit(X, Y)
+    for theta in (np.log([1.0, 1.0, 0.1]), np.log([20.0, 0.7, 1e-4]), np.log([2.4, 1e-3, 5e-5])):
+        value, gradient = gp._objective(theta)
+        expected = s28_objective(gp, theta)
+        assert value == expected[0]
+        assert np.array_equal(gradient, expected[1])
+
+    class S28GP(SharedGP):
+        def _objective(self, theta):
+            return s28_objective(self, theta)
+
+    new, old = SharedGP(center=False).fit(X, Y), S28GP(center=False).fit(X, Y)
+    assert new.iterations_ == old.iterations_ > 5
+    fitted = ("length_scale_", "signal_", "noise_", "log_marginal_likelihood_")
+    assert [getattr(new, k) for k in fitted] == [getattr(old, k) for k in fitted]
+    theta, step = np.log([3.0, 0.5, 0.05]), 1e-5
+    numeric = [
+        (gp._objective(theta + step * e)[0] - gp._objective(theta - step * e)[0]) / (2 * step)
+        for e in np.eye(3)
+    ]
+    np.testing.assert_allclose(gp._objective(theta)[1], numeric, rtol=1e-5)

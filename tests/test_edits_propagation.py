@@ -306,3 +306,30 @@ def test_unlike_plays_of_a_bvh_walk_backwards_and_twice_as_fast(biped):
     )
     with pytest.raises(TargetError, match="play 'sideways' must be one of"):
         skeleton_clip(subject, WALK, "sideways")
+
+
+def test_the_transition_clip_stands_starts_walks_stops_and_stands(biped):
+    """Fig 6's transitions (rigmap.edits.transitions): the library's walk keeps one speed,
+    so the study holds out a walk that starts and stops; the library stays as it was."""
+    from rigmap.edits.study import load_study
+
+    rig, subject, _ = biped
+    track = rig_clip(rig, subject.channels, "Walk Start Stop", 1)
+    again = rig_clip(rig, subject.channels, "Walk Start Stop", 1)
+    np.testing.assert_array_equal(track.values, again.values)
+    speed = edit("arms_forward_walking", "rig").root_speed_cm_s(track, 1.0)
+    second = int(track.fps)
+    assert speed[:second].max() < 1.0 and speed[-second:].max() < 1.0  # standing
+    assert 60.0 < speed.max() < 90.0  # the library walk's 70-75 cm/s, give or take its seed
+    assert ((speed >= 10.0) & (speed < 40.0)).sum() >= 20  # transition frames
+    feet = [subject.joint_names.index(f) for f in ("foot_l", "foot_r")]
+    positions = subject.positions(track)[:, feet]
+    still = np.abs(np.diff(positions[: second + 1], axis=0)).max()
+    assert still < 0.01  # cm a frame: the feet stay put while it stands
+    assert "Walk Start Stop" not in {m.name for m in motion_library("biped").train} | {
+        m.name for m in motion_library("biped").test
+    }
+    spec = yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text())["subjects"]["biped"]
+    data = load_study("biped", spec)
+    assert [s.track.source for s in data.transitions] == ["Walk Start Stop (seed 1)"]
+    assert "Walk Start Stop (seed 1)" not in {s.track.source for s in data.heldout}

@@ -7,7 +7,10 @@
 - context dependence (Fig 6): the fraction of the full-strength edit carried, per root
   speed band, predicted against the ground truth's; for the half-steps edit (Fig 7) the
   same fraction on moving frames (root speed at least the walking gate's lower speed) is
-  the averaging ratio (0.4–0.6 expected);
+  the averaging ratio (0.4–0.6 expected); the same per-band fractions on the study's
+  walk ↔ stand transition clips (``context_transitions``, rig mode:
+  :mod:`rigmap.edits.transitions`), whose other frames would not fill the bands between
+  standing and walking;
 - out-of-distribution input (Fig 4): on clips unlike the examples, the distance of the
   result from the source and how well the kinematic variance separates their frames from
   the held-out ones (AUROC; 1 = perfectly);
@@ -62,6 +65,7 @@ def evaluate_edit(
         "clips": clips,
         "ablation": rows,
         "context": context_dependence(data, edit, truths, results),
+        "context_transitions": _transitions_context(data, edit, model),
         "out_of_distribution": out_of_distribution(data, model),
         "foot_skate_cm": foot_skate_report(data, truths, results),
     }
@@ -88,17 +92,32 @@ def foot_skate_report(data: StudyData, truths, results) -> dict | None:
     return {**{k: v / frames for k, v in sums.items()}, "planted_frames": frames}
 
 
-def context_dependence(data: StudyData, edit: Edit, truths, results) -> dict:
-    """Mean fraction of the full edit carried per root-speed band, predicted and true."""
+def _transitions_context(data: StudyData, edit: Edit, model: EditModel) -> dict | None:
+    """:func:`context_dependence` on the study's walk ↔ stand transition clips (None
+    without them)."""
+    if not data.transitions:
+        return None
+    cm, skeleton = data.subject.cm_per_unit, data.subject.skeleton
+    truths = [edit.apply(source.track, cm, skeleton) for source in data.transitions]
+    results = [model.apply(source) for source in data.transitions]
+    report = context_dependence(data, edit, truths, results, clips=data.transitions)
+    return {**report, "clips": [s.track.source for s in data.transitions]}
+
+
+def context_dependence(data: StudyData, edit: Edit, truths, results, clips=None) -> dict:
+    """Mean fraction of the full edit carried per root-speed band, predicted and true, on
+    ``clips`` (the held-out clips unless given)."""
     cm = data.subject.cm_per_unit
     full = edit.full()
     speeds, predicted, true = [], [], []
-    for source, truth, result in zip(data.heldout, truths, results, strict=True):
+    clips = data.heldout if clips is None else clips
+    for source, truth, result in zip(clips, truths, results, strict=True):
         strongest = full.apply(source.track, cm, data.subject.skeleton)
         speeds.append(edit.root_speed_cm_s(source.track, cm))
         predicted.append(edit_fraction(source.track, result, strongest, data.scale))
         true.append(edit_fraction(source.track, truth, strongest, data.scale))
     speed, p, t = (np.concatenate(a) for a in (speeds, predicted, true))
+    speed = np.maximum(speed, 0.0)  # the 0.5 s smoothing leaves -1e-16 on some standing frames
     bands = []
     for low, high in itertools.pairwise(SPEED_BANDS_CM_S):
         inside = (speed >= low) & (speed < high) & np.isfinite(p)

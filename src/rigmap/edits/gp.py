@@ -57,6 +57,10 @@ Linear algebra runs on one BLAS thread: at these sizes (a few hundred to a thous
 frames) threads cost more than they save, badly so on a loaded machine (measured on the
 shared 2-core box: a 177² Cholesky 0.6 ms on one thread, 125 ms on two). The pairwise
 squared distances of the training inputs are computed once per fit, not per iteration.
+The objective's ``K⁻¹`` (``potri``), ``K⁻¹Y`` (``potrs``) and ``ααᵀ`` (``syrk``) go
+through :mod:`rigmap.edits.nogil`, the same LAPACK/BLAS routines called without the GIL
+(SciPy's wrappers of these three hold it), so :class:`rigmap.edits.propagation.EditModel`'s
+two fits, one per thread, no longer take turns in them; the values are bit-identical.
 
 Erratum: the paper's Eqs 3–4 write the Gaussian as ``c exp((Y − μ)ᵀ Σ⁻¹ (Y − μ))``; the
 exponent needs a factor −½.
@@ -67,10 +71,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import blas, cho_factor, cho_solve, eigh, lapack
+from scipy.linalg import cho_factor, cho_solve, eigh, lapack
 from scipy.optimize import brentq, minimize
 from threadpoolctl import threadpool_limits
 
+from rigmap.edits import nogil
 from rigmap.errors import RigmapError
 
 MAX_ITERATIONS = 100  # §7.1
@@ -182,7 +187,10 @@ class SharedGP:
         RBF and Gram matrices go into arrays made once per fit (``_work``, with ``-½ sq``;
         dropped when the fit ends): the same operations in the same order as on fresh
         arrays each call (bit-identical values), about 5 % less CPU per evaluation at
-        1 100 frames (measured in s28: 78.6 → 74.7 ms and 76.7 → 73.0 ms)."""
+        1 100 frames (measured in s28: 78.6 → 74.7 ms and 76.7 → 73.0 ms). They are
+        Fortran-ordered, so ``dpotrf`` factors ``K`` in place (SciPy's ``cho_factor``
+        copied it), and ``dpotrs``, ``dpotri`` and ``dsyrk`` run without the GIL
+        (:mod:`rigmap.edits.nogil`): the same values as SciPy's wrappers, bit for bit."""
         with np.errstate(over="ignore"):
             length, signal, noise = np.exp(theta)
             scales = np.array([length**2, signal**2, noise**2])
@@ -192,26 +200,27 @@ class SharedGP:
         sq = self._sq
         work = self.__dict__.get("_work")
         if work is None or work[0].shape != sq.shape:
-            work = self._work = (-0.5 * sq, np.empty_like(sq), np.empty_like(sq))
+            # Fortran order: LAPACK works on K in place (SciPy would copy a C array)
+            half_sq = np.asfortranarray(-0.5 * sq)
+            work = self._work = (half_sq, np.empty_like(half_sq), np.empty_like(half_sq))
         half_sq, rbf, K = work
         np.divide(half_sq, length**2, out=rbf)  # −½ sq / ℓ²
         np.exp(rbf, out=rbf)
         rbf *= signal**2
         np.copyto(K, rbf)
         K[np.diag_indices_from(K)] += noise**2 + _JITTER
-        try:
-            factor = cho_factor(K, lower=True, overwrite_a=True, check_finite=False)
-        except np.linalg.LinAlgError:
+        factor, info = lapack.dpotrf(K, lower=1, overwrite_a=1, clean=0)
+        if info != 0:
             return 1e300, np.zeros(3)
-        A = cho_solve(factor, self.Y_, check_finite=False)  # K⁻¹ Y
-        log_det = 2.0 * np.log(np.diag(factor[0])).sum()
+        A = nogil.potrs_lower(factor, self.Y_)  # K⁻¹ Y
+        log_det = 2.0 * np.log(np.diag(factor)).sum()
         value = (
             0.5 * float((self.Y_ * A).sum()) + 0.5 * d * log_det + 0.5 * n * d * np.log(2 * np.pi)
         )
-        inverse, info = lapack.dpotri(factor[0], lower=1, overwrite_c=1)
-        if info != 0:
+        if nogil.potri_lower(factor) != 0:  # K⁻¹ (lower half) in place of the factor
             return 1e300, np.zeros(3)
-        inner = blas.dsyrk(1.0, A, lower=1)  # ααᵀ, lower half (the upper stays 0)
+        inverse = factor
+        inner = nogil.syrk_lower(A)  # ααᵀ, lower half (the upper stays 0)
         inverse *= d
         inner -= inverse  # (ααᵀ − D K⁻¹); above the diagonal: ignored
         trace = float(np.trace(inner))

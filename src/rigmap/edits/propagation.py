@@ -83,6 +83,9 @@ ESTIMATORS = ("gp", "mls")
 class EditModel:
     """The two GPs of an edit, and the combined solve that applies them (module docstring)."""
 
+    fit_threads = 2  # the two GPs side by side; 1: one after the other in the caller's
+    # thread (benchmarks/edits.py)
+
     def __init__(
         self,
         joints: FeatureJoints,
@@ -137,8 +140,11 @@ class EditModel:
         self.scale = scale
         center = not self.residual  # an offset's prior is no edit
         data = ((np.vstack(xk), np.vstack(yk)), (np.vstack(xa), np.vstack(ya)))
-        # the two fits are independent: one thread each (LAPACK releases the GIL), so a
-        # 2-core machine fits both in the time of the slower. BLAS is held at one thread
+        # the two fits are independent: one thread each, so a 2-core machine fits both in
+        # the time of the slower: the objective's LAPACK/BLAS calls release the GIL
+        # (dpotrf in SciPy's wrapper, dpotri, dpotrs and dsyrk through rigmap.edits.nogil;
+        # with SciPy's wrappers of those three, up to s28, the fits took turns in them).
+        # BLAS is held at one thread
         # around both: threadpoolctl's limit is process-wide, so a fit that ended first
         # restored the default under the other one mid-fit, which then ran some BLAS calls
         # threaded; its rounding, and on an ill-conditioned fit its optimum, changed from
@@ -149,15 +155,16 @@ class EditModel:
                 {"length_scale": gp.length_scale_, "signal": gp.signal_, "noise": gp.noise_}
                 for gp in (self.kinematic_gp_, self.acceleration_gp_)
             ]
-        with (
-            threadpool_limits(limits=1, user_api="blas"),
-            ThreadPoolExecutor(max_workers=2) as pool,
-        ):
-            fits = [
-                pool.submit(self._estimator(center).fit, X, Y, initial=start)
-                for (X, Y), start in zip(data, starts, strict=True)
-            ]
-            self.kinematic_gp_, self.acceleration_gp_ = (f.result() for f in fits)
+        jobs = [(self._estimator(center).fit, X, Y, start)
+                for (X, Y), start in zip(data, starts, strict=True)]  # fmt: skip
+        with threadpool_limits(limits=1, user_api="blas"):
+            if self.fit_threads == 1:  # one after the other, in this thread
+                fits = [fit(X, Y, initial=start) for fit, X, Y, start in jobs]
+            else:
+                with ThreadPoolExecutor(max_workers=self.fit_threads) as pool:
+                    futures = [pool.submit(fit, X, Y, initial=start) for fit, X, Y, start in jobs]
+                    fits = [f.result() for f in futures]
+        self.kinematic_gp_, self.acceleration_gp_ = fits
         return self
 
     def _estimator(self, center: bool):

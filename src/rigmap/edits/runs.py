@@ -170,6 +170,8 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
         }
         summary[name]["ablation"] = report["ablation"]
         summary[name]["context"] = report["context"]
+        if report["context_transitions"] is not None:
+            summary[name]["context_transitions"] = report["context_transitions"]
         summary[name]["out_of_distribution"] = report["out_of_distribution"]
     _write_tables(folder, summary)
     return write_json_atomic(folder / "summary.json", json_ready(summary))
@@ -187,6 +189,7 @@ def _write_tables(folder: Path, summary: dict) -> None:
     rows = [
         {
             "edit": n,
+            "clips": clips,
             "speed_low_cm_s": b["speed_cm_s"][0],
             "speed_high_cm_s": b["speed_cm_s"][1],
             "frames": b["frames"],
@@ -194,7 +197,9 @@ def _write_tables(folder: Path, summary: dict) -> None:
             "true_fraction": b["true_fraction"],
         }
         for n, s in summary.items()
-        for b in s["context"]["bands"]
+        for clips, key in (("heldout", "context"), ("transitions", "context_transitions"))
+        if key in s
+        for b in s[key]["bands"]
     ]
     write_text_atomic(folder / "context.csv", _csv(rows))
 

@@ -44,6 +44,9 @@ class StudyData:
     heldout: list[SourceClip]
     unlike: list[SourceClip] = field(default_factory=list)
     feet: tuple[str, ...] = ()
+    # held-out walk <-> stand transitions, measured for Fig 6's context dependence only
+    # (rig mode: rigmap.edits.transitions; the other measures stay on ``heldout``)
+    transitions: list[SourceClip] = field(default_factory=list)
 
 
 def load_study(name: str, spec: dict) -> StudyData:
@@ -75,7 +78,11 @@ def _rig_study(spec: dict) -> StudyData:
         subject.source(rig_clip(rig, subject.channels, m.name, heldout_seed))
         for m in motion_library(rig.name).test
     ]
-    return StudyData(subject, scale, train, heldout, unlike)
+    transitions = [
+        subject.source(rig_clip(rig, subject.channels, str(n), heldout_seed))
+        for n in spec.get("transitions") or ()
+    ]
+    return StudyData(subject, scale, train, heldout, unlike, transitions=transitions)
 
 
 def _skeleton_study(name: str, spec: dict) -> StudyData:

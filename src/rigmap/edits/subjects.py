@@ -30,6 +30,7 @@ from rigmap.edits.propagation import FeatureJoints, SourceClip
 from rigmap.edits.representation import TargetError, TargetTrack
 from rigmap.edits.rig_mode import RigChannels, full_controls, rig_controls, rig_targets
 from rigmap.edits.skeleton_mode import Skeleton, skeleton_positions, skeleton_targets
+from rigmap.edits.transitions import TRANSITION_MOTIONS
 
 # joints of the biped the features leave out: fingers, eyes and jaw (the body's motion is
 # what the edits depend on; ours)
@@ -86,8 +87,11 @@ def rig_subject(
 
 
 def rig_clip(rig, channels: RigChannels, clip_name: str, seed: int) -> TargetTrack:
-    """One clip of the rig's motion library (seeded variation) as a target track."""
-    _, motion = motion_library(rig.name).find(clip_name)
+    """One clip of the rig's motion library (seeded variation) as a target track; or one of
+    the edit study's transition motions (:mod:`rigmap.edits.transitions`)."""
+    motion = TRANSITION_MOTIONS.get(rig.name, {}).get(clip_name)
+    if motion is None:
+        _, motion = motion_library(rig.name).find(clip_name)
     clip = build_clip(rig.name, motion, seed=seed)
     controls = clip.evaluate(rig.control_names, rig.controls.defaults)
     return rig_targets(
