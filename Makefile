@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender postgres tracking-server reproduce push pull demo test lint format benchmark clean
+.PHONY: setup blender postgres tracking-server reproduce paper-table1 push pull demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -42,6 +42,11 @@ tracking-server: setup postgres
 # --jobs 2: independent stages two at a time; the ones that time methods run alone.
 reproduce: setup blender
 	$(BIN)/rigmap reproduce --jobs 2
+
+# Table 1 at the paper's budget for the quadruped and the biped (about 2 h on 2 cores, nearly
+# all of it the two minibatch-8 networks) into paper-run/ and reports/paper/
+paper-table1: setup
+	BIN=$(BIN) scripts/paper_table1.sh
 
 # Share outputs through the default DVC remote (.dvc/config: <clone>/../rigmap-dvc-remote):
 # `make push` after a run, `make pull` in another clone instead of recomputing.
