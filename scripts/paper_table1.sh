@@ -22,7 +22,8 @@ OUT=${OUT:-paper-run}
 RIGS=${RIGS:-"quadruped biped"}
 REPORTS=${REPORTS:-reports/paper}
 BIN=${BIN:-.venv/bin}
-export PATH="$PWD/$BIN:$PATH" MKL_CBWR=AVX2 ATEN_CPU_CAPABILITY=avx2
+case $BIN in /*) ;; *) BIN=$PWD/$BIN ;; esac
+export PATH="$BIN:$PATH" MKL_CBWR=AVX2 ATEN_CPU_CAPABILITY=avx2
 mkdir -p "$OUT"
 PATHS="paths.data=$OUT/data paths.models=$OUT/models paths.metrics=$OUT/metrics"
 COMMON="experiment=paper seed=0 $PATHS $*"
