@@ -109,6 +109,12 @@ def walk_start_stop(b: ClipBuilder) -> None:
         h.ik_fk(end, side, 0.0)
         h.hand(0.0, side, "relaxed")
         h.hand(end, side, "relaxed", amount=0.8)
+    _torso_keys(b, h, end, s)
+
+
+def _torso_keys(b: ClipBuilder, h: Human, end: float, s) -> None:
+    """COG bob and sway, hips and chest counter-turn, head: every quarter cycle, scaled by
+    the speed profile ``s(t)``."""
     for k, t in enumerate(np.arange(0.0, end + 1e-9, 7.5)):
         t, w = float(t), s(float(t))
         phase = k % 4  # 0: left strike, 2: right strike

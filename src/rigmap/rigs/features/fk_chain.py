@@ -78,7 +78,6 @@ def fk_chain(
                 joint, first_parent if previous == parent else previous.removeprefix(xform_prefix)
             )
         previous = xform_prefix + joint
-    count = len(joints)
     tip_offset = None
     if tip is not None:
         tip_name = tip_name or f"{joints[-1]}_tip"
@@ -89,16 +88,8 @@ def fk_chain(
 
     def step(ctx: EvalContext) -> None:
         world = ctx.xf[parent]
-        layered = None
-        if layer is not None and BATCHED_LAYERS:  # every joint's R_layer ∘ R(r) ∘ S(s) at once
-            rotations = torch.stack([ctrl.local(ctx).R for ctrl in controls], dim=1)
-            layered = layer.rotations(ctx, count) @ rotations
-        for index, (joint, ctrl) in enumerate(zip(joints, controls, strict=True)):
-            local = ctrl.local(ctx)
-            if layered is not None:
-                local = Transform(layered[:, index], local.t)
-            elif layer is not None:
-                local = Transform(layer.rotation(ctx, index, count) @ local.R, local.t)
+        locals_ = _chain_locals(ctx, controls, layer)
+        for joint, ctrl, local in zip(joints, controls, locals_, strict=True):
             world = world.compose(local)
             ctx.xf[xform_prefix + joint] = world
             ctx.xf[ctrl.name] = world
@@ -107,6 +98,20 @@ def fk_chain(
 
     b.step(step)
     return controls
+
+
+def _chain_locals(
+    ctx: EvalContext, controls: list[TransformControl], layer: ChainAttributes | None
+) -> list[Transform]:
+    """Each control's local transform, turned by the chain's layered rotation if it has one."""
+    locals_ = [ctrl.local(ctx) for ctrl in controls]
+    if layer is None:
+        return locals_
+    count = len(controls)
+    if BATCHED_LAYERS:  # every joint's R_layer ∘ R(r) ∘ S(s) at once
+        layered = layer.rotations(ctx, count) @ torch.stack([lc.R for lc in locals_], dim=1)
+        return [Transform(layered[:, i], lc.t) for i, lc in enumerate(locals_)]
+    return [Transform(layer.rotation(ctx, i, count) @ lc.R, lc.t) for i, lc in enumerate(locals_)]
 
 
 def fk_joint(
