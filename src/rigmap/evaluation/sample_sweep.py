@@ -153,13 +153,15 @@ def joint_space_sweep(
     test_set = TestSet.load(rig, layout.rig_data(rig.name))
     method = Method("nn_joint_space", "regressor", "nn_joint_space")
     fitted_folder = layout.model(rig.name, ModelId("nn_joint_space"))
+    # the fit stage's network can only be the fraction with all the draws: read it once
+    saved = fitted_model(fitted_folder, template, rig, data) if reuse_fit else None
     folder = layout.metrics_folder(rig.name, JOINT_SPACE_SWEEP_FOLDER)
     names: list[str] = []
 
     def fill(staging: Path) -> None:
         for n_gaussian, n_wide in draws:
             network = make_network().set_params(n_gaussian=n_gaussian, n_wide=n_wide)
-            mapping = fitted_model(fitted_folder, network, rig, data) if reuse_fit else None
+            mapping = saved if (n_gaussian, n_wide) == (gaussian, wide) else None
             if mapping is not None:
                 log(
                     f"{rig.name} nn_joint_space + {n_gaussian + n_wide} draws: scoring the fit "
