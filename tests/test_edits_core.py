@@ -310,3 +310,36 @@ def test_the_objective_and_the_fit_are_the_s28_ones_on_real_data(cmu_edit_data, 
         for e in np.eye(3)
     ]
     np.testing.assert_allclose(gp._objective(theta)[1], numeric, rtol=1e-5)
+
+
+def test_a_hinge_joints_unused_axes_count_as_constant_channels():
+    """The CMU knees are hinges: their z exponential map is rounding noise in training
+    (std about 5e-7 rad), and bowed legs turn the knee about z. Divided by the noise, that
+    edit measured millions of std units; as a constant channel the knee keeps radians."""
+    from pathlib import Path
+
+    import yaml
+
+    from rigmap.edits.procedural import Edit
+    from rigmap.edits.representation import NEAR_CONSTANT_FRACTION, ChannelScale
+    from rigmap.edits.subjects import skeleton_clip, skeleton_subject
+
+    root = Path(__file__).resolve().parents[1]
+    walk = root.parent / "shared/mocap/cmu_131_01_walk.bvh"
+    subject = skeleton_subject(walk, 6.0, "cmu")
+    clip = skeleton_clip(subject, walk)
+    scale = ChannelScale.fit([clip])
+    raw = clip.values.std(axis=0)
+    knee = clip.channels.index("LeftKnee.z")
+    floor = NEAR_CONSTANT_FRACTION * np.median(raw[raw > 1e-12])
+    assert 0 < raw[knee] < 1e-5 < floor
+    kept = raw >= floor  # every channel that moves keeps its own std
+    np.testing.assert_array_equal(scale.std[kept], raw[kept])
+    np.testing.assert_array_equal(scale.std[~kept], 1.0)
+    noise = (raw > 1e-12) & ~kept  # and only the hinges' noise joins the constant ones
+    assert 0 < noise.sum() <= 6 and raw[noise].max() < 1e-5
+    config = yaml.safe_load((root / "conf/edit/bowed_legs.yaml").read_text())
+    edited = Edit.from_config("bowed_legs", config, "skeleton").apply(clip, 6.0, subject.skeleton)
+    moved = np.abs(scale.scaled(edited) - scale.scaled(clip))
+    assert moved[:, knee].max() == pytest.approx(0.4, rel=0.05)  # the 0.4 rad turn, in rad
+    assert moved.max() < 100

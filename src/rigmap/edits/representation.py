@@ -26,6 +26,10 @@ import numpy as np
 from rigmap.errors import RigmapError
 
 ROOT_CHANNELS = ("dt", "root.step_forward", "root.step_lateral", "root.turn")
+#: a channel whose training std is below this fraction of the median channel's counts as
+#: constant (ours: below every moving channel of the built-in biped, 6 % at the least; far
+#: above the CMU hinges' rounding noise, 2e-4 %)
+NEAR_CONSTANT_FRACTION = 0.01
 
 
 class TargetError(RigmapError, ValueError):
@@ -148,7 +152,14 @@ def resample(values: np.ndarray, time: np.ndarray, fps: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ChannelScale:
-    """Per-channel training standard deviation; a constant channel keeps scale 1 (ours)."""
+    """Per-channel training standard deviation; a channel (nearly) constant in training keeps
+    its own unit, scale 1 (ours: it has no spread to measure in).
+
+    Nearly constant: below :data:`NEAR_CONSTANT_FRACTION` of the median channel's std. A
+    BVH hinge joint's two unused axes are rounding noise in training (the CMU knees' and
+    elbows' exponential maps: std 5e-7 rad); divided by that, an edit that turns one (bowed
+    legs) measured 6e6 "std units" and dominated the GP's shared hyper-parameters.
+    """
 
     channels: tuple[str, ...]
     std: np.ndarray
@@ -160,7 +171,10 @@ class ChannelScale:
             if track.channels != channels:
                 raise TargetError(f"{track.source}: channels differ from {tracks[0].source}'s")
         std = np.concatenate([t.values for t in tracks]).std(axis=0)
-        return cls(channels, np.where(std > 1e-12, std, 1.0))
+        varying = std > 1e-12
+        if varying.any():
+            varying &= std >= NEAR_CONSTANT_FRACTION * float(np.median(std[varying]))
+        return cls(channels, np.where(varying, std, 1.0))
 
     def scaled(self, track: TargetTrack) -> np.ndarray:
         self.check(track)
