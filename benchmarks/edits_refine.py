@@ -4,12 +4,15 @@ The biped in rig mode (``conf/edits/default.yaml``'s subject: the examples are a
 a stand, the held-out clips every library motion replayed with another seed's variation).
 A procedural edit is learned from the examples (mirrored left/right, §7.1) and applied to
 the held-out clips; then for 5 rounds the "artist" fixes ``--per-round`` segments of
-``--segment`` frames to the edit's ground truth, chosen either by the highest predictive
-variance of the configuration predictor (the suggestion) or at random, and the model is
+``--segment`` frames to the edit's ground truth, chosen by the highest predictive variance
+of the configuration predictor (the suggestion; ``--choices`` may add ``variance_clips``,
+the suggestion spread over clips, :mod:`rigmap.edits.incremental`) or at random over
+``--random-seeds`` seeds (``--seed`` on: one random run is one draw), and the model is
 refitted, its hyper-parameters searched from the paper's initial values ("cold") or
-from the last round's ("warm", ours). Printed per round: frames authored, edit error
-(std units², over all held-out frames and over the frames not fixed), joint RMSE (cm),
-transfer ratio ρ, refit seconds.
+from the last round's ("warm", ours). Printed per start: every run's rounds (frames
+authored, edit error in std units² over all held-out frames and over the frames not
+fixed, joint RMSE (cm), transfer ratio ρ, refit seconds, the segments fixed) and a
+per-round summary, each choice's edit error beside random's mean, std, min and max.
 Beside it: the edit error of the GP and of moving least squares after round 0.
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits_refine.py [--edit arm_swing]
@@ -25,7 +28,7 @@ from pathlib import Path
 
 import yaml
 
-from rigmap.edits.incremental import refinement_rounds
+from rigmap.edits.incremental import CHOICES, compare_choices
 from rigmap.edits.mirror import subject_mirror
 from rigmap.edits.propagation import EditModel
 from rigmap.edits.scoring import Tally, score_clip
@@ -40,7 +43,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--per-round", type=int, default=2)
     parser.add_argument("--segment", type=int, default=12)  # frames (0.5 s at 24 fps): ours
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0)  # random's first seed
+    parser.add_argument("--random-seeds", type=int, default=5)  # ours
+    parser.add_argument("--choices", nargs="+", default=["variance"],
+                        choices=[c for c in CHOICES if c != "random"])  # fmt: skip
     parser.add_argument("--no-mirror", action="store_true")
     parser.add_argument("--starts", nargs="+", default=["cold", "warm"], choices=["cold", "warm"])
     parser.add_argument("--no-estimators", action="store_true")
@@ -74,13 +80,13 @@ def main() -> None:
                         "source_joint_rmse_cm", "transfer", "leak_std", "jerk_ratio")
         } | {"fit_s": fit_s}  # fmt: skip
     rounds = {
-        f"{choice}_{start}": refinement_rounds(
-            model(), data.scale, examples, data.heldout, truths, rounds=args.rounds,
-            per_round=args.per_round, segment=args.segment, choice=choice, seed=args.seed,
-            mirror=mirror, relative_cm=data.subject.relative_cm, warm_start=start == "warm",
+        start: compare_choices(
+            model, data.scale, examples, data.heldout, truths, choices=args.choices,
+            random_seeds=args.random_seeds, seed=args.seed, rounds=args.rounds,
+            per_round=args.per_round, segment=args.segment, mirror=mirror,
+            relative_cm=data.subject.relative_cm, warm_start=start == "warm",
         )
         for start in args.starts
-        for choice in ("variance", "random")
     }  # fmt: skip
     print(json.dumps({
         "edit": args.edit,

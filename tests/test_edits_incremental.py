@@ -9,7 +9,13 @@ import pytest
 import yaml
 
 import rigmap.rigs
-from rigmap.edits.incremental import Refinement, refinement_rounds
+from rigmap.edits.incremental import (
+    Refinement,
+    _pick,
+    compare_choices,
+    refinement_rounds,
+    summarise_rounds,
+)
 from rigmap.edits.mirror import subject_mirror
 from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel
@@ -69,18 +75,72 @@ def test_rounds_of_suggested_fixes_lower_the_edit_error(setup):
                           choice="best")  # fmt: skip
 
 
+def test_random_is_played_over_seeds_and_summarised_round_by_round(setup):
+    subject, scale, examples, heldout, truths = setup
+    report = compare_choices(lambda: EditModel(subject.joints, residual=True), scale,
+                             examples, heldout, truths, choices=("variance", "variance_clips"),
+                             random_seeds=3, seed=4, rounds=1, per_round=1,
+                             segment=8)  # fmt: skip
+    runs = report["random"]
+    assert sorted(runs) == ["4", "5", "6"]
+    assert len({run[1]["fixed"] for run in runs.values()}) > 1  # the seeds fix other frames
+    errors = np.array([run[1]["edit_error_std"] for run in runs.values()])
+    assert len(set(errors)) > 1
+    [first, second] = report["summary"]
+    assert first["random_std"] == pytest.approx(0.0, abs=1e-12)
+    assert first["variance"] == pytest.approx(first["random_mean"])
+    assert second["random_mean"] == pytest.approx(errors.mean())
+    assert second["random_std"] == pytest.approx(errors.std(ddof=1))
+    assert second["random_median"] == pytest.approx(np.median(errors))
+    assert (second["random_min"], second["random_max"]) == (errors.min(), errors.max())
+    assert second["variance"] == report["variance"][1]["edit_error_std"]
+    assert second["variance_below_random"] == int((errors > second["variance"]).sum())
+    assert second["variance_frames"] == 8 and second["random_frames_mean"] == 8
+    with pytest.raises(TargetError, match="random_seeds"):
+        compare_choices(lambda: None, scale, examples, heldout, truths, random_seeds=0)
+
+
+def test_summary_counts_the_seeds_a_choice_is_below():
+    def rows(*errors):
+        return [{"frames_authored": 12 * k, "edit_error_std": e} for k, e in enumerate(errors)]
+
+    chosen = {"variance": rows(1.0, 0.25)}
+    random = {"0": rows(1.0, 0.2), "1": rows(1.0, 0.3), "2": rows(1.0, 0.4)}
+    [_, last] = summarise_rounds(chosen, random)
+    assert last["random_mean"] == pytest.approx(0.3)
+    assert last["random_std"] == pytest.approx(0.1)
+    assert last["random_median"] == pytest.approx(0.3)
+    assert (last["random_min"], last["random_max"]) == (0.2, 0.4)
+    assert last["variance_below_random"] == 2
+
+
+def test_variance_clips_spreads_the_highest_variance_picks_over_clips():
+    variances = [np.full(40, 2.0), np.linspace(0.0, 1.0, 30), np.full(20, 0.5)]
+    plain = _pick(variances, {}, 2, 8)
+    assert [p.clip for p in plain] == [0, 0]  # a flat novel clip takes both
+    spread = _pick(variances, {}, 3, 8, per_clip=True)
+    assert [p.clip for p in spread] == [0, 1, 2]
+    assert (spread[1].start, spread[1].stop, spread[1].variance) == (22, 30, 1.0)
+    fixed = {0: (None, None, np.arange(40) < 8)}  # clip 0 had a segment: the others first
+    assert [p.clip for p in _pick(variances, fixed, 2, 8, per_clip=True)] == [1, 2]
+
+
 def test_the_cli_plays_refinement_rounds(tmp_path, capsys):
     from rigmap.cli import main
 
     root = Path(__file__).resolve().parents[1]
     paths = [f"paths.{k}={tmp_path / k}" for k in ("models", "data", "metrics")]
     chosen = ["edits.run=[biped]", "edits.names=[arm_swing]", "+edits.refine.rounds=1",
-              "+edits.refine.per_round=1", "+edits.mirror=true", *paths]  # fmt: skip
+              "+edits.refine.per_round=1", "+edits.refine.random_seeds=2",
+              "+edits.mirror=true", *paths]  # fmt: skip
     assert main(["edits", "add", "--config-dir", str(root / "conf"), *chosen]) == 0
     folder = tmp_path / "metrics/biped/edits/refinement"
     report = yaml.safe_load((folder / "arm_swing.json").read_text())
     assert [r["frames_authored"] for r in report["variance"]] == [0, 12]
-    assert [r["round"] for r in report["random"]] == [0, 1]
-    assert report["settings"]["rounds"] == 1
-    assert (folder / "arm_swing.csv").read_text().startswith("choice,round,frames_authored")
+    assert sorted(report["random"]) == ["0", "1"]
+    assert [r["round"] for r in report["random"]["1"]] == [0, 1]
+    assert [r["round"] for r in report["summary"]] == [0, 1]
+    assert report["settings"]["rounds"] == 1 and report["settings"]["random_seeds"] == 2
+    assert (folder / "arm_swing.csv").read_text().startswith("choice,seed,round,frames_authored")
+    assert (folder / "arm_swing_summary.csv").read_text().startswith("round,variance_frames")
     assert "refinement" in capsys.readouterr().out

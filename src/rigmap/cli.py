@@ -193,7 +193,8 @@ def _add_edits(commands) -> None:
                 else "Incremental refinement (rigmap.edits.incremental; not a stage): each "
                 "round fixes the highest-variance (or random) frames of the held-out clips to "
                 "the edit's ground truth and refits (+edits.refine.rounds=, per_round, segment, "
-                "seed; +edits.mirror=true). Runs on "
+                "seed, random_seeds, choices=[variance,variance_clips]; +edits.mirror=true). "
+                "Runs on "
             )
             + "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
             f"{verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. Paths are relative to the "

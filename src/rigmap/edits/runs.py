@@ -11,7 +11,9 @@ torch and the rigs, costs more than the edits of a subject).
   clip, too), ``summary.json`` and the tables ``edits.csv``, ``ablation.csv``, ``context.csv``;
 - :func:`run_add` (``rigmap edits add``; not a stage): incremental refinement (§3) played
   with each edit's ground truth on the held-out clips, suggested (highest-variance) against
-  random fixes → ``metrics/<subject>/edits/refinement/<edit>.json`` and ``.csv``.
+  random fixes over several seeds → ``metrics/<subject>/edits/refinement/<edit>.json``,
+  ``.csv`` (every run's rounds) and ``<edit>_summary.csv`` (per round: the suggestion beside
+  random's mean, std, min and max).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.edits.evaluation import evaluate_edit
-from rigmap.edits.incremental import refinement_rounds
+from rigmap.edits.incremental import compare_choices
 from rigmap.edits.mirror import subject_mirror
 from rigmap.edits.propagation import EditModel, load_model, save_model
 from rigmap.edits.representation import TargetError
@@ -82,38 +84,48 @@ def run_add(config: dict, layout: Layout) -> list[Path]:
     return [_add(config, subject, layout) for subject in _subjects(config)]
 
 
-REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0}  # ours
+# ours: 5 rounds of 2 segments of 12 frames (0.5 s at 24 fps), random fixes over 5 seeds
+# (seed, seed + 1, ...), the plain highest-variance suggestion beside them ("choices" may
+# add "variance_clips", rigmap.edits.incremental)
+REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0, "random_seeds": 5,
+                   "choices": ["variance"]}  # fmt: skip
 
 
 def _add(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
     settings = {**REFINE_DEFAULTS, **(config.get("refine") or {})}
+    settings["choices"] = [str(c) for c in settings["choices"]]
     folder = layout.metrics_folder(subject, EDITS) / "refinement"
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
+
+    def make_model() -> EditModel:
+        return EditModel(
+            data.subject.joints,
+            weights_from(config["weights"]),
+            residual=bool(config["residual"]),
+            max_iterations=int(config["max_iterations"]),
+            gp_method=str(config.get("gp_method", "lbfgs")),
+            estimator=str(config.get("estimator", "gp")),
+            input_scale=str(config.get("input_scale", "global")),
+        )
+
     for name, edit in edits.items():
         skeleton = data.subject.skeleton
         examples = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
         truths = [edit.apply(source.track, cm, skeleton) for source in data.heldout]
-        report = {}
-        for choice in ("variance", "random"):
-            model = EditModel(
-                data.subject.joints,
-                weights_from(config["weights"]),
-                residual=bool(config["residual"]),
-                max_iterations=int(config["max_iterations"]),
-                gp_method=str(config.get("gp_method", "lbfgs")),
-                estimator=str(config.get("estimator", "gp")),
-                input_scale=str(config.get("input_scale", "global")),
-            )
-            report[choice] = refinement_rounds(
-                model, data.scale, examples, data.heldout, truths,
-                rounds=int(settings["rounds"]), per_round=int(settings["per_round"]),
-                segment=int(settings["segment"]), choice=choice, seed=int(settings["seed"]),
-                mirror=mirror, relative_cm=data.subject.relative_cm,
-            )  # fmt: skip
-        rows = [{"choice": c, **row} for c, table in report.items() for row in table]
+        report = compare_choices(
+            make_model, data.scale, examples, data.heldout, truths,
+            choices=settings["choices"], random_seeds=int(settings["random_seeds"]),
+            seed=int(settings["seed"]), rounds=int(settings["rounds"]),
+            per_round=int(settings["per_round"]), segment=int(settings["segment"]),
+            mirror=mirror, relative_cm=data.subject.relative_cm,
+        )  # fmt: skip
+        rows = [{"choice": c, "seed": "", **row} for c in settings["choices"] for row in report[c]]
+        rows += [{"choice": "random", "seed": seed, **row}
+                 for seed, table in report["random"].items() for row in table]  # fmt: skip
         write_text_atomic(folder / f"{name}.csv", _csv(rows))
+        write_text_atomic(folder / f"{name}_summary.csv", _csv(report["summary"]))
         write_json_atomic(folder / f"{name}.json", json_ready({**report, "settings": settings}))
     return folder
 
