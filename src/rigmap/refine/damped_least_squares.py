@@ -54,7 +54,8 @@ from rigmap.torch_threads import blas_threads, torch_threads
 
 #: with ``jacobian_update: carry``, a step that achieves less than this fraction of the
 #: decrease its Jacobian predicted gets the frame a fresh Jacobian (ours: on the wolf's test
-#: clips 0.25 and 0.5 recomputed too rarely to repair the frames the carried one misled)
+#: clips 0, 0.25, 0.5 and 0.75 ended at 0.36, 0.13, 0.072 and 0.066 cm² for 22, 23, 28 and
+#: 35 rig evaluations per frame; 0 recomputes only when the error stopped falling)
 CARRY_RECOMPUTE_RATIO = 0.75
 
 
