@@ -36,12 +36,17 @@ timing, warm-up and rig counting) in the same process, once per variant:
   comparison of session 29's changes;
 - ``block_forward``: ``block`` with one-sided differences even where the rig's
   conf asks for central ones (the Blender rigs).
+- ``carry``: ``fast`` with a clip's frames refined in order, each from the previous
+  frame's Jacobian and refined pose (``jacobian_update: carry``, issue #16);
+- ``block_central_recompute``: ``block`` with central differences recomputed at every
+  iteration, whatever the rig's conf asks for (the wolf's refinement before session 30).
 
 The variants alternate ``--repeats`` times and the fastest run of each is kept,
 with every run's frames/s and their median (the machine may be shared: every
 number carries the 1-minute load average around it). A rig's own refine
-settings (conf/rig/<rig>.yaml ``evaluate.methods``: the Blender rigs' central
-differences) apply to every variant but ``old``. The JSON gives, per rig, method
+settings (conf/rig/<rig>.yaml ``_overrides_.method``: the Blender human's central
+differences, the wolf's one-sided ones with ``jacobian_update: carry``) apply to every
+variant but ``old``, then a variant's ``after_rig``. The JSON gives, per rig, method
 and variant: frames/s, rig evaluations per frame, joint error (cm²),
 ground-truth error, and the speed-up over ``old``, ``today`` and
 ``today_one_thread`` where they ran (and, of medians, over a ``_before``, ``_s27`` or
@@ -106,6 +111,23 @@ VARIANTS = {
         "solver": "block_cholesky",
         "sparsity": "coloured",
         "after_rig": {"differences": "forward"},
+    },
+    # fast with a clip's frames refined in order, each from the previous frame's Jacobian
+    # (jacobian_update: carry, issue #16); on a rig whose conf asks for other differences,
+    # those
+    "carry": {
+        "solver": "block_cholesky",
+        "differences": "forward",
+        "sparsity": "coloured",
+        "traced": True,
+        "jacobian_update": "carry",
+    },
+    # the wolf's refinement before session 30 (central differences recomputed at every
+    # iteration), whatever its conf now asks for
+    "block_central_recompute": {
+        "solver": "block_cholesky",
+        "sparsity": "coloured",
+        "after_rig": {"differences": "central", "jacobian_update": "recompute"},
     },
     # the same settings with this session's changes switched off (see previous_code)
     "block_before": {

@@ -202,6 +202,36 @@ def test_jacobian_reuse_spends_fewer_rig_evaluations_and_still_refines(problem, 
     assert shared.joint_error.mean() < 0.5 * shared.initial_joint_error.mean()
 
 
+def test_carried_jacobians_refine_a_clip_as_well_as_recomputed_ones_for_far_fewer_evaluations(
+    problem,
+):
+    """``jacobian_update: carry`` on 12 consecutive frames of a real test clip.
+
+    The start is a regressor-like guess: off by a bias shared along the clip plus a little
+    jitter per frame. Refined in order, each frame from the previous frame's Jacobian and
+    pose, the clip ends within 0.01 cm² (ours) of the full recompute's mean joint error, at
+    under a quarter of its rig evaluations (on the wolf: 35 instead of 310 per frame).
+    """
+    rig, std = problem.rig, problem.std
+    test = build_corpus(rig, "test", seed=0).table[rig.used_controls].to_numpy(float)
+    truth = test[40:52]
+    rng = np.random.default_rng(0)
+    start = truth + 0.3 * std * rng.standard_normal(std.shape)
+    start += 0.1 * std * rng.standard_normal(truth.shape)
+    target = rig.evaluate(rig.expand_used(truth))
+    settings = dict(start=start, target=target, damping="auto", solver="block_cholesky")
+    source = ComputedJacobian(rig, differences="forward", sparsity="coloured")
+    full = problem.refine(source=source, **settings)
+    carried = problem.refine(source=source, reuse=JacobianReuse(update="carry"), **settings)
+    assert carried.rig_evaluations < 0.25 * full.rig_evaluations
+    assert carried.joint_error.mean() < full.joint_error.mean() + 0.01
+    assert carried.joint_error.mean() < 0.01 * carried.initial_joint_error.mean()
+    np.testing.assert_array_equal(carried.initial_joint_error, full.initial_joint_error)
+    assert carried.iterations.max() <= 3
+    with pytest.raises(ValueError, match="share_every must be 1"):
+        JacobianReuse(share_every=2, update="carry")
+
+
 def test_broyden_update_is_exact_along_the_step():
     rng = np.random.default_rng(1)
     J, dy, dx = rng.normal(size=(3, 5, 4)), rng.normal(size=(3, 4)), rng.normal(size=(3, 5))

@@ -17,6 +17,15 @@ Between iterations a Jacobian is recomputed (``update="recompute"``), kept
 the last two a frame whose error stopped falling gets its own full Jacobian
 at its next iteration (``recompute_on_stall``). ``share_every = 1`` with
 ``"recompute"`` is the original full recompute at every iteration.
+
+``"carry"`` takes continuity further (issue #16): a clip's frames are refined
+one after another, each starting from the previous frame's final Jacobian
+(Broyden-updated along its steps) and from the better of its guess and the
+previous refined pose moved as the guess moved; a frame gets a full Jacobian
+only when a step falls well short of the decrease its Jacobian predicted
+(``rigmap.refine.damped_least_squares``). On the Blender wolf, whose every
+Jacobian costs a worker-pool batch, it took the rig evaluations per frame
+from 310 to 35 at a lower joint error (README).
 """
 
 from __future__ import annotations
@@ -25,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-UPDATES = ("recompute", "keep", "broyden")
+UPDATES = ("recompute", "keep", "broyden", "carry")
 
 
 @dataclass(frozen=True)
@@ -33,7 +42,7 @@ class JacobianReuse:
     """How a computed Jacobian is reused; the defaults recompute it at every iteration."""
 
     share_every: int = 1  # Jacobians on every k-th frame, shared with its neighbours
-    update: str = "recompute"  # between iterations: recompute | keep | broyden
+    update: str = "recompute"  # between iterations: recompute | keep | broyden | carry
     recompute_on_stall: bool = True  # a full Jacobian for a frame whose error stopped falling
 
     def __post_init__(self) -> None:
@@ -44,6 +53,11 @@ class JacobianReuse:
         if self.update not in UPDATES:
             raise ValueError(
                 f"jacobian reuse: update must be one of {UPDATES}, got {self.update!r}"
+            )
+        if self.update == "carry" and self.share_every != 1:
+            raise ValueError(
+                "jacobian reuse: update 'carry' hands each frame's Jacobian to the next "
+                f"already; share_every must be 1, got {self.share_every!r}"
             )
 
     @property
