@@ -248,12 +248,14 @@ def _add_map(commands) -> None:
         help="pose a rig's whole body from a few effector targets and draw it (full-body IK)",
         description='Poses the rig from targets=<file.json> ({"targets": {joint: [x, y, z]}} '
         'or {"frames": [...]}, world cm, Y up, facing +Z) with a GPR on the rig\'s pose '
-        "subset (map.rigs.<rig>.pose_subset: biped and quadruped 'effectors' (7 joints), face "
-        "'landmarks'), refined by damped least squares, and writes <out>/ (default "
+        "subset (map.rigs.<rig>.pose_subset: biped, quadruped and rigify_human 'effectors' (7 "
+        "joints), face 'landmarks'), refined by damped least squares (map.pose_mode=drag, the "
+        "default: the frames in order, each from the last; batch: each from its guess), and "
+        "writes <out>/ (default "
         "outputs/pose/<rig>/<targets name>/): controls.json and pose_<k>.png. Example: "
         "rigmap pose rig=biped targets=effectors.json.",
-        overrides="targets=, rig=, out=, model=, map.pose_subset=, map.settings.*=, budget.*=, "
-        "paths.*=",
+        overrides="targets=, rig=, out=, model=, map.pose_subset=, map.pose_mode=, map.drag.*=, "
+        "map.settings.*=, budget.*=, paths.*=",
         run=_pose,
         config_name="map",
     )
