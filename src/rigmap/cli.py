@@ -303,7 +303,11 @@ def _add_reproduce(commands) -> None:
         help="reproduce only this stage and what it depends on (repeatable; default: all)",
     )
     reproduce.add_argument(
-        "--dry", action="store_true", help="show what would run; params.yaml is left as it was"
+        "--dry",
+        action="store_true",
+        help="show what would run (dvc repro --dry); params.yaml is left as it was. DVC's dry "
+        "run stops at the first stage whose inputs an earlier stage has not written yet "
+        "(treeverse/dvc#9021), so on a fresh clone it lists only the first stages",
     )
     reproduce.add_argument("--force", action="store_true", help="re-run even unchanged stages")
     reproduce.add_argument(
