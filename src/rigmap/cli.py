@@ -188,18 +188,20 @@ def _add_edits(commands) -> None:
             verb,
             help=what,
             description=(
-                f"Runs the edit_{verb} stage (pipelines/edit_{verb}.py) on "
+                f"Runs the edit_{verb} stage (pipelines/edits.py +edits_step={verb}) on "
                 if verb != "add"
                 else "Incremental refinement (rigmap.edits.incremental; not a stage): each "
                 "round fixes the highest-variance (or random) frames of the held-out clips to "
                 "the edit's ground truth and refits (+edits.refine.rounds=, per_round, segment, "
-                "seed, random_seeds, choices=[variance,variance_clips]; +edits.mirror=true). "
+                "seed, random_seeds (how many seeds), choices=[variance,variance_clips]; "
+                "+edits.mirror=true). "
                 "Runs on "
             )
-            + "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
-            f"{verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. Paths are relative to the "
-            "working directory.",
-            overrides="edits.run=, edits.names=, edits.residual=, edits.weights.*=, paths.*=",
+            + "conf/edits/default.yaml (edits=mls or edits=mirrored: conf/edits/) with Hydra "
+            f"overrides, e.g. rigmap edits {verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. "
+            "Paths are relative to the working directory.",
+            overrides="edits=, edits.run=, edits.names=, edits.residual=, edits.weights.*=, "
+            "paths.*=",
             run=lambda args, verb=verb: _edits(verb, args),
         )
 
