@@ -144,3 +144,16 @@ def test_the_cli_plays_refinement_rounds(tmp_path, capsys):
     assert (folder / "arm_swing.csv").read_text().startswith("choice,seed,round,frames_authored")
     assert (folder / "arm_swing_summary.csv").read_text().startswith("round,variance_frames")
     assert "refinement" in capsys.readouterr().out
+
+
+def test_refinement_settings_are_checked_before_any_work():
+    from rigmap.edits.runs import REFINE_DEFAULTS, refine_settings
+
+    assert refine_settings({}) == REFINE_DEFAULTS
+    assert refine_settings({"refine": {"rounds": 2}})["rounds"] == 2
+    with pytest.raises(TargetError, match=r"edits.refine: unknown setting\(s\) \['round'\]"):
+        refine_settings({"refine": {"round": 2}})  # a typo is not silently ignored
+    with pytest.raises(TargetError, match=r"edits.refine.random_seeds must be an integer"):
+        refine_settings({"refine": {"random_seeds": [0, 1]}})  # a count, not a list of seeds
+    with pytest.raises(TargetError, match=r"edits.refine.choices must be a list"):
+        refine_settings({"refine": {"choices": "variance"}})

@@ -236,9 +236,15 @@ def test_missing_model_folders_are_named_before_any_work(face, tmp_path):
         face, "evaluate.log_to_mlflow=false", "evaluate.set=kernels",
         "evaluate.kernels=[multiquadric,linear]", f"paths.metrics={tmp_path}",
     )  # fmt: skip
-    with pytest.raises(FileNotFoundError, match=r"gpr-none-linear \(for gpr\).*fit stage"):
+    with pytest.raises(FileNotFoundError, match=r"gpr-none-linear \(for gpr\).*fit stage") as error:
         _run_stage(overrides)
     assert not any(tmp_path.rglob("*.json"))  # nothing ran, not even the kernel that exists
+    # the message gives the command that writes the missing folder (there is no `fit` stage)
+    root = face["root"]
+    command = (f"`python pipelines/fit.py rig=face regressor=gpr sampler=none kernel=linear "
+               f"paths.data={root / 'data'} paths.models={root / 'models'}`")  # fmt: skip
+    assert command in str(error.value)
+    assert "dvc repro fit`" not in str(error.value)
 
 
 @pytest.mark.slow

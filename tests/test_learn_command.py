@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import shlex
 from pathlib import Path
 
 import pytest
@@ -43,6 +44,10 @@ def test_until_stops_after_a_stage_and_bad_input_is_named(blend, tmp_path):
     lines = out.getvalue().splitlines()
     assert [line.split(":")[1].strip() for line in lines] == ["animate", "pose"]
     assert report["stages"] == [] and "rig.armature" not in out.getvalue()  # the only armature
+    # each line is the command as it runs (interpreter, script, overrides, in the project)
+    commands = learn_commands(blend, project=PROJECT, compose=compose_config)[:2]
+    for line, (_, argv) in zip(lines, commands, strict=True):
+        assert line.split(": ", 2)[2] == f"cd {PROJECT} && {shlex.join(argv)}"
     with pytest.raises(ValueError, match="--until must be one of"):
         run_learn(blend, project=PROJECT, compose=compose_config, until="nope", dry=True, out=out)
     with pytest.raises(FileNotFoundError, match=r"no \.blend file at"):

@@ -271,6 +271,7 @@ def test_unreachable_server_fails_fast_and_names_the_uri():
         Tracker.open(uri, probe_timeout_s=2.0)
     assert time.perf_counter() - started < 5  # refused at once, not MLflow's minutes of retries
     assert "/health" in str(error.value) and "sqlite:///" in str(error.value)
+    assert "scripts/tracking_server.sh start" in str(error.value)  # how to start the project's
 
 
 def test_silent_server_fails_after_the_probe_timeout():

@@ -188,18 +188,20 @@ def _add_edits(commands) -> None:
             verb,
             help=what,
             description=(
-                f"Runs the edit_{verb} stage (pipelines/edit_{verb}.py) on "
+                f"Runs the edit_{verb} stage (pipelines/edits.py +edits_step={verb}) on "
                 if verb != "add"
                 else "Incremental refinement (rigmap.edits.incremental; not a stage): each "
                 "round fixes the highest-variance (or random) frames of the held-out clips to "
                 "the edit's ground truth and refits (+edits.refine.rounds=, per_round, segment, "
-                "seed, random_seeds, choices=[variance,variance_clips]; +edits.mirror=true). "
+                "seed, random_seeds (how many seeds), choices=[variance,variance_clips]; "
+                "+edits.mirror=true). "
                 "Runs on "
             )
-            + "conf/edits/default.yaml with Hydra overrides, e.g. rigmap edits "
-            f"{verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. Paths are relative to the "
-            "working directory.",
-            overrides="edits.run=, edits.names=, edits.residual=, edits.weights.*=, paths.*=",
+            + "conf/edits/default.yaml (edits=mls or edits=mirrored: conf/edits/) with Hydra "
+            f"overrides, e.g. rigmap edits {verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. "
+            "Paths are relative to the working directory.",
+            overrides="edits=, edits.run=, edits.names=, edits.residual=, edits.weights.*=, "
+            "paths.*=",
             run=lambda args, verb=verb: _edits(verb, args),
         )
 
@@ -248,12 +250,14 @@ def _add_map(commands) -> None:
         help="pose a rig's whole body from a few effector targets and draw it (full-body IK)",
         description='Poses the rig from targets=<file.json> ({"targets": {joint: [x, y, z]}} '
         'or {"frames": [...]}, world cm, Y up, facing +Z) with a GPR on the rig\'s pose '
-        "subset (map.rigs.<rig>.pose_subset: biped and quadruped 'effectors' (7 joints), face "
-        "'landmarks'), refined by damped least squares, and writes <out>/ (default "
+        "subset (map.rigs.<rig>.pose_subset: biped, quadruped and rigify_human 'effectors' (7 "
+        "joints), face 'landmarks'), refined by damped least squares (map.pose_mode=drag, the "
+        "default: the frames in order, each from the last; batch: each from its guess), and "
+        "writes <out>/ (default "
         "outputs/pose/<rig>/<targets name>/): controls.json and pose_<k>.png. Example: "
         "rigmap pose rig=biped targets=effectors.json.",
-        overrides="targets=, rig=, out=, model=, map.pose_subset=, map.settings.*=, budget.*=, "
-        "paths.*=",
+        overrides="targets=, rig=, out=, model=, map.pose_subset=, map.pose_mode=, map.drag.*=, "
+        "map.settings.*=, budget.*=, paths.*=",
         run=_pose,
         config_name="map",
     )
@@ -301,7 +305,11 @@ def _add_reproduce(commands) -> None:
         help="reproduce only this stage and what it depends on (repeatable; default: all)",
     )
     reproduce.add_argument(
-        "--dry", action="store_true", help="show what would run; params.yaml is left as it was"
+        "--dry",
+        action="store_true",
+        help="show what would run (dvc repro --dry); params.yaml is left as it was. DVC's dry "
+        "run stops at the first stage whose inputs an earlier stage has not written yet "
+        "(treeverse/dvc#9021), so on a fresh clone it lists only the first stages",
     )
     reproduce.add_argument("--force", action="store_true", help="re-run even unchanged stages")
     reproduce.add_argument(

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import subprocess
 import sys
 import time
@@ -93,7 +94,9 @@ def run_learn(
     ).rstrip(os.pathsep)
     timings = []
     for name, argv in commands:
-        print(f"rigmap learn: {name}: {' '.join(argv[1:])}", file=out, flush=True)
+        # runnable as printed (--dry): the stages run in the project, as DVC runs them
+        print(f"rigmap learn: {name}: cd {shlex.quote(str(project))} && {shlex.join(argv)}",
+              file=out, flush=True)  # fmt: skip
         if dry:
             continue
         started = time.perf_counter()

@@ -81,7 +81,8 @@ def run_evaluate(config: dict, layout: Layout) -> list[Path]:
 
 
 def run_add(config: dict, layout: Layout) -> list[Path]:
-    return [_add(config, subject, layout) for subject in _subjects(config)]
+    settings = refine_settings(config)
+    return [_add(config, subject, layout, settings) for subject in _subjects(config)]
 
 
 # ours: 5 rounds of 2 segments of 12 frames (0.5 s at 24 fps), random fixes over 5 seeds
@@ -91,10 +92,27 @@ REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0, "rando
                    "choices": ["variance"]}  # fmt: skip
 
 
-def _add(config: dict, subject: str, layout: Layout) -> Path:
-    subject, data, edits = _setup(config, subject)
-    settings = {**REFINE_DEFAULTS, **(config.get("refine") or {})}
+def refine_settings(config: dict) -> dict:
+    """``edits.refine`` over :data:`REFINE_DEFAULTS`, checked before any work: an unknown
+    key or a count that is not an integer is an error naming it."""
+    given = dict(config.get("refine") or {})
+    unknown = sorted(set(given) - set(REFINE_DEFAULTS))
+    if unknown:
+        raise TargetError(f"edits.refine: unknown setting(s) {unknown}; the settings are "
+                          f"{sorted(REFINE_DEFAULTS)}")  # fmt: skip
+    settings = {**REFINE_DEFAULTS, **given}
+    for key, value in settings.items():
+        if key != "choices" and (isinstance(value, bool) or not isinstance(value, int)):
+            raise TargetError(f"edits.refine.{key} must be an integer, got {value!r}")
+    if isinstance(settings["choices"], str):
+        raise TargetError(f"edits.refine.choices must be a list, e.g. [variance,variance_clips]; "
+                          f"got {settings['choices']!r}")  # fmt: skip
     settings["choices"] = [str(c) for c in settings["choices"]]
+    return settings
+
+
+def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
+    subject, data, edits = _setup(config, subject)
     folder = layout.metrics_folder(subject, EDITS) / "refinement"
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit

@@ -46,16 +46,32 @@ class FittedModels:
     def check(self, jobs: Sequence[EvaluationJob]) -> None:
         """Raise ``FileNotFoundError`` naming every missing folder and the methods needing it."""
         needed: dict[Path, list[str]] = {}
+        commands: dict[str, None] = {}  # ordered, no repeats
         for job in jobs:
-            for folder in (self.regressor_folder(job), self.jacobian_folder(job)):
+            pairs = ((job.model_id, self.regressor_folder(job)),
+                     (job.jacobian_model_id, self.jacobian_folder(job)))  # fmt: skip
+            for model_id, folder in pairs:
                 if folder is not None and not folder.is_dir():
                     needed.setdefault(folder, []).append(job.method.name)
+                    commands[self._fit_command(model_id)] = None
         if needed:
             listing = "; ".join(f"{f} (for {', '.join(m)})" for f, m in needed.items())
             raise FileNotFoundError(
-                f"model folders missing: {listing}. They are the fit stage's outputs: run "
-                f"`dvc repro fit` or `python pipelines/fit.py rig={self.rig.name} ...`"
+                f"model folders missing: {listing}. They are the fit stage's outputs "
+                f"(dvc.yaml's fit_nn, fit_gpr, fit_mean, fit_nn_joint_space stages): run "
+                + "; ".join(f"`{c}`" for c in commands)
             )
+
+    def _fit_command(self, model_id) -> str:
+        """The ``pipelines/fit.py`` command that writes ``model_id``'s folder."""
+        command = (f"python pipelines/fit.py rig={self.rig.name} regressor={model_id.regressor} "
+                   f"sampler={model_id.sampler}")  # fmt: skip
+        if model_id.kernel != "none":
+            command += f" kernel={model_id.kernel}"
+        for field in ("data", "models"):  # where this evaluation looks, if not the default
+            if getattr(self.layout, field) != Path(field):
+                command += f" paths.{field}={getattr(self.layout, field)}"
+        return command
 
     def regressor(self, job: EvaluationJob) -> Any:
         from rigmap.regression import load_regressor

@@ -159,7 +159,9 @@ def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -
     subsets = _rig_section(options, rig.name).get("subsets") or {}
     if name not in subsets:
         raise MapConfigError(f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
-                             f"{rig.name}.subsets (has {sorted(subsets)})")  # fmt: skip
+                             f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
+                             "in map/default.yaml of the conf/ folder (for your own rig, a copy "
+                             "of conf/ given with --config-dir)")  # fmt: skip
     spec = dict(subsets[name])
     if spec.get("joints") == RETARGET_JOINTS:
         if retarget is None:

@@ -170,8 +170,10 @@ def _probe_server(uri: str, timeout_s: float) -> None:
     waited = time.perf_counter() - started
     raise TrackingUnavailableError(
         f"MLflow tracking server {uri} is unusable: GET {health} failed after {waited:.1f} s "
-        f"(timeout {timeout_s:g} s; {reason}). Start it (e.g. `mlflow server --host 127.0.0.1 "
-        f"--port <port>`), or log to the local store instead: unset {TRACKING_URI_ENV} and "
+        f"(timeout {timeout_s:g} s; {reason}). Start it (this project's: `bash "
+        f"scripts/tracking_server.sh start`, MLflow on PostgreSQL at http://127.0.0.1:5000; or "
+        f"`mlflow server --host 127.0.0.1 --port <port>`), or log to the local store instead: "
+        f"unset {TRACKING_URI_ENV} and "
         f"leave tracking.uri null (default {default_tracking_uri()})."
     )
 
