@@ -28,9 +28,9 @@ import numpy as np
 from rigmap.edits.evaluation import evaluate_edit
 from rigmap.edits.incremental import compare_choices
 from rigmap.edits.mirror import subject_mirror
-from rigmap.edits.propagation import EditModel, load_model, save_model
+from rigmap.edits.propagation import load_model, save_model
 from rigmap.edits.representation import TargetError
-from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study, weights_from
+from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study, model_from
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
 
 EDITS = "edits"
@@ -117,23 +117,12 @@ def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
 
-    def make_model() -> EditModel:
-        return EditModel(
-            data.subject.joints,
-            weights_from(config["weights"]),
-            residual=bool(config["residual"]),
-            max_iterations=int(config["max_iterations"]),
-            gp_method=str(config.get("gp_method", "lbfgs")),
-            estimator=str(config.get("estimator", "gp")),
-            input_scale=str(config.get("input_scale", "global")),
-        )
-
     for name, edit in edits.items():
         skeleton = data.subject.skeleton
         examples = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
         truths = [edit.apply(source.track, cm, skeleton) for source in data.heldout]
         report = compare_choices(
-            make_model, data.scale, examples, data.heldout, truths,
+            lambda: model_from(data, config), data.scale, examples, data.heldout, truths,
             choices=settings["choices"], random_seeds=int(settings["random_seeds"]),
             seed=int(settings["seed"]), rounds=int(settings["rounds"]),
             per_round=int(settings["per_round"]), segment=int(settings["segment"]),

@@ -110,11 +110,9 @@ def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
     return {name: Edit.from_config(name, catalogue[name], mode) for name in names}
 
 
-def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, dict]:
-    """Fit one edit's model on the examples; returns it and what the fit found."""
-    cm, skeleton = data.subject.cm_per_unit, data.subject.skeleton
-    pairs = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
-    model = EditModel(
+def model_from(data: StudyData, settings: dict) -> EditModel:
+    """An unfitted edit model for the subject, as ``conf/edits`` sets it up."""
+    return EditModel(
         data.subject.joints,
         weights_from(settings["weights"]),
         residual=bool(settings["residual"]),
@@ -123,6 +121,13 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
         estimator=str(settings.get("estimator", "gp")),  # "mls": §4.4 (conf/edits/mls.yaml)
         input_scale=str(settings.get("input_scale", "global")),
     )
+
+
+def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, dict]:
+    """Fit one edit's model on the examples; returns it and what the fit found."""
+    cm, skeleton = data.subject.cm_per_unit, data.subject.skeleton
+    pairs = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
+    model = model_from(data, settings)
     # §7.1 mirrors the training data; off unless the config says so (ours: the stages'
     # results so far are unmirrored)
     mirror = subject_mirror(data.subject) if settings.get("mirror", False) else None
