@@ -11,6 +11,7 @@ load average when it ended. On a shared machine compare times within one run onl
 
     PYTHONPATH=src .venv/bin/python benchmarks/joint_space_budget.py [--rigs quadruped biped]
         [--variants default steps300] [--data data] [--set epochs=4 batch_size=256]
+        [--seeds 0 1 2]
 """
 
 from __future__ import annotations
@@ -80,6 +81,14 @@ VARIANTS: dict[str, dict] = {
     # over the session-28 default (the config now): a lower control weight, a shorter pretraining
     "w01": {"control_weight": 0.01},
     "pre5": {"pretrain_epochs": 5},
+    # session 31: per-control draws around the corpus and the PCA draws (the config now has
+    # n_local 48 000), fewer of them, none, fewer epochs, no wide draws
+    "local0": {"n_local": 0},
+    "local12k": {"n_local": 12000},
+    "local24k": {"n_local": 24000},
+    "local24k_wide0": {"n_local": 24000, "n_wide": 0},
+    "local48k_e4": {"n_local": 48000, "epochs": 4},
+    "local48k_e0": {"n_local": 48000, "epochs": 0},
 }
 
 
@@ -93,13 +102,17 @@ def base_settings() -> dict:
 def scores(rig, mapping, X, Y, std, kinds) -> dict:
     predicted = mapping.predict(X)
     posed = rig.evaluate(rig.expand_used(predicted))
+    frames = joint_error(posed, X[:, : 3 * rig.n_joints])
     return {
-        "joint_error_cm2": float(joint_error(posed, X[:, : 3 * rig.n_joints]).mean),
+        "joint_error_cm2": frames.mean,
+        "median_frame_cm2": float(np.median(frames.per_frame)),
         "ground_truth_error": float(ground_truth_error(predicted, Y, std, kinds).mean),
     }
 
 
-def measure(rig_name: str, data_dir: str, variants: list[str], extra: dict) -> list[dict]:
+def measure(
+    rig_name: str, data_dir: str, variants: list[str], extra: dict, seeds=(0,)
+) -> list[dict]:
     rig = load(rig_name)
     data = load_training_data(rig, data_dir, "none")
     placement = placement_of(rig, data)
@@ -115,8 +128,8 @@ def measure(rig_name: str, data_dir: str, variants: list[str], extra: dict) -> l
     Y = np.concatenate([c.controls for c in test.clips])
     std, kinds = test.train_std, test.control_kinds
     out = []
-    for name in variants:
-        settings = {**base_settings(), **VARIANTS[name], **extra}
+    for name, seed in ((n, s) for n in variants for s in seeds):
+        settings = {**base_settings(), **VARIANTS[name], **extra, "seed": seed}
         model = JointSpaceNetworkRegressor(**settings)
         rows = data.rows + model.n_gaussian + model.n_wide
         started = time.perf_counter()
@@ -126,6 +139,7 @@ def measure(rig_name: str, data_dir: str, variants: list[str], extra: dict) -> l
         row = {
             "rig": rig_name,
             "variant": name,
+            "seed": seed,
             "overrides": {**VARIANTS[name], **extra},
             "fit_seconds": round(seconds, 1),
             "joint_steps": model.epochs * -(-rows // model.batch_size),
@@ -144,10 +158,11 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS))
     parser.add_argument("--data", default="data")
     parser.add_argument("--set", nargs="*", default=[], help="key=value (YAML) for every variant")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0], help="a fit per seed")
     args = parser.parse_args()
     extra = {k: yaml.safe_load(v) for k, v in (item.split("=", 1) for item in args.set)}
     for name in args.rigs:
-        measure(name, args.data, args.variants, extra)
+        measure(name, args.data, args.variants, extra, args.seeds)
 
 
 if __name__ == "__main__":

@@ -327,7 +327,7 @@ def test_sample_sweep_scores_the_network_per_sample_count(data_dir, nn_fit, bipe
 
 JOINT_SPACE_TINY = [
     "regressor=nn_joint_space", "sampler=none", "regressor.n_gaussian=40", "regressor.n_wide=20",
-    "regressor.pretrain_epochs=1", "regressor.epochs=1", "regressor.batch_size=32",
+    "regressor.n_local=30", "regressor.pretrain_epochs=1", "regressor.epochs=1", "regressor.batch_size=32",
     "regressor.progress=false",
 ]  # fmt: skip
 
@@ -340,14 +340,14 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
     )  # fmt: skip
     written = sweep.run(cfg)
     assert [p.name for p in written] == [
-        "nn_joint_space-draws-30.json",
-        "nn_joint_space-draws-60.json",
+        "nn_joint_space-draws-45.json",
+        "nn_joint_space-draws-90.json",
     ]
     folder = tmp_path / "metrics" / "biped" / "sample_sweep_joint_space"
     assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)
     results = [json.loads(p.read_text()) for p in written]
-    draws = [(r["extra"]["n_gaussian"], r["extra"]["n_wide"]) for r in results]
-    assert draws == [(20, 10), (40, 20)]
+    draws = [tuple(r["extra"][k] for k in ("n_gaussian", "n_local", "n_wide")) for r in results]
+    assert draws == [(20, 15, 10), (40, 30, 20)]
     # all the draws: the same seeded fit as the fit stage's, so the same scores
     fitted = _stage("fit").run(cfg)
     test_set = TestSet.load(biped, data_dir / "biped")
@@ -370,7 +370,7 @@ def test_joint_space_sweep_scores_the_fit_stages_model_when_it_is_the_same_fit(
     capsys.readouterr()
     reused = _stage("sample_sweep").run(cfg)
     log = capsys.readouterr().out
-    assert log.count("scoring the fit stage's model") == 1 and "+ 60 draws: scoring" in log
+    assert log.count("scoring the fit stage's model") == 1 and "+ 90 draws: scoring" in log
     layout = Layout(data=data_dir, models=tmp_path / "models", metrics=tmp_path / "refit")
     make = lambda: hydra.utils.instantiate(cfg.regressor, _convert_="all")  # noqa: E731
     refitted = joint_space_sweep(biped, layout, make, fractions=[0.5, 1.0], reuse_fit=False)
@@ -396,7 +396,8 @@ def test_joint_space_sweep_refuses_another_regressor_or_no_draws(data_dir, tmp_p
     with pytest.raises(ValueError, match="expected regressor=nn_joint_space, got 'nn'"):
         joint_space_sweep(None, layout, lambda: FeedForwardRegressor())
     empty = fit_config(data_dir, tmp_path / "models", *JOINT_SPACE_TINY, "regressor.n_gaussian=0",
-                       "regressor.n_wide=0", f"paths.metrics={tmp_path}")  # fmt: skip
+                       "regressor.n_local=0", "regressor.n_wide=0",
+                       f"paths.metrics={tmp_path}")  # fmt: skip
     with pytest.raises(ValueError, match="draws no poses"):
         sweep.run(empty)
 

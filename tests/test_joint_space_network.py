@@ -11,7 +11,12 @@ import torch
 from rigmap.regression import JointSpaceNetworkRegressor, load_regressor
 from rigmap.regression.features import inverse_features
 from rigmap.regression.joint_space_network import SquashedNetwork
-from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
+from rigmap.regression.joint_space_training import (
+    JointSpaceData,
+    draw_training_poses,
+    joint_space_cost,
+    local_draws,
+)
 from rigmap.regression.mapping import InverseMapping
 from rigmap.regression.placement import find_placement, heading, turn_matrix
 from rigmap.regression.rig_forward import NotDifferentiableRigError, PlacedRigForward
@@ -183,6 +188,38 @@ def test_outputs_never_leave_the_soft_ranges(tiny, tmp_path):
     mapping.save(tmp_path)
     loaded = load_regressor(tmp_path, rig=rig)
     np.testing.assert_allclose(loaded.predict(X), mapping.predict(X), atol=1e-5)
+
+
+def test_local_draws_move_each_control_of_a_pool_row_by_its_own_noise():
+    rng = np.random.default_rng(0)
+    pool = np.array([[0.0, 10.0, -5.0], [1.0, 20.0, 5.0]])
+    std = np.array([0.1, 2.0, 0.0])  # the last control never moves in the corpus
+    draws = local_draws(pool, std, 3.0, 40_000, rng)
+    assert set(np.unique(draws[:, 2])) == {-5.0, 5.0}  # no noise at std 0: it names the row
+    nearest = (draws[:, 2] > 0).astype(int)
+    noise = draws - pool[nearest]
+    np.testing.assert_allclose(noise.std(axis=0), 3.0 * std, rtol=0.02)
+    assert (np.abs(noise.mean(axis=0)) <= 4 * 3.0 * std / np.sqrt(len(draws))).all()  # 4 SE
+    assert abs(np.corrcoef(noise[:, 0], noise[:, 1])[0, 1]) < 0.02  # independent controls
+    assert 0.48 < (nearest == 0).mean() < 0.52  # rows drawn evenly
+
+
+def test_local_draws_join_the_fit_inside_the_soft_ranges(tiny):
+    rig, placement, _, Y = tiny
+    rng = np.random.default_rng(1)
+    X_drawn, Y_drawn = draw_training_poses(
+        rig, placement, Y, 20, 1.0, 10, rng, n_local=30, local_scale=50.0
+    )
+    assert X_drawn.shape == (60, placement.input_width) and len(Y_drawn) == 60
+    used = rig.controls.used_indices
+    bounded = [i for i in range(len(used)) if i not in {c.index for c in placement.channels}]
+    lower, upper = rig.controls.lower[used][bounded], rig.controls.upper[used][bounded]
+    local = Y_drawn[20:50, bounded]  # 50 stds out: clamped onto the ranges' ends
+    assert (local >= lower).all() and (local <= upper).all()
+    assert np.isclose(local, lower).any() and np.isclose(local, upper).any()
+    model = JointSpaceNetworkRegressor(n_local=-1)
+    with pytest.raises(ValueError, match="n_local must be >= 0"):
+        model._check_params()
 
 
 def test_a_rig_without_gradients_gets_a_clear_error(tiny):

@@ -8,9 +8,10 @@ together as one folder, ``metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json``. No
 logged to MLflow: these are points of a curve, not methods.
 
 :func:`joint_space_sweep` asks the same of the joint-space network (issue #15, item 3),
-whose samples are its own draws (PCA-Gaussian around the corpus and uniform over the soft
-ranges, :mod:`rigmap.regression.joint_space_training`): for every fraction both draw counts
-are scaled, ``n_gaussian = round(f x G)`` and ``n_wide = round(f x W)``, a fresh network is
+whose samples are its own draws (PCA-Gaussian around the corpus, per-control around it and
+uniform over the soft ranges, :mod:`rigmap.regression.joint_space_training`): for every
+fraction every draw count is scaled, ``n_gaussian = round(f x G)``, ``n_local = round(f x L)``
+and ``n_wide = round(f x W)``, a fresh network is
 fitted and scored, into ``metrics/<rig>/sample_sweep_joint_space/nn_joint_space-draws-<n>.json``
 (``n`` the draws in all). As in the network's sweep the epochs are fixed, so more samples
 also mean more optimiser steps: the curve is what a user gets by asking for more samples.
@@ -136,17 +137,17 @@ def joint_space_sweep(
             "joint_space_sweep fits the joint-space network: expected regressor=nn_joint_space, "
             f"got {getattr(template, 'name', None)!r}"
         )
-    gaussian, wide = int(template.n_gaussian), int(template.n_wide)
-    if gaussian + wide < 1:
+    counts = (int(template.n_gaussian), int(template.n_local), int(template.n_wide))
+    if sum(counts) < 1:
         raise SweepInputError(
-            "joint_space_sweep: the network draws no poses (regressor.n_gaussian and "
-            "regressor.n_wide are both 0), so there is nothing to sweep"
+            "joint_space_sweep: the network draws no poses (regressor.n_gaussian, "
+            "regressor.n_local and regressor.n_wide are all 0), so there is nothing to sweep"
         )
     draws = []
     for fraction in fractions:
         if not 0 < float(fraction) <= 1:
             raise SweepInputError(f"sweep.fractions: expected numbers in (0, 1], got {fraction!r}")
-        draws.append((round(float(fraction) * gaussian), round(float(fraction) * wide)))
+        draws.append(tuple(round(float(fraction) * count) for count in counts))
     draws = sorted(set(draws), key=sum)
     data = load_training_data(rig, layout.data, "none")
     placement = placement_of(rig, data)
@@ -159,28 +160,31 @@ def joint_space_sweep(
     names: list[str] = []
 
     def fill(staging: Path) -> None:
-        for n_gaussian, n_wide in draws:
-            network = make_network().set_params(n_gaussian=n_gaussian, n_wide=n_wide)
-            mapping = saved if (n_gaussian, n_wide) == (gaussian, wide) else None
+        for n_gaussian, n_local, n_wide in draws:
+            network = make_network().set_params(
+                n_gaussian=n_gaussian, n_local=n_local, n_wide=n_wide
+            )
+            mapping = saved if (n_gaussian, n_local, n_wide) == counts else None
             if mapping is not None:
                 log(
-                    f"{rig.name} nn_joint_space + {n_gaussian + n_wide} draws: scoring the fit "
-                    f"stage's model {fitted_folder} (same parameters, same training rows)"
+                    f"{rig.name} nn_joint_space + {sum(counts)} draws: scoring the fit stage's "
+                    f"model {fitted_folder} (same parameters, same training rows)"
                 )
             else:
                 mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
-            n = n_gaussian + n_wide
+            n = sum((n_gaussian, n_local, n_wide))
             evaluation = run_method(
                 rig, method, test_set, regressor=mapping, sampler="none",
-                extra={"samples": n, "n_gaussian": n_gaussian, "n_wide": n_wide,
-                       "training_rows": data.rows + n},
+                extra={"samples": n, "n_gaussian": n_gaussian, "n_local": n_local,
+                       "n_wide": n_wide, "training_rows": data.rows + n},
             )  # fmt: skip
             path = staging / f"nn_joint_space-draws-{n}.json"
             names.append(evaluation.result.write_json(path).name)
             average, unit = evaluation.result.average(), evaluation.result.length_unit
             log(
                 f"{rig.name} nn_joint_space + {n} draws ({n_gaussian} around the corpus, "
-                f"{n_wide} wide): joint error {average['joint_error']:.4g} {unit}², "
+                f"{n_local} per control, {n_wide} wide): joint error "
+                f"{average['joint_error']:.4g} {unit}², "
                 f"ground truth {average['ground_truth_error']:.4g}"
             )
 

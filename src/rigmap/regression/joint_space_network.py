@@ -25,9 +25,10 @@ corpus rows alone let it grow to 9 (measured, quick budget).
 What it is trained on (``fit``): the rows it is given (corpus frames, the rest
 pose, a sampler's samples), which carry controls, plus draws of its own that
 carry only poses — ``n_gaussian`` around the corpus (PCA + unit Gaussian,
-Algorithm 2, clamped to the soft ranges) and ``n_wide`` uniform over the soft
-ranges — so the mapping has seen poses far outside the corpus. The draws'
-root channels are zero: the placement removes them.
+Algorithm 2, clamped to the soft ranges), ``n_local`` that move every control
+of a corpus frame or a PCA draw by its own noise, and ``n_wide`` uniform over
+the soft ranges — so the mapping has seen poses far outside the corpus. The
+draws' root channels are zero: the placement removes them.
 
 Outputs: every target column that is a control is squashed into its soft
 range, ``lower + (upper - lower) * sigmoid(z)``, so no prediction leaves it;
@@ -149,6 +150,8 @@ class JointSpaceNetworkRegressor(Regressor):
 
     - ``hidden``, ``layers``: ReLU layers of ``hidden`` units.
     - ``n_gaussian``, ``gaussian_scale``: draws around the corpus (PCA, whitened).
+    - ``n_local``, ``local_scale``: draws that move each control of a corpus frame or a
+      PCA draw by its own noise (``local_scale`` corpus stds; issue #15's ears at 4 stds).
     - ``n_wide``: draws uniform over the soft ranges.
     - ``pretrain_epochs``, ``pretrain_batch``: control-space phase.
     - ``epochs``, ``batch_size``: joint-space phase (each step one rig evaluation
@@ -175,6 +178,8 @@ class JointSpaceNetworkRegressor(Regressor):
         n_gaussian: int = 3000,
         gaussian_scale: float = 1.0,
         n_wide: int = 3000,
+        n_local: int = 0,
+        local_scale: float = 2.0,
         pretrain_epochs: int = 20,
         pretrain_batch: int = 128,
         epochs: int = 2,
@@ -194,6 +199,8 @@ class JointSpaceNetworkRegressor(Regressor):
         self.n_gaussian = n_gaussian
         self.gaussian_scale = gaussian_scale
         self.n_wide = n_wide
+        self.n_local = n_local
+        self.local_scale = local_scale
         self.pretrain_epochs = pretrain_epochs
         self.pretrain_batch = pretrain_batch
         self.epochs = epochs
@@ -211,17 +218,18 @@ class JointSpaceNetworkRegressor(Regressor):
     def __repr__(self) -> str:
         return (
             f"JointSpaceNetworkRegressor(hidden={self.hidden}, layers={self.layers}, "
-            f"draws={self.n_gaussian}+{self.n_wide}, epochs={self.pretrain_epochs}+{self.epochs})"
+            f"draws={self.n_gaussian}+{self.n_local}+{self.n_wide}, "
+            f"epochs={self.pretrain_epochs}+{self.epochs})"
         )
 
     def _check_params(self) -> None:
         for name in ("hidden", "layers", "pretrain_batch", "batch_size"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{type(self).__name__}: {name} must be >= 1")
-        for name in ("n_gaussian", "n_wide", "pretrain_epochs", "epochs"):
+        for name in ("n_gaussian", "n_local", "n_wide", "pretrain_epochs", "epochs"):
             if int(getattr(self, name)) < 0:
                 raise ValueError(f"{type(self).__name__}: {name} must be >= 0")
-        for name in ("gaussian_scale", "control_weight"):
+        for name in ("gaussian_scale", "local_scale", "control_weight"):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{type(self).__name__}: {name} must be >= 0, got {value}")
@@ -246,7 +254,7 @@ class JointSpaceNetworkRegressor(Regressor):
     def describe_plan(self, rows: int) -> str:
         return (
             f"training {self!r} through the rig on {rows} rows with controls + "
-            f"{int(self.n_gaussian) + int(self.n_wide)} drawn poses"
+            f"{self.n_draws} drawn poses"
         )
 
     def fit(
@@ -278,6 +286,8 @@ class JointSpaceNetworkRegressor(Regressor):
             float(self.gaussian_scale),
             int(self.n_wide),
             rng,
+            n_local=int(self.n_local),
+            local_scale=float(self.local_scale),
         )
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
@@ -303,6 +313,11 @@ class JointSpaceNetworkRegressor(Regressor):
         network.set_scales(x_mean, x_std, lower, upper, free_mean, free_std, bounded)
         network.start_at(data.targets.numpy()[data.known].astype(np.float64))
         return network
+
+    @property
+    def n_draws(self) -> int:
+        """Poses the fit draws of its own (around the corpus, per control, wide)."""
+        return int(self.n_gaussian) + int(self.n_local) + int(self.n_wide)
 
     @property
     def joint_rate(self) -> float:

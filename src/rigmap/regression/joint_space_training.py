@@ -19,14 +19,22 @@ from rigmap.regression.rig_forward import PlacedRigForward
 
 
 def draw_training_poses(
-    rig, placement, Y_targets: np.ndarray, n_gaussian: int, scale: float, n_wide: int, rng
+    rig,
+    placement,
+    Y_targets: np.ndarray,
+    n_gaussian: int,
+    scale: float,
+    n_wide: int,
+    rng,
+    n_local: int = 0,
+    local_scale: float = 2.0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``n_gaussian`` PCA-Gaussian draws around ``Y_targets`` plus ``n_wide`` uniform draws
-    over the soft ranges, posed by ``rig``: their placement inputs and targets.
+    """``n_gaussian`` PCA-Gaussian draws around ``Y_targets``, ``n_local`` per-control
+    draws (:func:`local_draws`) and ``n_wide`` uniform draws over the soft ranges, posed by
+    ``rig``: their placement inputs and targets, in that order (wide last).
 
-    Gaussian draws are clamped into the soft ranges (the network's outputs cannot leave
-    them, so a pose made outside them could not be reproduced). Root channels are zero.
-    The Gaussian draws come first, then the wide ones.
+    Draws are clamped into the soft ranges (the network's outputs cannot leave them, so a
+    pose made outside them could not be reproduced). Root channels are zero.
     """
     from rigmap.sampling import PCAGaussianSampler, UniformSampler
     from rigmap.sampling.clamping import clamp_to_limits
@@ -40,6 +48,10 @@ def draw_training_poses(
     if n_gaussian:
         gaussian = PCAGaussianSampler(scale=scale).fit(base).sample(n_gaussian, rng)
         drawn.append(clamp_to_limits(gaussian, lower, upper, copy=False).values)
+    if n_local:
+        pool = np.concatenate([base, *drawn])
+        local = local_draws(pool, base.std(axis=0), local_scale, n_local, rng)
+        drawn.append(clamp_to_limits(local, lower, upper, copy=False).values)
     if n_wide:
         drawn.append(UniformSampler("soft", lower, upper).fit(base).sample(n_wide, rng))
     width = placement.input_width
@@ -57,6 +69,20 @@ def draw_training_poses(
         where=where,
     )
     return placement.inputs(features, where), placement.targets(controls, features, where)
+
+
+def local_draws(pool: np.ndarray, std: np.ndarray, scale: float, n: int, rng) -> np.ndarray:
+    """``n`` rows of ``pool`` (drawn with replacement), each control moved by its own
+    Gaussian noise of ``scale`` x its ``std``: a Gaussian kernel density with a diagonal
+    bandwidth over the pool.
+
+    Why (ours, issue #15): the extreme test clips leave the corpus one part at a time (the
+    quadruped's ears held at 4 corpus stds while its legs walk), which the PCA draws, tied
+    to the corpus's correlations, do not reach. Written here because scikit-learn's
+    ``KernelDensity.sample`` takes one bandwidth for every column.
+    """
+    rows = pool[rng.integers(0, len(pool), int(n))]
+    return rows + rng.standard_normal(rows.shape) * (float(scale) * np.asarray(std))
 
 
 @dataclass
