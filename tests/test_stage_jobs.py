@@ -117,3 +117,28 @@ def test_jobs_must_be_a_positive_whole_number(tmp_path, jobs):
 
     with pytest.raises(ParamsError, match="--jobs"):
         plan_reproduce([], project=tmp_path, jobs=jobs)
+
+
+def test_a_stage_marked_starts_early_takes_the_first_free_slot(tmp_path):
+    """``long`` waits for ``a`` only; when ``a`` ends, ``long`` takes the free slot before
+    the ready stages ahead of it in DVC's order (b, c1-c3 need nothing)."""
+    (tmp_path / "log").mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / ".gitignore").write_text("")
+    rows = [("a", [], 0.3, False), ("b", [], 1.5, False)]
+    rows += [(f"c{i}", [], 0.4, False) for i in (1, 2, 3)] + [("long", ["a"], 0.5, True)]
+    lines = ["stages:"]
+    for name, deps, sleep, early in rows:
+        lines += [f"  {name}:", f"    cmd: {STAGE.format(name=name, sleep=sleep)}"]
+        lines += ["    meta: {starts_early: true}"] if early else []
+        lines += [f"    deps: [{', '.join('out/' + d for d in deps)}]"] if deps else []
+        lines += [f"    outs: [out/{name}]"]
+    (tmp_path / "dvc.yaml").write_text("\n".join(lines) + "\n")
+    subprocess.run([BIN / "dvc", "init", "--no-scm", "-q"], cwd=tmp_path, check=True, env=_env())
+    out = io.StringIO()
+    assert _run_side_by_side(_plan(tmp_path), out) == 0, out.getvalue()
+    lines = out.getvalue().splitlines()
+    after_a = lines[next(i for i, line in enumerate(lines) if "stage done: a " in line) :]
+    started = [line.split("started: ")[1].split(",")[0] for line in after_a if "started: " in line]
+    assert started[0] == "long" and len(started) > 1, lines  # before the stages still waiting
+    assert _interval(tmp_path, "long")[0] >= _interval(tmp_path, "a")[1]

@@ -45,7 +45,7 @@ from rigmap.pipeline_params import (
     write_params,
 )
 from rigmap.preflight import check_pipeline_needs
-from rigmap.stage_jobs import families_running_alone, plan_stages, run_side_by_side
+from rigmap.stage_jobs import families_marked, plan_stages, run_side_by_side
 from rigmap.store import write_text_atomic
 
 # how DVC says a stage starts, or is restored from its run cache instead of running
@@ -358,8 +358,9 @@ def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
         print(f"{PREFIX} DVC cannot list the pending stages; running them in turn", file=out)
         return _stream(plan, out, None)
     pending, edges, nodes = found
-    alone = families_running_alone(plan.project / "dvc.yaml")
-    stages = plan_stages(pending, edges, nodes, alone)
+    dvc_yaml = plan.project / "dvc.yaml"
+    alone, early = (families_marked(dvc_yaml, key) for key in ("runs_alone", "starts_early"))
+    stages = plan_stages(pending, edges, nodes, alone, early)
     alone_note = f", {len(stages.alone)} of them alone" if stages.alone else ""
     print(
         f"{PREFIX} {len(stages.order)} stage(s), up to {plan.jobs} at a time{alone_note}",

@@ -7,6 +7,8 @@ processes; this module is the scheduler DVC lacks for that: each stage runs as
 it has finished, at most ``jobs`` at once. Stages whose family carries
 ``meta: {runs_alone: true}`` in ``dvc.yaml`` (the ones that time methods: a frames-per-
 second figure must not share the CPUs with another stage) run with nothing beside them.
+Stages marked ``meta: {starts_early: true}`` (the long ones, whose chains set the wall
+time) take a free slot before any other ready stage.
 """
 
 from __future__ import annotations
@@ -29,6 +31,12 @@ class StagePlan:
     order: tuple[str, ...]
     waits_for: Mapping[str, frozenset[str]]
     alone: frozenset[str] = frozenset()
+    early: frozenset[str] = frozenset()
+
+    def start_order(self) -> list[str]:
+        """The order a free slot is offered in: the early stages first, each group in
+        :attr:`order` (a stage still starts only once the stages it waits for are done)."""
+        return sorted(self.order, key=lambda stage: stage not in self.early)
 
 
 def family(stage: str) -> str:
@@ -36,13 +44,13 @@ def family(stage: str) -> str:
     return stage.split("@", 1)[0]
 
 
-def families_running_alone(dvc_yaml: Path) -> frozenset[str]:
-    """The stage families of ``dvc.yaml`` marked ``meta: {runs_alone: true}``."""
+def families_marked(dvc_yaml: Path, key: str) -> frozenset[str]:
+    """The stage families of ``dvc.yaml`` marked ``meta: {<key>: true}``."""
     stages = (yaml.safe_load(dvc_yaml.read_text(encoding="utf-8")) or {}).get("stages", {})
     return frozenset(
         name
         for name, body in stages.items()
-        if isinstance(body, dict) and (body.get("meta") or {}).get("runs_alone") is True
+        if isinstance(body, dict) and (body.get("meta") or {}).get(key) is True
     )
 
 
@@ -51,6 +59,7 @@ def plan_stages(
     edges: Sequence[tuple[str, str]],
     nodes_in_order: Sequence[str],
     alone_families: frozenset[str] = frozenset(),
+    early_families: frozenset[str] = frozenset(),
 ) -> StagePlan:
     """Order ``pending`` so every stage comes after the pending stages it depends on.
 
@@ -80,7 +89,8 @@ def plan_stages(
         done.update(ready)
         remaining = [s for s in remaining if s not in done]
     alone = frozenset(s for s in pending if family(s) in alone_families)
-    return StagePlan(tuple(order), waits_for, alone)
+    early = frozenset(s for s in pending if family(s) in early_families)
+    return StagePlan(tuple(order), waits_for, alone, early)
 
 
 @dataclass
@@ -142,7 +152,7 @@ def run_side_by_side(
     try:
         while True:
             if not failed or keep_going:
-                for stage in plan.order:
+                for stage in plan.start_order():
                     if stage not in started and not blocked(stage) and startable(stage):
                         start(stage)
             if not running:
