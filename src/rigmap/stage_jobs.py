@@ -149,10 +149,11 @@ def run_side_by_side(
         side = f", beside {', '.join(s for s in running if s != stage)}" if len(running) > 1 else ""
         say(f"{prefix} stage {len(started)}/{total} started: {stage}{side}")
 
+    offer_order = plan.start_order()
     try:
         while True:
             if not failed or keep_going:
-                for stage in plan.start_order():
+                for stage in offer_order:
                     if stage not in started and not blocked(stage) and startable(stage):
                         start(stage)
             if not running:

@@ -160,11 +160,12 @@ def joint_space_sweep(
     names: list[str] = []
 
     def fill(staging: Path) -> None:
-        for n_gaussian, n_local, n_wide in draws:
+        for draw in draws:
+            n_gaussian, n_local, n_wide = draw
             network = make_network().set_params(
                 n_gaussian=n_gaussian, n_local=n_local, n_wide=n_wide
             )
-            mapping = saved if (n_gaussian, n_local, n_wide) == counts else None
+            mapping = saved if draw == counts else None
             if mapping is not None:
                 log(
                     f"{rig.name} nn_joint_space + {sum(counts)} draws: scoring the fit stage's "
@@ -172,7 +173,7 @@ def joint_space_sweep(
                 )
             else:
                 mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
-            n = sum((n_gaussian, n_local, n_wide))
+            n = sum(draw)
             evaluation = run_method(
                 rig, method, test_set, regressor=mapping, sampler="none",
                 extra={"samples": n, "n_gaussian": n_gaussian, "n_local": n_local,
