@@ -3,7 +3,8 @@
 The library's test clips are extreme on purpose (issue #15: most of their frames lie far
 outside the corpus); this set asks the other question, how well a mapping does on motion
 like its training motion. Writes ``<paths.data>/<rig>/heldout/{corpus,poses}.parquet``:
-the train split's motions played with another seed (``HELDOUT_SEED_OFFSET``).
+the train split's motions played with another seed (``HELDOUT_SEED_OFFSET``), each
+keeping its training take's sides unless ``corpus.heldout_sides=drawn``.
 
     python pipelines/heldout.py rig=quadruped seed=0
 """
@@ -21,7 +22,13 @@ from rigmap.stage.inputs import corpus_settings, layout_of, rig_from_config
 
 def run(cfg: DictConfig) -> list[Path]:
     rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
-    return write_heldout(rig, layout, batch_size=int(cfg.pose.batch_size), **corpus_settings(cfg))
+    return write_heldout(
+        rig,
+        layout,
+        batch_size=int(cfg.pose.batch_size),
+        heldout_sides=str(cfg.corpus.heldout_sides),
+        **corpus_settings(cfg),
+    )
 
 
 if __name__ == "__main__":

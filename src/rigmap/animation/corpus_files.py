@@ -93,10 +93,14 @@ def write_heldout(
     fps: int,
     variation: float,
     batch_size: int,
+    heldout_sides: str = "training",
     log: Log = print,
 ) -> list[Path]:
     """New takes of the training motions and their poses, written together into
-    ``data/<rig>/heldout/`` (the in-distribution test set; same seed, same bytes)."""
+    ``data/<rig>/heldout/`` (the in-distribution test set; same seed, same bytes).
+
+    ``heldout_sides``: ``training`` keeps each training take's sides and directions,
+    ``drawn`` draws them anew (``rigmap.animation.library.HELDOUT_SIDES``)."""
     from rigmap.animation.library import Variation, build_corpus
     from rigmap.animation.posing import pose_corpus
     from rigmap.store import write_folder_atomic
@@ -104,7 +108,9 @@ def write_heldout(
 
     require_motion_library(rig.name)
     scaled = Variation().scaled(float(variation))
-    corpus = build_corpus(rig, HELDOUT, seed=int(seed), fps=int(fps), variation=scaled)
+    corpus = build_corpus(
+        rig, HELDOUT, seed=int(seed), fps=int(fps), variation=scaled, heldout_sides=heldout_sides
+    )
     corpus_path, poses_path = layout.corpus(rig.name, HELDOUT), layout.poses(rig.name, HELDOUT)
     poses = pose_corpus(
         rig, corpus, batch_size=int(batch_size), progress=True, source=corpus_path.as_posix()
@@ -118,6 +124,7 @@ def write_heldout(
     meta = corpus.metadata
     log(
         f"{rig.name} {HELDOUT}: {len(meta['clips'])} clips, {meta['frame_count']} frames (the "
-        f"training motions at seed {int(seed)} + offset) -> {corpus_path}, {poses_path}"
+        f"training motions at seed {int(seed)} + offset, sides {heldout_sides}) -> {corpus_path}, "
+        f"{poses_path}"
     )
     return [corpus_path, poses_path]

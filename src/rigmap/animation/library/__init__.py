@@ -124,19 +124,34 @@ def build_clip(
     seed: int,
     fps: int = AUTHORED_FPS,
     variation: Variation = DEFAULT_VARIATION,
+    sides_of_seed: int | None = None,
 ) -> Clip:
-    """Key one motion with its seeded variation; retimed if ``fps`` is not 24."""
+    """Key one motion with its seeded variation; retimed if ``fps`` is not 24.
+
+    With ``sides_of_seed``, the take keeps the sides and directions of that seed's take
+    (which hand points, which way it turns) and draws everything else from ``seed``.
+    """
     if fps not in CLIP_FPS:
         raise ValueError(f"fps must be one of {CLIP_FPS}, got {fps!r}")
-    builder = ClipBuilder(
+    sides = None
+    if sides_of_seed is not None:
+        source = _builder(rig_name, motion, sides_of_seed, variation)
+        motion.keyframe(source)
+        sides = source.sides_drawn
+    builder = _builder(rig_name, motion, seed, variation, sides=sides)
+    motion.keyframe(builder)
+    clip = builder.build()
+    return clip if fps == AUTHORED_FPS else clip.retimed(fps)
+
+
+def _builder(rig_name, motion, seed, variation, sides=None) -> ClipBuilder:
+    return ClipBuilder(
         motion.name,
         clip_rng(seed, rig_name, motion.name),
         variation=variation,
         description=motion.description,
+        sides=sides,
     )
-    motion.keyframe(builder)
-    clip = builder.build()
-    return clip if fps == AUTHORED_FPS else clip.retimed(fps)
 
 
 def build_clips(
@@ -146,11 +161,14 @@ def build_clips(
     seed: int,
     fps: int = AUTHORED_FPS,
     variation: Variation = DEFAULT_VARIATION,
+    sides_of_seed: int | None = None,
 ) -> list[Clip]:
-    """Every clip of one split of a rig's library."""
+    """Every clip of one split of a rig's library (``sides_of_seed``: see :func:`build_clip`)."""
     library = motion_library(rig_name)
     return [
-        build_clip(rig_name, motion, seed=seed, fps=fps, variation=variation)
+        build_clip(
+            rig_name, motion, seed=seed, fps=fps, variation=variation, sides_of_seed=sides_of_seed
+        )
         for motion in library.motions(split)
     ]
 
@@ -158,6 +176,10 @@ def build_clips(
 #: added to the seed for the held-out takes, so they are new draws of the training
 #: motions' seeded variation, never a training take (ours)
 HELDOUT_SEED_OFFSET = 1_000_000
+
+#: how a held-out take picks its sides: ``training`` keeps its training take's (a new
+#: take of the same motion), ``drawn`` draws them anew (a mirrored motion may come out)
+HELDOUT_SIDES = ("training", "drawn")
 
 
 def build_corpus(
@@ -167,16 +189,26 @@ def build_corpus(
     seed: int,
     fps: int = AUTHORED_FPS,
     variation: Variation = DEFAULT_VARIATION,
+    heldout_sides: str = "training",
 ) -> Corpus:
     """Play a split of the rig's library on its used controls (unkeyed ones at default).
 
     Split ``heldout`` is the training motions played again with the seed moved by
     ``HELDOUT_SEED_OFFSET``: other takes of what the mapping learned from, the
-    in-distribution test set beside the library's extreme test clips (issue #15).
+    in-distribution test set beside the library's extreme test clips (issue #15). With
+    ``heldout_sides="training"`` each keeps its training take's sides (``HELDOUT_SIDES``):
+    a take that turns the other way is a mirrored motion the corpus never had.
     """
+    if heldout_sides not in HELDOUT_SIDES:
+        raise ValueError(f"heldout_sides must be one of {HELDOUT_SIDES}, got {heldout_sides!r}")
     if split == HELDOUT:
         clips = build_clips(
-            rig.name, "train", seed=seed + HELDOUT_SEED_OFFSET, fps=fps, variation=variation
+            rig.name,
+            "train",
+            seed=seed + HELDOUT_SEED_OFFSET,
+            fps=fps,
+            variation=variation,
+            sides_of_seed=seed if heldout_sides == "training" else None,
         )
     else:
         clips = build_clips(rig.name, split, seed=seed, fps=fps, variation=variation)
@@ -197,6 +229,7 @@ def build_corpus(
                 "values": variation.values,
             },
             "authored_fps": AUTHORED_FPS,
+            **({"heldout_sides": heldout_sides} if split == HELDOUT else {}),
         },
     )
 
@@ -207,6 +240,8 @@ def _check_split(split: str) -> None:
 
 
 __all__ = [
+    "HELDOUT_SEED_OFFSET",
+    "HELDOUT_SIDES",
     "SPLITS",
     "ClipBuilder",
     "Clips",

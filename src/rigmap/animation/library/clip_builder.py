@@ -19,7 +19,7 @@ at one value between two keys (a planted foot) stays held.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -78,11 +78,15 @@ class ClipBuilder:
         *,
         variation: Variation = DEFAULT_VARIATION,
         description: str = "",
+        sides: Sequence[float] | None = None,
     ):
         self.name = name
         self.rng = rng
         self.variation = variation
         self.description = description
+        #: every side :meth:`sign` gave, in order (a held-out take replays its training take's)
+        self.sides_drawn: list[float] = []
+        self._replayed_sides = None if sides is None else [float(s) for s in sides]
         # drawn first, so a motion's own draws never shift the clip's tempo
         self.tempo = 1.0 + variation.tempo * float(rng.uniform(-1.0, 1.0))
         self._keys: dict[str, dict[float, tuple[float, str]]] = {}
@@ -99,8 +103,24 @@ class ClipBuilder:
         return self.vary(1.0, spread)
 
     def sign(self) -> float:
-        """+1 or -1 with equal odds (which side a motion favours this take)."""
-        return 1.0 if self.rng.uniform() < 0.5 else -1.0
+        """+1 or -1 with equal odds (which side a motion favours this take).
+
+        With ``sides`` given, the draw is still made (the take's other draws stay those of
+        its seed) but the side returned is the next one of ``sides``: a new take of the
+        same motion that points with the same hand and turns the same way.
+        """
+        drawn = 1.0 if self.rng.uniform() < 0.5 else -1.0
+        if self._replayed_sides is not None:
+            index = len(self.sides_drawn)
+            if index >= len(self._replayed_sides):
+                raise KeyframeError(
+                    f"the motion asks for side {index + 1} but only "
+                    f"{len(self._replayed_sides)} were given to replay",
+                    clip=self.name,
+                )
+            drawn = self._replayed_sides[index]
+        self.sides_drawn.append(drawn)
+        return drawn
 
     # --- keys ----------------------------------------------------------------
     def key(
@@ -204,6 +224,13 @@ class ClipBuilder:
 
     def build(self) -> Clip:
         """The clip at 24 fps, keys moved to their played frames."""
+        replayed = self._replayed_sides
+        if replayed is not None and len(self.sides_drawn) != len(replayed):
+            raise KeyframeError(
+                f"{len(replayed)} sides were given to replay but the motion asked for "
+                f"{len(self.sides_drawn)}",
+                clip=self.name,
+            )
         warp = self.time_warp()
         curves = {
             control: [
