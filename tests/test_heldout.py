@@ -113,8 +113,8 @@ def test_heldout_and_train_splits_score_and_tabulate(tmp_path, quadruped):
         "corpus.parquet", "poses.parquet",
     ]  # fmt: skip
     train = TestSet.load(rig, layout, split="train")
-    X = train.train_poses
-    Y = np.concatenate([c.controls for c in train.clips])
+    X, Y = train.train_poses, train.train_controls  # the corpus and the rest pose
+    assert len(X) == sum(len(c) for c in train.clips) + 1  # the quadruped's corpus lacks it
     mean = MeanRegressor().fit(X, Y, rig_name="quadruped", control_names=rig.used_controls)
     errors = {}
     for split in ("train", "heldout"):

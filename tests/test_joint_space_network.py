@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 import torch
 
+from rigmap.error_measures import MetricInputError
+from rigmap.evaluation.methods import TestSet, _novelty_of
+from rigmap.evaluation.novelty import Novelty
 from rigmap.regression import JointSpaceNetworkRegressor, load_regressor
+from rigmap.regression.errors import ModelFileError
 from rigmap.regression.features import inverse_features
 from rigmap.regression.joint_space_network import SquashedNetwork
 from rigmap.regression.joint_space_training import (
@@ -220,6 +224,58 @@ def test_local_draws_join_the_fit_inside_the_soft_ranges(tiny):
     model = JointSpaceNetworkRegressor(n_local=-1)
     with pytest.raises(ValueError, match="n_local must be >= 0"):
         model._check_params()
+
+
+def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_digest(tiny, tmp_path):
+    rig, placement, X, Y = tiny
+    mapping = fitted(tiny, epochs=1, n_gaussian=20, n_local=15, n_wide=10, pretrain_epochs=1)
+    inputs, targets = placement.inputs(X), placement.targets(Y, X)
+    drawn, _ = draw_training_poses(
+        rig, placement, targets, 20, 1.0, 10, np.random.default_rng(0), n_local=15, local_scale=2.0
+    )
+    learned = mapping.regressor.learned_inputs(inputs, targets, rig=rig, placement=placement)
+    np.testing.assert_array_equal(learned, np.concatenate([inputs, drawn]))
+    mapping.save(tmp_path)
+    loaded = load_regressor(tmp_path, rig=rig).regressor  # the digest travels in the file
+    np.testing.assert_array_equal(
+        loaded.learned_inputs(inputs, targets, rig=rig, placement=placement), learned
+    )
+    with pytest.raises(ModelFileError, match="differ from the fit's"):
+        loaded.learned_inputs(inputs[1:], targets[1:], rig=rig, placement=placement)
+    loaded.draws_digest_ = None
+    with pytest.raises(ModelFileError, match="no digest of its draws"):
+        loaded.learned_inputs(inputs, targets, rig=rig, placement=placement)
+
+
+def test_novelty_averages_the_nearest_learned_frames():
+    training = np.zeros((7, 6))
+    training[:, 0] = np.arange(7.0)  # one joint moved 0, 1, ..., 6 cm along x (2 joints)
+    query = np.zeros((1, 6))
+    query[0, 0] = -1.0
+    np.testing.assert_allclose(
+        Novelty.from_training(training, 2, neighbours=3).distances(query), [2.0 / np.sqrt(2)]
+    )
+    np.testing.assert_allclose(Novelty.from_training(training, 2, 1).distances(query), [1 / 2**0.5])
+    assert Novelty.from_training(training[:2], 2).distances(query)[0] == pytest.approx(1.5 / 2**0.5)
+    with pytest.raises(MetricInputError, match="neighbours must be an integer >= 1"):
+        Novelty.from_training(training, 2, neighbours=0)
+
+
+def test_the_joint_space_networks_novelty_is_to_its_draws_too(tiny):
+    rig, placement, X, Y = tiny
+    mapping = fitted(tiny, epochs=1, n_gaussian=200, n_wide=200, pretrain_epochs=1)
+    kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
+    test_set = TestSet("tiny", [], list(rig.used_controls), kinds, np.ones(len(kinds)), None, X, Y)
+    far, _ = corpus(rig, 30, seed=5, spread=0.9)
+    novelty = _novelty_of(mapping, test_set, rig)(far)
+    learned = mapping.regressor.learned_inputs(
+        placement.inputs(X), placement.targets(Y, X), rig=rig, placement=placement
+    )
+    expected = Novelty.from_training(learned, rig.n_joints).distances(placement.inputs(far))
+    np.testing.assert_array_equal(novelty, expected)
+    to_corpus = Novelty.from_training(placement.inputs(X), rig.n_joints)
+    corpus_only = to_corpus.distances(placement.inputs(far))
+    assert (novelty <= corpus_only).all() and novelty.mean() < 0.8 * corpus_only.mean()
 
 
 def test_a_rig_without_gradients_gets_a_clear_error(tiny):

@@ -311,7 +311,8 @@ class TestSet:
     control_kinds: list[str]
     train_std: np.ndarray  # (C_used,)
     character_height: float | None = None  # the rig's rest height; errors as % of it
-    train_poses: np.ndarray | None = None  # (N, 3J + 12) pose rows of the training corpus
+    train_poses: np.ndarray | None = None  # (N, 3J + 12) pose rows a fit on the corpus learns
+    train_controls: np.ndarray | None = None  # (N, C_used): their controls, row for row
 
     __test__ = False  # a data class, not a pytest test class
 
@@ -334,7 +335,7 @@ class TestSet:
         ]
         return TestSet(
             self.rig, clips, self.control_names, self.control_kinds, self.train_std,
-            self.character_height, self.train_poses,
+            self.character_height, self.train_poses, self.train_controls,
         )  # fmt: skip
 
     @classmethod
@@ -402,21 +403,19 @@ class TestSet:
             )
         kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
         std = control_std(train.table[used].to_numpy(dtype=np.float64))
-        train_poses = _train_pose_rows(rig, layout)
-        return cls(rig.name, test_clips, used, kinds, std, rig.rest_height(), train_poses)
+        train_poses, train_controls = _training_rows(rig, layout)
+        return cls(
+            rig.name, test_clips, used, kinds, std, rig.rest_height(), train_poses, train_controls
+        )  # fmt: skip
 
 
-def _train_pose_rows(rig: Any, layout: Layout) -> np.ndarray:
-    """The training corpus frames as pose rows: what the novelty of a test frame is against."""
-    from rigmap.animation.posing import PoseTable
-    from rigmap.regression.features import inverse_features
+def _training_rows(rig: Any, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """The pose rows and controls a fit on the corpus learns from (the corpus frames and the
+    rest pose, as the fit stage reads them): what a test frame's novelty is measured to."""
+    from rigmap.regression.fitting import load_training_data
 
-    path = layout.poses(rig.name, "train")
-    poses = PoseTable.read(path, rig=rig.name, n_joints=rig.n_joints, split="train")
-    return inverse_features(
-        poses.positions(), poses.cog(), poses.cog_rotation(), n_joints=rig.n_joints,
-        where=str(path),
-    )  # fmt: skip
+    data = load_training_data(rig, layout.data, "none")
+    return data.features, data.controls
 
 
 def _layout_of(data: Layout | str | Path, rig: str) -> Layout:
@@ -469,7 +468,7 @@ def run_method(
     retarget = _Retargeter(
         counting, method, regressor, learned_jacobian, refine, test_set.train_std
     )
-    novelty = _novelty_of(regressor, test_set, rig.n_joints)
+    novelty = _novelty_of(regressor, test_set, rig)
     clip_results, curves, initial, iterations, warmup = [], [], {}, {}, {}
     for clip in test_set.clips:
         (Y_used, refined), timing = run_timed(
@@ -507,13 +506,22 @@ def run_method(
     return MethodEvaluation(result, controls, initial)
 
 
-def _novelty_of(regressor: Any, test_set: TestSet, n_joints: int):
-    """``pose rows -> novelty per frame`` in the regressor's own inputs, or None (script)."""
+def _novelty_of(regressor: Any, test_set: TestSet, rig: Any):
+    """``pose rows -> novelty per frame`` in the regressor's own inputs, or None (script).
+
+    Measured to the rows the mapping learned from: the training corpus, and for a regressor
+    that draws poses of its own (the joint-space network) those too.
+    """
     if regressor is None or test_set.train_poses is None:
         return None
     placement = getattr(regressor, "placement", None)
     inputs = placement.inputs if placement is not None else np.asarray  # a bare regressor
-    measure = Novelty.from_training(inputs(test_set.train_poses), n_joints)
+    reference = inputs(test_set.train_poses)
+    learned = getattr(getattr(regressor, "regressor", None), "learned_inputs", None)
+    if learned is not None and placement is not None and test_set.train_controls is not None:
+        targets = placement.targets(test_set.train_controls, test_set.train_poses)
+        reference = learned(reference, targets, rig=rig, placement=placement)
+    measure = Novelty.from_training(reference, rig.n_joints)
     return lambda rows: measure.distances(inputs(rows))
 
 

@@ -42,6 +42,7 @@ and weight here is ours (the paper has no such network); see
 
 from __future__ import annotations
 
+import hashlib
 import io
 import itertools
 import math
@@ -75,6 +76,10 @@ _PREDICT_CHUNK = 65_536
 #: the draws around the corpus (whose controls are near the animators')
 CONTROL_ROWS = ("known", "natural")
 _BUFFERS = ("x_mean", "x_std", "lower", "span", "free_mean", "free_std", "bounded")
+#: the last ``learned_inputs`` answer: an evaluation asks it once per method of one model,
+#: and the draws take seconds to pose (module-level so a deep copy of the model, as tuning
+#: makes, does not copy it)
+_LAST_LEARNED: dict[str, Any] = {}
 _EDGE = 1e-4  # the fraction of a soft range the initial bias stays inside of its ends
 
 
@@ -277,18 +282,8 @@ class JointSpaceNetworkRegressor(Regressor):
         forward = PlacedRigForward(rig, placement, who=f"regressor {self.name!r}")
         X, Y = check_training_data(X, Y, type(self).__name__)
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y.shape[1], rig_name, control_names)
-        rng = np.random.default_rng(int(self.seed))
-        drawn_X, drawn_Y = draw_training_poses(
-            rig,
-            placement,
-            Y,
-            int(self.n_gaussian),
-            float(self.gaussian_scale),
-            int(self.n_wide),
-            rng,
-            n_local=int(self.n_local),
-            local_scale=float(self.local_scale),
-        )
+        drawn_X, drawn_Y = self._draw(rig, placement, Y)
+        self.draws_digest_ = _digest(drawn_X)
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = self._new_network(rig, placement, data, generator)
@@ -299,6 +294,50 @@ class JointSpaceNetworkRegressor(Regressor):
             }
         self.network_.eval()
         return self
+
+    def _draw(self, rig, placement, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The fit's own posed draws around the targets ``Y``, from the model's seed."""
+        return draw_training_poses(
+            rig,
+            placement,
+            Y,
+            int(self.n_gaussian),
+            float(self.gaussian_scale),
+            int(self.n_wide),
+            np.random.default_rng(int(self.seed)),
+            n_local=int(self.n_local),
+            local_scale=float(self.local_scale),
+        )
+
+    def learned_inputs(self, X: Any, Y: Any, *, rig: Any, placement: Any) -> np.ndarray:
+        """The inputs of every row the network was trained on: the given rows ``(X, Y)``
+        (the fit's placement inputs and targets) and its own draws.
+
+        The draws are made again from the seed instead of being saved (54 000 poses would
+        triple the model file), and checked against the fit's digest of them, so a
+        confidence measured against them is measured against what the fit saw.
+        """
+        if not self.is_fitted():
+            raise RuntimeError(f"{type(self).__name__} is not fitted: call fit(X, Y) first")
+        if getattr(self, "draws_digest_", None) is None:
+            raise ModelFileError(
+                f"{type(self).__name__}: the model file has no digest of its draws (it "
+                "predates them being checked); refit it"
+            )
+        X, Y = check_training_data(X, Y, type(self).__name__)
+        key = (_digest(X), _digest(Y), self.draws_digest_)
+        if _LAST_LEARNED.get("key") == key:
+            return _LAST_LEARNED["inputs"]
+        drawn_X, _ = self._draw(rig, placement, Y)
+        if _digest(drawn_X) != self.draws_digest_:
+            raise ModelFileError(
+                f"{type(self).__name__}: the draws made again from seed {self.seed} differ "
+                "from the fit's: the rows given are not the ones it was fitted on"
+            )
+        learned = np.concatenate([X, drawn_X])
+        learned.setflags(write=False)
+        _LAST_LEARNED.update(key=key, inputs=learned)
+        return learned
 
     def _new_network(self, rig, placement, data: JointSpaceData, generator) -> SquashedNetwork:
         used = rig.controls.used_indices
@@ -432,7 +471,7 @@ class JointSpaceNetworkRegressor(Regressor):
         return {"joint_space_network": {"history": self.history_}}
 
     def _file_meta(self) -> dict[str, Any]:
-        return {"history": self.history_}
+        return {"history": self.history_, "draws_digest": self.draws_digest_}
 
     def _payload(self) -> bytes:
         buffer = io.BytesIO()
@@ -446,11 +485,18 @@ class JointSpaceNetworkRegressor(Regressor):
         )
         try:
             self.history_ = dict(meta["history"])
+            self.draws_digest_ = meta.get("draws_digest")
             network.load_state_dict(torch.load(io.BytesIO(payload), weights_only=True))
         except (KeyError, TypeError, ValueError, RuntimeError) as error:
             raise ModelFileError(f"{source}: not a valid {self.name} model ({error})") from None
         network.eval()
         self.network_ = network
+
+
+def _digest(values: np.ndarray) -> str:
+    """SHA-256 of an array's shape and float64 bytes."""
+    array = np.ascontiguousarray(values, dtype=np.float64)
+    return hashlib.sha256(repr(array.shape).encode() + array.tobytes()).hexdigest()
 
 
 def _checked(value: float, phase: str, epoch: int, model: Regressor) -> float:

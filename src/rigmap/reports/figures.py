@@ -217,16 +217,17 @@ def confidence_figure(
         label = find_row(METHODS, method, "method").label
         shown = "n/a" if rho is None else f"{rho:.2f}"
         ax.set_title(f"{rig_label(rig)} — {label} (Spearman ρ {shown})", fontsize=9)
-        ax.set_xlabel(f"novelty ({tree[rig].length_unit}, RMS to nearest training frame)")
+        ax.set_xlabel(f"novelty ({tree[rig].length_unit}, RMS to the nearest learned frames)")
         ax.set_ylabel(f"joint error ({tree[rig].length_unit}²)")
         ax.grid(True, which="major", alpha=0.3)
     for row, rig in enumerate(rigs):
         for column in range(sum(1 for r, _ in used if r == rig), columns):
             axes[row][column].set_visible(False)
     caption = (
-        "Per-frame confidence: each test frame's joint error against its novelty, the RMS "
-        "joint distance of its input to the nearest training-corpus frame (higher = less "
-        "confident); frames far from the corpus are the ones to check."
+        "Per-frame confidence: each test frame's joint error against its novelty, the mean RMS "
+        "joint distance of its input to the 5 nearest frames the method learned from (the "
+        "training corpus; for the joint-space network also its own drawn poses; higher = less "
+        "confident); frames far from those are the ones to check."
     )
     return _finished(fig, out, "Joint error against novelty, per test frame", caption)
 
