@@ -328,7 +328,7 @@ def test_sample_sweep_scores_the_network_per_sample_count(data_dir, nn_fit, bipe
 JOINT_SPACE_TINY = [
     "regressor=nn_joint_space", "sampler=none", "regressor.n_gaussian=40", "regressor.n_wide=20",
     "regressor.n_local=30", "regressor.pretrain_epochs=1", "regressor.epochs=1",
-    "regressor.batch_size=32", "regressor.progress=false",
+    "regressor.batch_size=32", "regressor.progress=false", "regressor.hidden=32",
 ]  # fmt: skip
 
 
