@@ -2,7 +2,7 @@
 
 For each rig, in one process and one after another, every variant of ``VARIANTS`` (settings
 of ``regressor=nn_joint_space`` over the quick budget's config, ``conf/regressor/
-nn_joint_space.yaml`` at ``hidden=512``) is fitted the way the fit stage fits it
+nn_joint_space.yaml``) is fitted the way the fit stage fits it
 (:func:`rigmap.regression.fitting.fit_regressor`, ``sampler=none``, seeded, one torch
 thread) and scored on the rig's extreme test clips: joint error of the rig posed from the
 predicted controls (cm², mean over frames), ground-truth error (training-std units, mean
@@ -89,13 +89,17 @@ VARIANTS: dict[str, dict] = {
     "local24k_wide0": {"n_local": 24000, "n_wide": 0},
     "local48k_e4": {"n_local": 48000, "epochs": 4},
     "local48k_e0": {"n_local": 48000, "epochs": 0},
+    # session 33: the paper budget's width (h = 2048, its control-space network's) at the same
+    # draws and steps, at the config's joint-space peak rate and a lower one
+    "h2048": {"hidden": 2048},
+    "h2048_jlr1e-3": {"hidden": 2048, "joint_learning_rate": 1e-3},
 }
 
 
 def base_settings() -> dict:
     config = yaml.safe_load(CONFIG.read_text())
     config.pop("_target_")
-    config.update(hidden=512, seed=0, progress=False, threads=1)
+    config.update(seed=0, progress=False, threads=1)
     return config
 
 
@@ -131,7 +135,7 @@ def measure(
     for name, seed in ((n, s) for n in variants for s in seeds):
         settings = {**base_settings(), **VARIANTS[name], **extra, "seed": seed}
         model = JointSpaceNetworkRegressor(**settings)
-        rows = data.rows + model.n_gaussian + model.n_wide
+        rows = data.rows + model.n_draws
         started = time.perf_counter()
         mapping = fit_regressor(model, rig, data, placement, log=lambda _: None)
         seconds = time.perf_counter() - started
