@@ -158,7 +158,7 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
     yamls = sorted(p.stem for p in (ROOT / "conf" / "method").glob("*.yaml"))
     assert yamls == sorted([*METHODS, *CONFIG_ONLY_METHODS])
     tuned = catalog["nn_joint_space_tuned"]
-    assert tuned.method.regressor == "nn_joint_space" and tuned.tune["steps"] == 80
+    assert tuned.method.regressor == "nn_joint_space" and tuned.tune["steps"] == 160
     computed = catalog["gpr_computed_jacobian"]
     assert computed.refine == RefineSettings(
         damping=0.3,

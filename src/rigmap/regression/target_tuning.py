@@ -16,9 +16,11 @@ so each target frame is also anchored to the general network's own controls for 
 ``s_x`` the mean variance of a joint coordinate over the target rows, ``s_y``
 each target's standard deviation in the training corpus (the ground-truth
 error's scale). The tuned copy is returned; the fitted model is untouched.
-Every setting is ours; with the defaults (80 steps, Adam 1e-3, weight 0.01) the
-extreme test clips went from 47.9 to 0.64 cm² (quadruped; ground truth 3.3 -> 2.6)
-and from 118 to 2.2 cm² (biped; 6.3 -> 5.5) — ``benchmarks/target_tuning.py``.
+Every setting is ours; with the defaults (160 steps, Adam 1e-3, weight 0.001) the
+committed joint-space networks on the extreme test clips went from 4.78 to 0.20 cm²
+(quadruped; ground truth 2.85 -> 2.36) and from 9.21 to 0.45 cm² (biped; 5.21 -> 5.91);
+80 steps at weight 0.01 stopped at 0.58 and 1.56 — ``benchmarks/target_tuning.py``,
+``benchmarks/results/target_tuning_s33.json``.
 """
 
 from __future__ import annotations
@@ -45,10 +47,10 @@ from rigmap.torch_threads import torch_threads
 class TuningSettings:
     """Adam steps over the target rows (``batch_size`` per step), and the control term's weight."""
 
-    steps: int = 80
+    steps: int = 160
     batch_size: int = 512
     learning_rate: float = 1e-3
-    control_weight: float = 0.01
+    control_weight: float = 0.001
 
     def __post_init__(self) -> None:
         if self.steps < 0 or self.batch_size < 1:
