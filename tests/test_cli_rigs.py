@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -107,3 +110,21 @@ def test_corpus_show_writes_a_sheet_and_a_gif(tmp_path, capsys):
         assert gif.n_frames > 10
     assert main(["corpus", "show", "rig=face", "clap=Shouting", "--out", str(out)]) == 2
     assert "expected rig=… clip=…" in capsys.readouterr().err
+
+
+def test_a_reader_that_closes_the_pipe_early_stops_it_quietly():
+    """`rigmap rigs describe biped --controls | head -3`: no traceback, SIGPIPE's status.
+
+    The pipe's reading end is closed before the command starts, so its first write fails
+    for certain (a reader closing after some lines races the writer's buffering)."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    command = [sys.executable, "-c", "import sys; from rigmap.cli import main; sys.exit(main())"]
+    command += ["rigs", "describe", "biped", "--controls"]
+    try:
+        done = subprocess.run(command, stdout=write_end, stderr=subprocess.PIPE, timeout=120)
+    finally:
+        os.close(write_end)
+    errors = done.stderr.decode()
+    assert "Traceback" not in errors and "BrokenPipeError" not in errors, errors
+    assert done.returncode == 141

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
 from pathlib import Path
 
@@ -24,6 +26,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return args.run(args) or 0
+    except BrokenPipeError:
+        # the reader closed the pipe (`rigmap rigs describe biped --controls | head`): stop
+        # quietly as Unix tools do, and point stdout at /dev/null so the flush at exit
+        # cannot raise again (Python's documented recipe)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except (RigmapError, KeyError, ValueError, FileNotFoundError, PermissionError) as error:
         # KeyError's str() wraps the message in quotes; show it plain
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
