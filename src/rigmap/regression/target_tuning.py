@@ -20,7 +20,7 @@ Every setting is ours; with the defaults (160 steps, Adam 1e-3, weight 0.001) th
 committed joint-space networks on the extreme test clips went from 4.78 to 0.20 cm²
 (quadruped; ground truth 2.85 -> 2.36) and from 9.21 to 0.45 cm² (biped; 5.21 -> 5.91);
 80 steps at weight 0.01 stopped at 0.58 and 1.56 — ``benchmarks/target_tuning.py``,
-``benchmarks/results/target_tuning_s33.json``.
+``benchmarks/results/target_tuning_s34.json``.
 """
 
 from __future__ import annotations
