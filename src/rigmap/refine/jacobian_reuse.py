@@ -25,7 +25,7 @@ previous refined pose moved as the guess moved; a frame gets a full Jacobian
 only when a step falls well short of the decrease its Jacobian predicted
 (``rigmap.refine.damped_least_squares``). On the Blender wolf, whose every
 Jacobian costs a worker-pool batch, it took the rig evaluations per frame
-from 310 to 35 at a lower joint error (README).
+from 310 to 35 at a lower joint error (docs/inverse-mappings.md).
 """
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ def knee_note(data: pd.DataFrame) -> str:
     return (
         f"Mean over the swept labels, dimensions {min(errors)}–{max(errors)}: {listed} cm. "
         f"The knee (90 % of the drop from the first to the last dimension, ours) is {where}. "
-        "Why, and how it moves with the takes' variation: README, Latent synthesis, and "
+        "Why, and how it moves with the takes' variation: docs/latent-synthesis.md and "
         "benchmarks/latent_knee.py."
     )
 
