@@ -119,8 +119,7 @@ def test_a_reader_that_closes_the_pipe_early_stops_it_quietly():
     for certain (a reader closing after some lines races the writer's buffering)."""
     read_end, write_end = os.pipe()
     os.close(read_end)
-    command = [sys.executable, "-c", "import sys; from rigmap.cli import main; sys.exit(main())"]
-    command += ["rigs", "describe", "biped", "--controls"]
+    command = [sys.executable, "-m", "rigmap.cli", "rigs", "describe", "biped", "--controls"]
     try:
         done = subprocess.run(command, stdout=write_end, stderr=subprocess.PIPE, timeout=120)
     finally:
