@@ -119,3 +119,87 @@ def test_sweeper_refuses_a_bad_search_space():
         distribution("regressor.hidden", {"type": "int", "low": 1})
     with pytest.raises(ValueError, match="params is empty"):
         OptunaSweeper("s", "sqlite:///x.db", "minimize", 2, 1, 0, {}, "quadruped")
+
+
+@pytest.fixture
+def loopback_ray_head(tmp_path):
+    """``ray start --head --block`` on a free loopback port in its own temporary folder, its
+    process group killed at the end (``ray stop`` would also stop other tests' heads)."""
+    import socket
+    import tempfile
+    import time
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    # loopback only: Ray's node address is 127.0.0.1 instead of the machine's network address
+    env = {**clean_env(), "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_AUTH_MODE": "token"}
+    env["RAY_ADDRESS"] = f"127.0.0.1:{port}"
+    temp = tempfile.mkdtemp(prefix="rayh-", dir="/tmp")  # Ray's socket paths must stay short
+    ray_bin = Path(sys.executable).with_name("ray")
+    head = subprocess.Popen(
+        [
+            str(ray_bin),
+            "start",
+            "--head",
+            "--block",
+            f"--port={port}",
+            "--num-cpus=2",
+            "--include-dashboard=false",
+            "--disable-usage-stats",
+            f"--temp-dir={temp}",
+        ],
+        env={k: v for k, v in env.items() if k != "RAY_ADDRESS"},
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            with socket.socket() as sock:
+                if sock.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            assert head.poll() is None, "ray start --head exited"
+            time.sleep(0.5)
+        else:
+            pytest.fail("the Ray head did not listen within 120 s")
+        yield env
+    finally:
+        os.killpg(head.pid, signal.SIGTERM)
+        try:
+            head.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(head.pid, signal.SIGKILL)
+        import shutil
+
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def test_optuna_sweep_runs_its_trials_as_tasks_on_a_local_ray_head(loopback_ray_head, tmp_path):
+    """hydra/launcher=ray_cluster (hydra-ray-launcher): the sweep's two trials run as Ray
+    tasks on a head started apart from the sweep, and both complete in the study."""
+    import optuna
+
+    uri = f"sqlite:///{tmp_path / 'mlruns.db'}"
+    command = tune_command(
+        tmp_path,
+        uri,
+        "hydra.sweeper.n_trials=2",
+        "hydra.sweeper.n_jobs=2",
+        "hydra.sweeper.study_name=ray",
+        "hydra/launcher=ray_cluster",
+    )
+    done = subprocess.run(
+        command, cwd=REPO, env=loopback_ray_head, capture_output=True, text=True, timeout=600
+    )
+    out = done.stdout + done.stderr
+    assert done.returncode == 0, out[-3000:]
+    assert "Ray Launcher is launching 2 jobs" in out
+    assert (
+        f"Connecting to existing Ray cluster at address: {loopback_ray_head['RAY_ADDRESS']}" in out
+    )
+    # the trials printed from Ray worker processes (Ray prefixes a task's output with its pid)
+    assert out.count("(_run_job pid=") >= 2 and out.count("trial: joint error") == 2, out[-3000:]
+    study = optuna.load_study(study_name="ray", storage=f"sqlite:///{tmp_path / 'optuna.db'}")
+    assert [t.state.name for t in study.trials] == ["COMPLETE", "COMPLETE"]
