@@ -471,7 +471,12 @@ def test_table1_covers_only_the_method_rigs(project):
     assert tree["face"].methods == {} and len(tree["face"].samplers) == 6
     table = methods_table(tree, settings)
     assert set(table.data["rig"]) == {"quadruped"}
-    assert any("compared on Quadruped; Face appear in Tables 2 and 3" in n for n in table.notes)
+    note = "compared on Quadruped; Face appears in Table 2, Table 3 and the kernel table."
+    assert any(note in n for n in table.notes), table.notes
+    # a rig outside the per-rig tables appears in Table 3 only, and the note says so
+    only_table3 = ReportSettings(rigs=RIGS, method_rigs=("quadruped",), sampler_rigs=("quadruped",))
+    notes = methods_table(tree, only_table3).notes
+    assert any("compared on Quadruped; Face appears in Table 3." in n for n in notes), notes
     with pytest.raises(ValueError, match=r"method_rigs \['biped', 'rigify_wolf'\] are not among"):
         ReportSettings(rigs=RIGS)
     with pytest.raises(ValueError, match=r"sampler_rigs \['biped'\] are not among rigs"):

@@ -63,7 +63,11 @@ def _unit_label(units: set[str]) -> str:
 # --------------------------------------------------------------------------- Table 1
 def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
     """Table 1: rows Character/Motion × Method, per clip and Average, ours then published."""
-    others = [rig_label(rig) for rig in tree if not settings.methods_for(rig)]
+    others = {
+        rig_label(rig): _tables_holding(rig, metrics, settings)
+        for rig, metrics in tree.items()
+        if not settings.methods_for(rig)
+    }
     tree = {rig: metrics for rig, metrics in tree.items() if settings.methods_for(rig)}
     unit = _unit_label({r.length_unit for m in tree.values() for r in m.methods.values()})
     distance = unit.removesuffix(SQUARE)
@@ -154,15 +158,24 @@ def _methods_notes(settings: ReportSettings) -> list[str]:
     return notes
 
 
-def _left_out_notes(tree, others, settings: ReportSettings) -> list[str]:
-    """Table 1's last notes: the rigs compared elsewhere, and methods an experiment skips."""
+def _tables_holding(rig: str, metrics: RigMetrics, settings: ReportSettings) -> str:
+    """Where a rig without Table 1 rows does appear, from what the metrics hold."""
+    per_rig = rig in settings.sampler_rigs
+    tables = ["Table 2"] if per_rig and metrics.samplers else []
+    tables.append("Table 3")
+    if per_rig and metrics.kernels:
+        tables.append("the kernel table")
+    return tables[0] if len(tables) == 1 else ", ".join(tables[:-1]) + " and " + tables[-1]
+
+
+def _left_out_notes(tree, others: Mapping[str, str], settings: ReportSettings) -> list[str]:
+    """Table 1's last notes: the rigs compared elsewhere (and where), and methods an
+    experiment skips."""
     notes = []
     if others:
         compared = ", ".join(rig_label(rig) for rig in tree)
-        notes.append(
-            f"Like the paper, the methods are compared on {compared}; {', '.join(others)} "
-            "appear in Tables 2 and 3 and the kernel table."
-        )
+        where = "; ".join(f"{label} appears in {tables}" for label, tables in others.items())
+        notes.append(f"Like the paper, the methods are compared on {compared}; {where}.")
     excluded = {
         r: ms for r, ms in settings.excluded_methods.items() if r in settings.method_rigs and ms
     }
