@@ -134,9 +134,17 @@ def test_evaluate_writes_every_measurement_and_fig_2(project):
     assert set(one["models"]) == {"one for all", "one per label"}
     suites = pd.read_csv(folder / "suites.csv")
     assert list(suites["command"]) == ["MOVE", "IDLE", "TRANSITION", "PLAY"]
-    assert suites["success_rate"].between(0, 1).all() and (suites["count"] == 2).all()
+    # every command of the tiny suite completes, within the frames its script allows
+    assert (suites["success_rate"] >= 0.9).all() and (suites["count"] == 2).all(), suites
+    assert (suites["frames_median"] <= suites["frames_max"]).all()
     smooth = pd.read_csv(folder / "smoothness.csv")
-    assert len(smooth) == 1 and smooth["ours_peak_acc_rel_p95"].iloc[0] > 0
+    assert len(smooth) == 1
+    # the paper's comparison (Bailey et al. §6): latent transitions smoother than motion-graph
+    # blends, and able to start from more of the data
+    row = smooth.iloc[0]
+    assert row["ours_peak_acc_rel_p95"] < row["graph_peak_acc_rel_p95"]
+    assert row["ours_peak_jerk_rel_p95"] < row["graph_peak_jerk_rel_p95"]
+    assert row["ours_start_fraction"] > row["graph_start_fraction"]
     repeats = summary["seed_repeats"]["two_labels"]
     assert repeats["runs"] == 2 and 0 < repeats["pairwise_rms_cm_min"] < 1.0
     assert (tmp / "reports/figures/latent_face.png").stat().st_size > 10_000
