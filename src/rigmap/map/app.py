@@ -223,12 +223,20 @@ def read_clips(
         retarget = fixed or (default if default and _fits(default, tracks) else None)
         if retarget is None and motion is None:  # joint tracks: the default map says what lacks
             retarget = default or retarget_map(options, rig.name, config_dir)
-        if retarget is None:
+        was_matched = retarget is None
+        if was_matched:
             retarget = _matched_map(path, motion, tracks, rig.name, options, out, matched, log)
         if motion is not None:
             tracks = _clean_frames(tracks, motion, log)
         maps.append(retarget)
         clips.append(_read_clip(path, tracks, retarget, rig, options))
+        if was_matched:
+            height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
+            log(
+                f"{path}: scale {clips[-1].scale:.4g} rig cm per source unit (from the bone "
+                f"lengths): the source's rest height {height:.4g} units is "
+                f"{height * clips[-1].scale:.1f} cm on the rig"
+            )
     driven = {tuple(t.joint_names) for t in clips}
     if len(driven) > 1:
         raise MapConfigError(

@@ -489,7 +489,10 @@ def unit_guess(height: float) -> str:
         if HUMAN_HEIGHT_CM[0] <= height * cm <= HUMAN_HEIGHT_CM[1]:
             return unit
     low, high = (h / height for h in HUMAN_HEIGHT_CM)
-    return f"none of {'/'.join(UNITS_CM)} ({low:.2f}-{high:.2f} cm per unit for a person)"
+    return (
+        f"unknown: {low:.3g}-{high:.3g} cm per unit for a {HUMAN_HEIGHT_CM[0]:.0f}-"
+        f"{HUMAN_HEIGHT_CM[1]:.0f} cm person"
+    )
 
 
 def check_roles(rig_name: str, roles: Mapping[str, str], where: str) -> dict[str, str]:
@@ -589,9 +592,8 @@ def match_bvh(
     mapping = retarget_mapping(match, skeleton, rig_name, roles)
     unmatched = [f"{j} ({roles[j]})" for j, s in mapping["joints"].items() if s == UNKNOWN]
     header = [
-        f"Retarget map matched by rigmap.map.skeleton_match for {Path(source).name} onto "
-        f"rig {rig_name}:",
-        "read it, edit it if need be, and pass it as map.retarget=.",
+        f"Retarget map for {Path(source).name} onto rig {rig_name}, matched by",
+        "rigmap.map.skeleton_match: read it, edit it if need be, pass it as map.retarget=<file>.",
     ]
     header += [*_report_lines(match, frames, len(skeleton.names)), *notes]
     if unmatched or match.problems:
@@ -619,7 +621,7 @@ def _report_lines(match: Match, frames: FrameCheck, joints: int) -> list[str]:
         f"hierarchy, {match.by_name} of them confirmed by their names.",
         f"Axes from the rest pose: up {match.up or '?'}, forward {match.forward or '?'} "
         f"(feet to toes), left {match.left or '?'}.",
-        f"Height {match.height:.4g} source units (unit: {unit_guess(match.height)}); scale auto",
-        "sets rig cm per source unit from the bone lengths.",
+        f"Height {match.height:.4g} source units (unit {unit_guess(match.height)});",
+        "scale: auto sets rig cm per source unit from the bone lengths.",
         f"Frames: {frames.describe()}.",
     ]
