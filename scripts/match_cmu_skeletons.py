@@ -63,7 +63,13 @@ def main() -> None:
                 )
             path = args.out / f"{conversion}_{rig}.yaml"
             write_text_atomic(path, matched.text)
-            written.append({"file": str(path.relative_to(ROOT)), "match": matched.describe()})
+            written.append(
+                {
+                    "file": str(path.relative_to(ROOT)),
+                    "match": matched.describe(),
+                    "frames": matched.frames.describe(),
+                }
+            )
     print(json.dumps(written, indent=2))
 
 

@@ -216,7 +216,8 @@ def test_scrambled_names_on_an_intact_skeleton_match_by_topology_alone(tmp_path)
 
 
 def _mixamo(names, parents, offsets, ends) -> None:
-    """Mixamo's layout on the Hahne skeleton: clavicles with length, a HeadTop_End joint."""
+    """Mixamo's layout on the Hahne skeleton: clavicles with length, a HeadTop_End joint;
+    and twist/roll joints as other tools add them."""
     for side, sign in (("Left", 1.0), ("Right", -1.0)):
         clavicle, arm = (
             names.index(f"mixamorig:{side}Shoulder"),
@@ -230,6 +231,18 @@ def _mixamo(names, parents, offsets, ends) -> None:
     parents.append(head)
     offsets.append(np.array(ends.pop(head), dtype=float))
     ends[len(names) - 1] = np.array([0.0, 0.4, 0.0])
+    # a roll leaf beside the left forearm, and a twist joint inside the right forearm
+    arm, forearm = names.index("mixamorig:LeftArm"), names.index("mixamorig:LeftForeArm")
+    names.append("mixamorig:LeftArmRoll")
+    parents.append(arm)
+    offsets.append(offsets[forearm] / 2)
+    ends[len(names) - 1] = offsets[forearm] / 4
+    forearm, hand = names.index("mixamorig:RightForeArm"), names.index("mixamorig:RightHand")
+    names.append("mixamorig:RightForeArmTwist")
+    parents.append(forearm)
+    offsets.append(offsets[hand] / 2)
+    parents[hand] = len(names) - 1
+    offsets[hand] = offsets[hand] / 2
 
 
 def test_mixamo_names_on_the_same_skeleton_are_matched(tmp_path):

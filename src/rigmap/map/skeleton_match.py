@@ -6,11 +6,11 @@ found for anatomical roles (``hips``, ``spine``, ``chest``, ``neck``, ``head``, 
 side ``upper_arm``, ``forearm``, ``hand``, ``fingers``, ``thigh``, ``shin``, ``foot``,
 ``ball``, ``toe_end``) from the BVH hierarchy and rest pose:
 
-- topology: zero-length helper joints (CMU's ``LHipJoint``, ``lowerback``, collars)
-  fold into their parent; the hips are the first joint with three branches; the two
-  branches whose tips point the same way are the legs, the one against them the spine;
-  the spine's first branching joint is the chest, its most upward branch the neck and
-  the other two the arms; along a limb the two longest consecutive bones are the upper
+- topology: zero-length helper joints (CMU's ``LHipJoint``, ``lowerback``, collars) and
+  twist/roll joints fold into their parent; the hips are the first joint with three
+  branches; the two whose tips point the same way are the legs, the one against them
+  the spine; the spine's first branching joint is the chest, its most upward branch the
+  neck and the other two the arms; along a limb the two longest consecutive bones are the upper
   and lower limb (so a clavicle or a hip helper with length is skipped);
 - the rest pose: up from the spine against the legs, forward from the feet to the toes,
   left = up × forward, so left and right come from geometry;
@@ -49,6 +49,7 @@ OPTIONAL_ROLES = frozenset(
     ["spine", "head_end"] + [f"{r}_{s}" for s in SIDES for r in ("fingers", "ball", "toe_end")]
 )
 HELPER_FRACTION = 1e-4  # a bone this much shorter than the longest is a zero-length helper
+TWIST = re.compile(r"twist|roll", re.IGNORECASE)  # twist/roll helpers along a limb: folded too
 SAME_WAY_COSINE = 0.5  # legs: their tips point within 60° of each other (ours)
 
 # Name patterns: (regex on the lower-case name with separators and the side removed,
@@ -74,7 +75,8 @@ NAME_PATTERNS: tuple[tuple[str, frozenset[str]], ...] = tuple(
         (r"hip", "thigh hips"),
         (r"neck", "neck"),
         (r"head", "head"),
-        (r"spine|chest|back|torso|abdomen", "spine chest"),
+        (r"spine", "spine chest hips"),  # 3ds Max Biped hangs the legs on its first spine joint
+        (r"chest|back|torso|abdomen", "spine chest"),
     )
 )
 SIDE_WORDS = {"l": ("left", "l", "lft"), "r": ("right", "r", "rgt", "rt")}
@@ -167,7 +169,7 @@ class _Tree:
         floor = HELPER_FRACTION * max(float(lengths.max()), 1e-300)
         node = np.arange(len(parents))
         for j, p in enumerate(parents):  # parents come before their children
-            if p >= 0 and lengths[j] <= floor:
+            if p >= 0 and (lengths[j] <= floor or TWIST.search(skeleton.names[j])):
                 node[j] = node[p]
         self.children: dict[int, list[int]] = {int(j): [] for j in set(node.tolist())}
         for j, p in enumerate(parents):
@@ -222,9 +224,10 @@ def _axis_label(axis: int, sign: float) -> str:
     return f"{'+' if sign > 0 else '-'}{AXIS_LABELS[axis]}"
 
 
-def _limb(tree: _Tree, start: int, *, stop_at_branch: bool) -> list[int]:
-    """A limb's chain from its upper joint: the two longest consecutive bones begin it."""
-    chain = tree.path(start, stop_at_branch=stop_at_branch)
+def _limb(tree: _Tree, start: int) -> list[int]:
+    """A limb's chain from its upper joint: the two longest consecutive bones begin it
+    (so a clavicle or hip helper before them, and fingers or toes after, are skipped)."""
+    chain = tree.path(start, stop_at_branch=False)
     if len(chain) < 3:
         return []
     bones = [float(np.linalg.norm(tree.vector(a, b))) for a, b in itertools.pairwise(chain)]
@@ -325,7 +328,7 @@ def _left_axis(tree: _Tree, legs, up, match: Match) -> np.ndarray | None:
     up_axis = int(np.flatnonzero(up)[0])
     toes = np.zeros(3)
     for leg in legs:
-        chain = _limb(tree, leg, stop_at_branch=False)
+        chain = _limb(tree, leg)
         if len(chain) > 3:
             toes += tree.vector(chain[2], chain[-1])
     toes -= (toes @ up) * up
@@ -368,7 +371,7 @@ def _limbs(tree: _Tree, kind: str, origin: int, pair, left, found: dict, problem
             return
         sides[side] = start
     for side, start in sides.items():
-        chain = _limb(tree, start, stop_at_branch=kind == "arm")
+        chain = _limb(tree, start)
         if not chain:
             problems.append(f"the {kind} from {tree.name(start)!r} has fewer than 3 joints")
             continue
@@ -568,7 +571,7 @@ class MatchedSkeleton:
         return (
             f"skeleton matched ({len(m.roles)} roles, {m.by_name} confirmed by name; up "
             f"{m.up}, forward {m.forward}, left {m.left}; height {m.height:.4g} source "
-            f"units, unit {unit_guess(m.height)}); {self.frames.describe()}"
+            f"units, unit {unit_guess(m.height)})"
         )
 
 
