@@ -190,8 +190,9 @@ def test_scrambled_names_and_a_broken_topology_give_one_error_and_a_draft(tmp_pa
         match_bvh(bvh, positions, "biped", ROLES["biped"], draft=draft, source=str(path))
     message = str(error.value)
     assert "\n" not in message and str(path) in message and str(draft) in message
-    for rig_joint in ("upper_arm_r (upper_arm_r)", "forearm_r (forearm_r)", "hand_r (hand_r)"):
+    for rig_joint in ("upper_arm_r (role upper_arm_r)", "forearm_r (role forearm_r)"):
         assert rig_joint in message
+    assert f"{scrambled['Chest2']!r} has 1 arm branch(es) where two are expected" in message
     data = yaml.safe_load(draft.read_text())
     assert (
         data["joints"]["hand_r"] == UNKNOWN and data["joints"]["hand_l"] == scrambled["LeftWrist"]
@@ -286,6 +287,9 @@ def test_mixamo_names_on_the_same_skeleton_are_matched(tmp_path):
         ("L_Thigh", "l", "thigh"),
         ("thigh.R", "r", "thigh"),
         ("RightShin", "r", "shin"),
+        ("LeftThigh", "l", "thigh"),
+        ("RightToeEnd", "r", "toe_end"),
+        ("Bip01 R UpperArm", "r", "upper_arm"),
         ("LeftToe_End", "l", "toe_end"),
         ("lhand", "l", "hand"),
         ("lowerback", None, "spine"),

@@ -356,7 +356,9 @@ def _left_axis(tree: _Tree, legs, up, match: Match) -> np.ndarray | None:
 def _limbs(tree: _Tree, kind: str, origin: int, pair, left, found: dict, problems: list) -> None:
     """A pair of limbs (or the one found): side from the rest pose, roles along the chain."""
     if len(pair) != 2:
-        problems.append(f"{len(pair)} {kind} branch(es) found where two are expected")
+        problems.append(
+            f"{tree.name(origin)!r} has {len(pair)} {kind} branch(es) where two are expected"
+        )
     roles = (
         ("thigh", "shin", "foot", "ball", "toe_end")
         if kind == "leg"
@@ -593,7 +595,7 @@ def match_bvh(
     match = match_skeleton(skeleton)
     frames = check_frames(motion.values, positions, skeleton.names, match)
     mapping = retarget_mapping(match, skeleton, rig_name, roles)
-    unmatched = [f"{j} ({roles[j]})" for j, s in mapping["joints"].items() if s == UNKNOWN]
+    unmatched = [f"{j} (role {roles[j]})" for j, s in mapping["joints"].items() if s == UNKNOWN]
     header = [
         f"Retarget map for {Path(source).name} onto rig {rig_name}, matched by",
         "rigmap.map.skeleton_match: read it, edit it if need be, pass it as map.retarget=<file>.",
