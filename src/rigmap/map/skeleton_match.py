@@ -48,8 +48,8 @@ ROLES = CENTRE_ROLES + tuple(f"{r}_{s}" for s in SIDES for r in LIMB_ROLES)
 OPTIONAL_ROLES = frozenset(
     ["spine", "head_end"] + [f"{r}_{s}" for s in SIDES for r in ("fingers", "ball", "toe_end")]
 )
-HELPER_FRACTION = 1e-4  # a bone this much shorter than the longest is a zero-length helper
-TWIST = re.compile(r"twist|roll", re.IGNORECASE)  # twist/roll helpers along a limb: folded too
+HELPER_FRACTION = 1e-4  # a bone this much shorter than the longest is a helper (ours)
+TWIST = re.compile(r"twist|roll", re.IGNORECASE)  # twist/roll helpers: folded too (ours)
 SAME_WAY_COSINE = 0.5  # legs: their tips point within 60° of each other (ours)
 
 # Name patterns: (regex on the lower-case name with separators and the side removed,
@@ -126,9 +126,6 @@ class Match:
     height: float = 0.0
     problems: list[str] = field(default_factory=list)
     by_name: int = 0
-
-    def missing(self, needed) -> list[str]:
-        return [r for r in needed if r not in self.roles and r not in OPTIONAL_ROLES]
 
 
 # --------------------------------------------------------------------------- names
@@ -309,7 +306,7 @@ def _torso(tree: _Tree, spine: int, up, found: dict, problems: list[str]) -> lis
         found["spine"] = column[-2]
     neck = max(kids, key=lambda k: float(_unit(tree.reach(chest, k)) @ up))
     arms = [k for k in kids if k != neck]
-    if len(arms) > 2:  # keep the two that reach farthest to either side
+    if len(arms) > 2:  # keep the two that reach farthest (more: props, breasts)
         arms = sorted(arms, key=lambda k: -float(np.linalg.norm(tree.reach(chest, k))))[:2]
     chain = tree.path(neck, stop_at_branch=False)
     named = [i for i, j in enumerate(chain) if name_side_and_roles(tree.name(j))[1] == {"head"}]
