@@ -163,8 +163,6 @@ BAD_BVH = {
                               *lines[m + 4 :]], r"value '-inf' is not a finite number"),
     "empty": (lambda lines, m: [*lines[:m], "MOTION", "Frames: 0", "Frame Time: .0083333"],
               r"has no frames"),
-    "unmapped": (lambda lines, m: [line.replace("JOINT LeftKnee", "JOINT LKnee")
-                                   for line in lines], r"'LeftKnee' \(drives 'shin_l'\)"),
 }  # fmt: skip
 
 
@@ -178,6 +176,42 @@ def test_a_bad_bvh_is_one_clear_error_and_nothing_is_written(case, tmp_path):
         map_from_config(config, config_dir=CONF)
     assert str(path) in str(error.value)
     assert not out.exists() and not (tmp_path / "empty_project").exists()
+
+
+def test_a_bvh_without_the_joints_of_a_given_map_is_one_clear_error(tmp_path):
+    """With map.retarget given there is no skeleton matching (rigmap.map.skeleton_match)."""
+    path = _bvh_variant(
+        tmp_path,
+        "unmapped",
+        lambda lines, m: [x.replace("JOINT LeftKnee", "JOINT LKnee") for x in lines],
+    )
+    out = tmp_path / "out"
+    config = map_config(tmp_path / "p", f"input={path}", f"out={out}", "map.retarget=cmu_biped")
+    with pytest.raises(Exception, match=r"'LeftKnee' \(drives 'shin_l'\)") as error:
+        map_from_config(config, config_dir=CONF)
+    assert str(path) in str(error.value)
+    assert not out.exists() and not (tmp_path / "p").exists()
+
+
+def test_the_other_cmu_conversion_is_matched_and_mapped_with_the_cached_model(mapped, project):
+    """cmu_07_12 (other joint names, a T-pose at frame 0, an all-zero frame): its skeleton
+    is matched, the map saved and named in the log, the model of the default map reused."""
+    log: list[str] = []
+    out = project / "out_hahne"
+    config = map_config(
+        project,
+        f"input={MOCAP / 'cmu_07_12.bvh'}",
+        f"out={out}",
+        "map.first_frame=60",
+        "map.frames=4",
+        "map.settings.refine_iterations=1",
+    )
+    (clip,) = map_from_config(config, config_dir=CONF, log=log.append)
+    saved = out / "cmu_07_12.retarget.yaml"
+    assert saved.is_file() and any(f"retarget map used: {saved}" in line for line in log)
+    assert any("frame 0 is a T-pose (excluded), glitch frames" in line for line in log), log
+    assert not any("fitting on" in line for line in log)
+    assert clip.summary["frames"] == 4 and 0.1 < clip.summary["joint_error_rms_cm"] < 20.0
 
 
 def test_a_bad_bvh_in_a_batch_stops_it_before_any_clip_is_mapped(tmp_path):

@@ -32,18 +32,33 @@ from typing import Any
 
 import numpy as np
 
+from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
 from rigmap.map.clip import MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
 from rigmap.map.outputs import write_map_outputs
 from rigmap.map.partial import JointSubset
-from rigmap.map.retarget_map import MappedTargets, RetargetMap
+from rigmap.map.retarget_map import MappedTargets, RetargetMap, RetargetMapError
+from rigmap.map.skeleton_match import (
+    Skeleton,
+    check_frames,
+    check_roles,
+    match_bvh,
+    match_skeleton,
+)
 from rigmap.map.subset_model import SubsetModel, obtain_subset_model
-from rigmap.map.tracks import read_tracks
-from rigmap.store import Layout, json_ready, write_folder_atomic, write_json_atomic
+from rigmap.map.tracks import read_tracks, tracks_from_motion
+from rigmap.store import (
+    Layout,
+    json_ready,
+    write_folder_atomic,
+    write_json_atomic,
+    write_text_atomic,
+)
 
 TRACK_SUFFIXES = (".parquet", ".csv", ".npz")
 RETARGET_JOINTS = "retarget"  # a subset whose joints are the retarget map's
+MATCH = "auto"  # map.retarget=auto: match the BVH skeleton even when the rig's default fits
 Log = Callable[[str], None]
 
 
@@ -68,12 +83,11 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
     options = config["map"]
     sources = input_files(config.get("input"))
     with load(_rig_options(config)) as rig:
-        retarget = retarget_map(options, rig.name, config_dir)
-        clips = [_read_clip(path, retarget, rig, options) for path in sources]
+        out = Path(config.get("out") or Path("outputs") / "map" / rig.name)
+        clips, retarget = read_clips(sources, rig, options, config_dir, out, log)
         subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
         model = _model(config, rig, subset, log)
         settings = map_settings(options, rig.name)
-        out = Path(config.get("out") or Path("outputs") / "map" / rig.name)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
             done.append(map_one(rig, targets, model, settings, out / _stem(targets.source),
@@ -141,6 +155,8 @@ def input_files(value) -> list[Path]:
 def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
     """``map.retarget`` (a path, or a name in ``conf/retarget/``), else the rig's default."""
     name = options.get("retarget") or _rig_section(options, rig_name).get("retarget")
+    if name == MATCH:
+        raise MapConfigError(f"map.retarget={MATCH} matches BVH skeletons; it names no map")
     if not name:
         raise MapConfigError(f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
                              f"name in {Path(config_dir) / 'retarget'}>")  # fmt: skip
@@ -186,9 +202,111 @@ def map_settings(options: Mapping, rig_name: str) -> MapSettings:
         raise MapConfigError(f"map.settings or map.rigs.{rig_name}.settings: {error}") from None
 
 
-def _read_clip(path: Path, retarget: RetargetMap, rig, options: Mapping) -> MappedTargets:
-    """One input file as the rig's mapped joints, resampled and cut as ``map`` says."""
-    tracks = read_tracks(path, unit=options.get("unit", "cm"), fps=options.get("source_fps"))
+def read_clips(
+    sources: list[Path], rig, options: Mapping, config_dir, out: Path, log: Log
+) -> tuple[list[MappedTargets], RetargetMap]:
+    """Every input as the rig's mapped joints, and the retarget map whose joints they are.
+
+    ``map.retarget`` given: that map for every file. Otherwise the rig's default map for a
+    file that has its source joints, and for a BVH without them (or with
+    ``map.retarget=auto``) its skeleton matched to ``map.rigs.<rig>.roles``; the matched
+    map is saved as ``<out>/<clip>.retarget.yaml`` (once per skeleton) and its path logged.
+    """
+    chosen = options.get("retarget")
+    fixed = retarget_map(options, rig.name, config_dir) if chosen and chosen != MATCH else None
+    default = None
+    if chosen is None and _rig_section(options, rig.name).get("retarget"):
+        default = retarget_map(options, rig.name, config_dir)
+    clips, maps, matched = [], [], {}
+    for path in sources:
+        tracks, motion = _read_source(path, options)
+        retarget = fixed or (default if default and _fits(default, tracks) else None)
+        if retarget is None and motion is None:  # joint tracks: the default map says what lacks
+            retarget = default or retarget_map(options, rig.name, config_dir)
+        was_matched = retarget is None
+        if was_matched:
+            retarget = _matched_map(path, motion, tracks, rig.name, options, out, matched, log)
+        if motion is not None:
+            tracks = _clean_frames(tracks, motion, log)
+        maps.append(retarget)
+        clips.append(_read_clip(path, tracks, retarget, rig, options))
+        if was_matched:
+            height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
+            log(
+                f"{path}: scale {clips[-1].scale:.4g} rig cm per source unit (from the bone "
+                f"lengths): the source's rest height {height:.4g} units is "
+                f"{height * clips[-1].scale:.1f} cm on the rig"
+            )
+    driven = {tuple(t.joint_names) for t in clips}
+    if len(driven) > 1:
+        raise MapConfigError(
+            f"the inputs' retarget maps drive different rig joints ({len(driven)} "
+            "sets); map them in separate runs"
+        )
+    return clips, _subset_map(maps[0], default)
+
+
+def _read_source(path: Path, options: Mapping):
+    """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching)."""
+    if path.suffix.lower() != ".bvh":
+        unit = options.get("unit", "cm")
+        return read_tracks(path, unit=unit, fps=options.get("source_fps")), None
+    motion = read_bvh(path)
+    return tracks_from_motion(motion, str(path)), motion
+
+
+def _fits(retarget: RetargetMap, tracks) -> bool:
+    return all(name in tracks.joint_names for name in retarget.joints.values())
+
+
+def _clean_frames(tracks, motion, log: Log):
+    """The tracks without an added T-pose at frame 0, glitch frames rebuilt (logged)."""
+    skeleton = Skeleton.from_bvh(motion)
+    frames = check_frames(motion.values, tracks.positions, skeleton.names, match_skeleton(skeleton))
+    if not (frames.tpose_at_0 or frames.glitches):
+        return tracks
+    log(f"{tracks.source}: {frames.describe()}")
+    try:
+        return dataclasses.replace(tracks, positions=frames.apply(tracks.positions))
+    except RetargetMapError as error:
+        raise MapConfigError(f"{tracks.source}: {error}") from None
+
+
+def _matched_map(
+    path: Path, motion, tracks, rig_name: str, options: Mapping, out: Path, matched: dict, log: Log
+) -> RetargetMap:
+    """The BVH's skeleton matched for the rig, saved beside the output (once per skeleton)."""
+    skeleton = Skeleton.from_bvh(motion)
+    key = (skeleton.names, skeleton.rest.round(9).tobytes())
+    if key not in matched:
+        roles = check_roles(
+            rig_name, _rig_section(options, rig_name).get("roles"), f"map.rigs.{rig_name}.roles"
+        )
+        result = match_bvh(
+            motion,
+            tracks.positions,
+            rig_name,
+            roles,
+            source=str(path),
+            draft=out / f"{path.stem}.retarget.draft.yaml",
+        )
+        saved = write_text_atomic(out / f"{path.stem}.retarget.yaml", result.text)
+        retarget = RetargetMap.from_yaml(saved)
+        log(f"{path}: {result.describe()}; retarget map used: {saved}")
+        matched[key] = retarget
+    return matched[key]
+
+
+def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetMap:
+    """The map that names the joint subset: a matched map driving the default map's rig
+    joints shares its name (and so its cached model)."""
+    if default is not None and set(retarget.joints) == set(default.joints):
+        return dataclasses.replace(retarget, name=default.name)
+    return retarget
+
+
+def _read_clip(path: Path, tracks, retarget: RetargetMap, rig, options: Mapping) -> MappedTargets:
+    """One input's tracks as the rig's mapped joints, resampled and cut as ``map`` says."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unused source joints: summarised below instead
         targets = retarget.apply(rig, tracks)

@@ -99,12 +99,17 @@ class JointTracks:
 
 def tracks_from_bvh(path: str | os.PathLike) -> JointTracks:
     """World positions of every joint and end site of a BVH file (its own unit and axes)."""
-    motion = read_bvh(path)
+    return tracks_from_motion(read_bvh(path), str(path))
+
+
+def tracks_from_motion(motion, source: str) -> JointTracks:
+    """World positions of every joint and end site (``<parent>_end``) of a parsed BVH."""
     if motion.n_frames == 0:
-        raise TracksError(f"{path}: the BVH file has no frames")
+        raise TracksError(f"{source}: the BVH file has no frames")
     names = (*motion.joint_names, *motion.end_site_names)
-    return JointTracks(names, motion.global_positions(end_sites=True), motion.fps, SOURCE_UNIT,
-                       str(path))  # fmt: skip
+    return JointTracks(
+        names, motion.global_positions(end_sites=True), motion.fps, SOURCE_UNIT, source
+    )
 
 
 def read_tracks(path: str | os.PathLike, *, unit: str, fps: float | None = None) -> JointTracks:
