@@ -145,7 +145,6 @@ def test_parent_and_method_runs_on_a_real_server(mlflow_server, evaluation, tmp_
                 evaluation["mapping"], "least_squares",
                 input_columns=list(evaluation["X_test"].columns),
                 output_columns=evaluation["used_names"],
-                code_paths=[Path(__file__).with_name("least_squares_mapping.py")],
                 input_example=evaluation["X_test"].iloc[:2],
             ),
         )  # fmt: skip
