@@ -437,3 +437,43 @@ def test_pyfunc_mapping_payload_path_leaving_the_folder_is_refused(pyfunc_folder
     with pytest.raises(ModelFileError, match="outside the model folder") as error:
         load_pyfunc_model(str(folder))
     _one_line(error, "gpr.json")
+
+
+# --------------------------------------------------------------------------- map model folder
+@pytest.fixture(scope="module")
+def map_folder(biped, tmp_path_factory):
+    """A partial-input map model (rigmap map's cache or model= folder) of the biped."""
+    from rigmap.map.partial import JointSubset, SubsetMapping
+    from test_map_partial import EFFECTORS, gpr, random_poses
+
+    Y, X, _ = random_poses(biped, 60, seed=0)
+    subset = JointSubset.from_mapping(EFFECTORS, name="effectors", rig=biped)
+    folder = tmp_path_factory.mktemp("map") / "map-effectors"
+    SubsetMapping.fit(biped, subset, X, Y, gpr(60)).save(folder)
+    return folder
+
+
+def test_map_model_pickle_planted_as_its_payload_is_refused_and_not_run(
+    biped, map_folder, tmp_path
+):
+    from rigmap.map.partial import SubsetMapping
+
+    folder = shutil.copytree(map_folder, tmp_path / "map-effectors")
+    marker = tmp_path / "ran"
+    _plant(folder / "gpr.npz", pickle.dumps(_Touch(marker)))
+    with pytest.raises(ModelFileError, match="not an npz of plain arrays") as error:
+        SubsetMapping.load(folder, biped)
+    _one_line(error, "map-effectors")
+    assert not marker.exists()
+
+
+def test_map_model_payload_path_leaving_its_folder_is_refused(biped, map_folder, tmp_path):
+    from rigmap.map.partial import SubsetMapping
+
+    folder = shutil.copytree(map_folder, tmp_path / "map-effectors")
+    shutil.copy(folder / "gpr.npz", tmp_path / "x.npz")
+    meta = json.loads((folder / "gpr.json").read_text())
+    (folder / "gpr.json").write_text(json.dumps({**meta, "payload": "../x.npz"}))
+    with pytest.raises(ModelFileError, match="outside the model folder") as error:
+        SubsetMapping.load(folder, biped)
+    _one_line(error, "gpr.json")

@@ -1,7 +1,7 @@
 """A fitted model on disk: a payload file plus the JSON that names it and its hash.
 
 Every regressor saves into a folder as ``<name>.json`` and ``<name><suffix>``
-(``gpr.npz``, ``nn.pt``, …), ``<name>`` being the model's one name (its config
+(``gpr.npz``, ``nn.npz``, …), ``<name>`` being the model's one name (its config
 choice). The payload is written first and the JSON last, with the payload's
 SHA-256 in it, so the JSON is the commit: a save interrupted between the two
 leaves a payload whose hash the old JSON does not match, which loading reports
@@ -108,9 +108,18 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)  # every member's zip time: the bytes never hold a clock
+
+
 def arrays_to_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """An npz (uncompressed, no pickles) whose bytes depend only on ``arrays`` and their
+    order, so a model saved twice from the same fit is the same file."""
     buffer = io.BytesIO()
-    np.savez(buffer, **arrays)
+    with zipfile.ZipFile(buffer, mode="w", compression=zipfile.ZIP_STORED) as archive:
+        for name, value in arrays.items():
+            member = zipfile.ZipInfo(f"{name}.npy", date_time=ZIP_EPOCH)
+            with archive.open(member, mode="w", force_zip64=True) as out:
+                np.lib.format.write_array(out, np.asanyarray(value), allow_pickle=False)
     return buffer.getvalue()
 
 
