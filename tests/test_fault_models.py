@@ -114,6 +114,25 @@ def test_latent_pickle_planted_as_the_models_payload_is_refused_and_not_run(late
     assert not marker.exists()
 
 
+def test_latent_pickle_planted_for_synth_run_is_a_one_line_cli_error(latent, tmp_path):
+    """The reported trial: ``rigmap synth run … paths.models=<dir>`` with a crafted file."""
+    import subprocess
+    import sys
+
+    layout, folder = _latent_copy(latent, tmp_path)
+    marker = tmp_path / "ran"
+    _plant(folder / "fit" / "models.npz", pickle.dumps(_Touch(marker)))
+    root = pathlib.Path(__file__).resolve().parents[1]
+    command = [sys.executable, "-m", "rigmap.cli", "synth", "run", "roar_after_idle"]
+    command += ["rig=face", f"paths.models={layout.models}"]  # overrides right after the script
+    command += ["--out", str(tmp_path / "out.parquet"), "--config-dir", str(root / "conf")]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert done.returncode == 2, done.stderr[-2000:]
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "models.json" in lines[0] and "not an npz" in lines[0], lines
+    assert not marker.exists() and not (tmp_path / "out.parquet").exists()
+
+
 def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
     from rigmap.latent import runs
 
