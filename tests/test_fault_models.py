@@ -496,3 +496,15 @@ def test_map_model_payload_path_leaving_its_folder_is_refused(biped, map_folder,
     with pytest.raises(ModelFileError, match="outside the model folder") as error:
         SubsetMapping.load(folder, biped)
     _one_line(error, "gpr.json")
+
+
+@pytest.mark.parametrize("text", ["flavors: {python_function: junk}\n", "[1, 2\n", ""])
+def test_pyfunc_mlmodel_that_is_not_a_pyfunc_description_is_refused(pyfunc_folder, tmp_path, text):
+    from rigmap.tracking import UntrustedModelError
+    from rigmap.tracking.pyfunc_model import load_pyfunc_model
+
+    folder = shutil.copytree(pyfunc_folder[0], tmp_path / "model")
+    (folder / "MLmodel").write_text(text)
+    with pytest.raises(UntrustedModelError, match="not a readable pyfunc MLmodel") as error:
+        load_pyfunc_model(str(folder))
+    _one_line(error, "MLmodel")

@@ -160,9 +160,16 @@ def check_mlmodel(root: Path, loaders: Mapping[str, str] = RIGMAP_LOADERS) -> No
     try:
         conf = yaml.safe_load(path.read_text("utf-8"))["flavors"]["python_function"]
         module = conf.get("loader_module")
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as error:
+        extra = [k for k in ("code", "python_model", "cloudpickle_version") if conf.get(k)]
+    except (
+        OSError,
+        UnicodeDecodeError,
+        yaml.YAMLError,
+        LookupError,
+        TypeError,
+        AttributeError,
+    ) as error:
         raise UntrustedModelError(f"{path}: not a readable pyfunc MLmodel ({error!r})") from None
-    extra = [k for k in ("code", "python_model", "cloudpickle_version") if conf.get(k)]
     if module not in loaders or extra:
         raise UntrustedModelError(
             f"{path}: loader_module {module!r}{' with ' + str(extra) if extra else ''} is not "
