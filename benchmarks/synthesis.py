@@ -31,7 +31,7 @@ Metrics are rigmap's own (the paper reports none); wall-clock on a shared machin
 load average printed.
 
     .venv/bin/python benchmarks/synthesis.py [--frames 2400] [--labels happy roar …]
-        [--cache models.pkl] [--skip-transitions]
+        [--cache models/] [--skip-transitions]
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ import argparse
 import itertools
 import json
 import os
-import pickle
 import sys
 import time
 
@@ -48,6 +47,7 @@ import numpy as np
 import torch
 
 from rigmap.animation.library.face_expressions import LABELS
+from rigmap.latent import files
 from rigmap.latent.library import face_expression_sets, fit_models
 from rigmap.latent.motion_graph import (
     WINDOW,
@@ -120,7 +120,9 @@ def main(argv=None) -> None:
         help="torch threads (1: a one-pose mesh is too small "
         "to split, and a second thread waits on a shared machine: 1 ms → 11–17 ms measured)",
     )
-    parser.add_argument("--cache", help="pickle of the fitted models to reuse (fit once)")
+    parser.add_argument(
+        "--cache", help="folder of the fitted models to reuse (fit once; arrays + JSON)"
+    )
     parser.add_argument("--skip-transitions", action="store_true")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
@@ -128,17 +130,18 @@ def main(argv=None) -> None:
     labels = list(args.labels)
     out: dict = {"load_average": [round(x, 2) for x in os.getloadavg()], "labels": labels}
 
+    key = {"labels": labels, "n_pca": args.n_pca, "seed": args.seed}
+    key_file = os.path.join(args.cache or "", "key.json")
     cached = None
-    if args.cache and os.path.exists(args.cache):
-        with open(args.cache, "rb") as f:
-            cached = pickle.load(f)
-        if cached["key"] != (labels, args.n_pca, args.seed):
-            cached = None
+    if args.cache and os.path.exists(key_file):
+        with open(key_file) as f:
+            if json.load(f) == key:
+                cached = files.load_fitted(args.cache)  # arrays + JSON, never unpickled
     if cached is None:
         sets = face_expression_sets(rig, labels=labels, seed=args.seed)
         fitted = fit_models(rig, sets, n_pca=args.n_pca)
     else:
-        sets, fitted = cached["sets"], cached["fitted"]
+        sets, fitted = cached.sets, cached
         out["fit_from_cache"] = args.cache
     out["fit"] = {
         label: {
@@ -156,8 +159,9 @@ def main(argv=None) -> None:
     table = match_models(rig, fitted.models)
     match_seconds = time.perf_counter() - start
     if args.cache and cached is None:
-        with open(args.cache, "wb") as f:
-            pickle.dump({"key": (labels, args.n_pca, args.seed), "sets": sets, "fitted": fitted}, f)
+        files.save_fitted(args.cache, fitted)
+        with open(key_file, "w") as f:
+            json.dump(key, f)
     pairs = {}
     for a, b in itertools.combinations(labels, 2):
         m = table.pair(a, b)

@@ -98,7 +98,7 @@ def test_network_training_is_bit_identical_in_two_processes(tmp_path):
         )  # fmt: skip
         assert done.returncode == 0, done.stderr[-2000:]
     first = sorted(p.name for p in (tmp_path / "first").iterdir())
-    assert first == ["nn.json", "nn.pt"]
+    assert first == ["nn.json", "nn.npz"]
     for name in first:
         assert (tmp_path / "first" / name).read_bytes() == (tmp_path / "second" / name).read_bytes()
 

@@ -37,7 +37,7 @@ STAGES = {
     "fit": (
         ["pipelines/fit.py", "rig=quadruped", "regressor=nn", "sampler=none"],
         [
-            "models/quadruped/nn-none-none/nn.pt",
+            "models/quadruped/nn-none-none/nn.npz",
             "models/quadruped/nn-none-none/nn.json",
             "models/quadruped/nn-none-none/placement.json",
         ],

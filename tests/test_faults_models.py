@@ -1,8 +1,9 @@
 """Faults in logged models: a model in a shared registry is data, never code (issue 20, defect 1).
 
 A real network mapping is saved as a pyfunc model folder the way ``log_inverse_mapping``
-lays it out (entry file, ``artifacts/mapping``, ``artifacts/interface.json``); then the
-folder is tampered with as an attacker with write access to the registry would.
+lays it out (``MLmodel`` naming rigmap's loader, ``data/inverse_mapping/mapping`` and
+``.../interface.json``); then the folder is tampered with as an attacker with write
+access to the registry would.
 """
 
 from __future__ import annotations
@@ -20,9 +21,9 @@ import yaml
 from rigmap.regression import FeedForwardRegressor
 from rigmap.tracking import UntrustedModelError
 from rigmap.tracking.pyfunc_model import (
-    ENTRY_FILE,
-    INTERFACE_ARTIFACT,
+    DATA_FOLDER,
     INTERFACE_FORMAT,
+    LOADER_MODULE,
     MAPPING_ARTIFACT,
     mapping_class_name,
 )
@@ -36,7 +37,8 @@ def model_folder(tmp_path_factory):
     """A real saved pyfunc model of a small fitted network, and its predictions on a probe."""
     import mlflow
 
-    scratch = tmp_path_factory.mktemp("model")
+    scratch = tmp_path_factory.mktemp("model") / DATA_FOLDER
+    scratch.mkdir()
     rng = np.random.default_rng(3)
     X = rng.normal(size=(40, len(INPUTS)))
     Y = X[:, :2] * 2.0 + 1.0
@@ -51,15 +53,8 @@ def model_folder(tmp_path_factory):
         "output_columns": OUTPUTS,
     }
     (scratch / "interface.json").write_text(json.dumps(interface), encoding="utf-8")
-    folder = scratch / "model"
-    mlflow.pyfunc.save_model(
-        str(folder),
-        python_model=str(ENTRY_FILE),
-        artifacts={
-            MAPPING_ARTIFACT: str(scratch / "mapping"),
-            INTERFACE_ARTIFACT: str(scratch / "interface.json"),
-        },
-    )
+    folder = scratch.parent / "model"
+    mlflow.pyfunc.save_model(str(folder), loader_module=LOADER_MODULE, data_path=str(scratch))
     probe = pd.DataFrame(X[:3], columns=INPUTS)
     return folder, probe, mapping.predict(X[:3])
 
@@ -95,7 +90,7 @@ def test_tampered_interface_naming_a_module_is_refused_without_importing_it(
         "class Mapping:\n    @classmethod\n    def load(cls, path):\n        return cls()\n"
     )
     monkeypatch.syspath_prepend(str(payload))
-    interface_file = folder / "artifacts" / "interface.json"
+    interface_file = folder / "data" / DATA_FOLDER / "interface.json"
     interface = json.loads(interface_file.read_text())
     interface["mapping_class"] = "evil_mapping:Mapping"
     interface_file.write_text(json.dumps(interface))
@@ -106,7 +101,7 @@ def test_tampered_interface_naming_a_module_is_refused_without_importing_it(
 
 def test_interface_naming_a_stdlib_callable_is_refused(model_folder, tmp_path):
     folder = _copy(model_folder[0], tmp_path)
-    interface_file = folder / "artifacts" / "interface.json"
+    interface_file = folder / "data" / DATA_FOLDER / "interface.json"
     interface = json.loads(interface_file.read_text())
     interface["mapping_class"] = "subprocess:Popen"
     interface_file.write_text(json.dumps(interface))
@@ -115,15 +110,14 @@ def test_interface_naming_a_stdlib_callable_is_refused(model_folder, tmp_path):
 
 
 def test_payload_path_with_dot_dot_leaving_the_model_folder_is_refused(model_folder, tmp_path):
-    """Defect 1: MLmodel's artifact path ``../outside/mapping`` was followed out of the folder."""
+    """Defect 1: MLmodel's data path ``../outside/...`` was followed out of the folder."""
     folder = _copy(model_folder[0], tmp_path)
-    shutil.copytree(folder / "artifacts" / "mapping", tmp_path / "outside" / "mapping")
+    shutil.copytree(folder / "data" / DATA_FOLDER, tmp_path / "outside" / DATA_FOLDER)
     mlmodel = folder / "MLmodel"
     config = yaml.safe_load(mlmodel.read_text())
-    artifacts = config["flavors"]["python_function"]["artifacts"]
-    artifacts[MAPPING_ARTIFACT]["path"] = "../outside/mapping"
+    config["flavors"]["python_function"]["data"] = f"../outside/{DATA_FOLDER}"
     mlmodel.write_text(yaml.safe_dump(config))
-    with pytest.raises(UntrustedModelError, match=r"outside the model folder"):
+    with pytest.raises(UntrustedModelError, match=r"keeps its data in data/inverse_mapping"):
         _load(folder)
 
 
@@ -131,13 +125,15 @@ def test_symlink_inside_the_mapping_folder_leading_out_is_refused(model_folder, 
     folder = _copy(model_folder[0], tmp_path)
     secret = tmp_path / "secret.txt"
     secret.write_text("not the model's")
-    (folder / "artifacts" / "mapping" / "extra.json").symlink_to(secret)
+    (folder / "data" / DATA_FOLDER / MAPPING_ARTIFACT / "extra.json").symlink_to(secret)
     with pytest.raises(UntrustedModelError, match=r"extra\.json.*outside the model folder"):
         _load(folder)
 
 
 def test_interface_of_another_format_is_refused(model_folder, tmp_path):
     folder = _copy(model_folder[0], tmp_path)
-    (folder / "artifacts" / "interface.json").write_text('{"mapping_class": "InverseMapping"')
+    (folder / "data" / DATA_FOLDER / "interface.json").write_text(
+        '{"mapping_class": "InverseMapping"'
+    )
     with pytest.raises(UntrustedModelError, match=r"interface\.json: not a readable interface"):
         _load(folder)

@@ -189,7 +189,7 @@ def test_network_fits_corpus_plus_samples(nn_fit, data_dir, biped):
     assert sorted(p.name for p in folder.iterdir()) == [
         "fit.json",
         "nn.json",
-        "nn.pt",
+        "nn.npz",
         "placement.json",
     ]
     record = json.loads((folder / "fit.json").read_text())

@@ -75,7 +75,7 @@ def test_loaded_model_maps_like_map_clip(biped, fitted, loaded):
 
 
 def test_the_model_folder_says_what_it_maps(biped, fitted, loaded):
-    spec = json.loads((fitted["folder"] / "artifacts" / "map_model.json").read_text())
+    spec = json.loads((fitted["folder"] / "data" / "map_model" / "map_model.json").read_text())
     assert spec["rig"] == "biped" and spec["subset"] == "effectors" and spec["fps"] == 24.0
     assert spec["settings"]["refine_iterations"] == 1
     assert spec["settings"]["feet"] == ["foot_l", "foot_r"]
@@ -112,7 +112,7 @@ def test_a_tampered_model_is_refused(fitted, tmp_path):
     import shutil
 
     copy = shutil.copytree(fitted["folder"], tmp_path / "model")
-    spec_file = copy / "artifacts" / "map_model.json"
+    spec_file = copy / "data" / "map_model" / "map_model.json"
     spec = json.loads(spec_file.read_text())
     spec_file.write_text(json.dumps({**spec, "rig": "quadruped"}))
     with pytest.raises(UntrustedModelError, match="saved for rig 'quadruped' with 211 used"):
@@ -121,9 +121,11 @@ def test_a_tampered_model_is_refused(fitted, tmp_path):
     with pytest.raises(UntrustedModelError, match="rig must be a registered rig name"):
         mlflow.pyfunc.load_model(str(copy))
     spec_file.write_text(json.dumps(spec))
-    outside = shutil.copytree(copy / "artifacts" / "subset_mapping", tmp_path / "elsewhere")
-    shutil.rmtree(copy / "artifacts" / "subset_mapping")
-    (copy / "artifacts" / "subset_mapping").symlink_to(outside)
+    outside = shutil.copytree(
+        copy / "data" / "map_model" / "subset_mapping", tmp_path / "elsewhere"
+    )
+    shutil.rmtree(copy / "data" / "map_model" / "subset_mapping")
+    (copy / "data" / "map_model" / "subset_mapping").symlink_to(outside)
     with pytest.raises(UntrustedModelError, match="outside the model folder"):
         mlflow.pyfunc.load_model(str(copy))
 
@@ -140,7 +142,7 @@ def test_export_takes_std_and_held_values_from_the_train_corpus(biped, fitted, t
     fitted["mapping"].save(tmp_path / "effectors")
     folder = export_map_model(tmp_path / "exported", rig_name="biped", layout=layout,
                               mapping_folder=tmp_path / "effectors", settings=SETTINGS)  # fmt: skip
-    spec = json.loads((folder / "artifacts" / "map_model.json").read_text())
+    spec = json.loads((folder / "data" / "map_model" / "map_model.json").read_text())
     np.testing.assert_array_equal(spec["control_std"], control_std(corpus.values()))
     np.testing.assert_array_equal(spec["hold_values"], np.median(corpus.values(), axis=0))
     assert spec["fps"] == 30.0 and spec["settings"]["key_tolerance_cm"] == 0.5

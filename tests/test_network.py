@@ -149,7 +149,7 @@ def test_bad_hyper_parameters_are_named(params, message):
 # ----------------------------------------------------------------------------- save / load
 def test_save_load_round_trip(trained, tmp_path):
     trained.save(tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["nn.json", "nn.pt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nn.json", "nn.npz"]
     loaded = FeedForwardRegressor.load(tmp_path, rig="arm")
     X, _ = arm_data(20, seed=12)
     np.testing.assert_array_equal(loaded.predict(X), trained.predict(X))
@@ -164,7 +164,7 @@ def test_loading_for_another_rig_or_corrupt_files_fails(trained, tmp_path):
         ModelMismatchError, match="fitted for rig 'arm', but it is used with rig 'biped'"
     ):
         FeedForwardRegressor.load(tmp_path, rig="biped")
-    (tmp_path / "nn.pt").write_bytes(b"\x00" * 10)
+    (tmp_path / "nn.npz").write_bytes(b"\x00" * 10)
     with pytest.raises(ModelFileError, match="do not match the hash"):
         FeedForwardRegressor.load(tmp_path)
 

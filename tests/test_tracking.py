@@ -145,7 +145,6 @@ def test_parent_and_method_runs_on_a_real_server(mlflow_server, evaluation, tmp_
                 evaluation["mapping"], "least_squares",
                 input_columns=list(evaluation["X_test"].columns),
                 output_columns=evaluation["used_names"],
-                code_paths=[Path(__file__).with_name("least_squares_mapping.py")],
                 input_example=evaluation["X_test"].iloc[:2],
             ),
         )  # fmt: skip
@@ -215,10 +214,10 @@ def test_parent_and_method_runs_on_a_real_server(mlflow_server, evaluation, tmp_
         "import sys, mlflow, pandas as pd\n"
         f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
         "from least_squares_mapping import LeastSquaresMapping\n"
-        "from rigmap.tracking import allow_mapping_class\n"
+        "from rigmap.tracking import allow_mapping_class, load_pyfunc_model\n"
         "allow_mapping_class(LeastSquaresMapping)  # the loading process trusts the test's class\n"
         "mlflow.set_tracking_uri(sys.argv[1])\n"
-        "model = mlflow.pyfunc.load_model(sys.argv[2])\n"
+        "model = load_pyfunc_model(sys.argv[2])  # MLmodel checked: no code from the folder\n"
         "model.predict(pd.read_parquet(sys.argv[3])).to_parquet(sys.argv[4])\n"
     )
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}

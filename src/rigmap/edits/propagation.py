@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -30,7 +31,8 @@ from rigmap.edits.features import acceleration_features, kinematic_features
 from rigmap.edits.gp import Prediction, SharedGP
 from rigmap.edits.mls import MovingLeastSquares
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
-from rigmap.store import atomic_file
+from rigmap.regression import model_io
+from rigmap.regression.errors import ModelFileError
 
 
 @dataclass(frozen=True)
@@ -235,11 +237,49 @@ def _check_pair(source: TargetTrack, edited: TargetTrack) -> None:
         )
 
 
+EDIT_KIND, FORMAT_VERSION = "edit_model", 1
+#: the arrays of an edit model (``kinematic_`` and ``acceleration_`` GPs each add theirs):
+#: D target channels, J feature joints; values as the fit made them (float64)
+EDIT_SCHEMA = {
+    "channels": ("U", ("D",)),
+    "std": ("f", ("D",)),
+    "feature_joints": ("i", ("J",)),
+    "heading_joints": ("i", (3,)),
+    "residual": ("b", ()),
+    "estimator": ("U", ()),
+    "input_scale": ("U", ()),
+    "max_iterations": ("i", ()),
+    "weights": ("f", (4,)),
+}
+#: one GP's arrays, by estimator: N examples of F features (k MLS components)
+GP_SCHEMA = {
+    "gp": {
+        "X_": ("f", ("N", "F")),
+        "Y_": ("f", ("N", "D")),
+        "x_mean_": ("f", ("F",)),
+        "x_std_": ("f", ("F",)),
+        "y_mean_": ("f", ("D",)),
+        "factor": ("f", ("N", "N")),
+        "alpha": ("f", ("N", "D")),
+        "hyper": ("f", (5,)),
+    },
+    "mls": {
+        "x_mean_": ("f", ("F",)),
+        "x_std_": ("f", ("F",)),
+        "basis_": ("f", ("F", "k")),
+        "A_": ("f", ("N", "k")),
+        "B_": ("f", ("N", "D")),
+        "hyper": ("f", (4,)),
+    },
+}
+
+
 def save_model(model: EditModel, path) -> None:
-    """The fitted model as one ``.npz`` of plain arrays (atomic; read by :func:`load_model`)."""
+    """``<name>.npz`` of plain arrays, then ``<name>.json`` (kind, version, payload hash)
+    beside it: arrays + JSON, read by :func:`load_model`; nothing is pickled."""
     arrays = {f"kinematic_{k}": v for k, v in model.kinematic_gp_.state().items()}
     arrays |= {f"acceleration_{k}": v for k, v in model.acceleration_gp_.state().items()}
-    j = model.joints
+    j, w = model.joints, model.weights
     arrays |= {
         "channels": np.array(model.scale.channels),
         "std": model.scale.std,
@@ -250,35 +290,59 @@ def save_model(model: EditModel, path) -> None:
         "input_scale": np.array(model.input_scale),
         "max_iterations": np.array(model.max_iterations),
         "weights": np.array(
-            [
-                model.weights.kinematic,
-                model.weights.kinematic_regularizer,
-                model.weights.acceleration,
-                model.weights.acceleration_regularizer,
-            ]
+            [w.kinematic, w.kinematic_regularizer, w.acceleration, w.acceleration_regularizer]
         ),
     }
-    with atomic_file(path, suffix=".npz") as temporary:
-        np.savez(temporary, **arrays)
+    path = Path(path)
+    meta = {"kind": EDIT_KIND, "format_version": FORMAT_VERSION, "estimator": model.estimator}
+    model_io.write_model_files(
+        path.parent, path.stem, model_io.arrays_to_bytes(arrays), path.suffix, meta
+    )
 
 
 def load_model(path) -> EditModel:
-    """An :class:`EditModel` saved by :func:`save_model`."""
-    with np.load(path, allow_pickle=False) as data:
-        root, left, right = (int(v) for v in data["heading_joints"])
-        joints = FeatureJoints(tuple(int(v) for v in data["feature_joints"]), root, left, right)
-        model = EditModel(
-            joints,
-            Weights(*(float(w) for w in data["weights"])),
-            bool(data["residual"]),
-            int(data["max_iterations"]),
-            estimator=str(data["estimator"]) if "estimator" in data.files else "gp",
-            # models saved before the choice existed scaled per column
-            input_scale=str(data["input_scale"]) if "input_scale" in data.files else "column",
+    """An :class:`EditModel` saved by :func:`save_model` (``path``: its ``.npz``); every
+    array checked against :data:`EDIT_SCHEMA`, a bad file one :class:`ModelFileError`."""
+    path = Path(path)
+    meta, payload = model_io.read_model_files(path.parent, path.stem, EDIT_KIND)
+    where = str(path.with_suffix(".json"))
+    estimator = meta.get("estimator")
+    if meta.get("format_version") != FORMAT_VERSION or estimator not in GP_SCHEMA:
+        raise ModelFileError(
+            f"{where}: expected format_version {FORMAT_VERSION} and an estimator of "
+            f"{sorted(GP_SCHEMA)}, got {meta.get('format_version')!r} and {estimator!r}"
         )
-        model.scale = ChannelScale(tuple(str(c) for c in data["channels"]), data["std"].copy())
-        for which in ("kinematic", "acceleration"):
-            state = {k[len(which) + 1 :]: data[k] for k in data.files if k.startswith(which)}
-            kind = MovingLeastSquares if model.estimator == "mls" else SharedGP
-            setattr(model, f"{which}_gp_", kind.from_state(state))
+    gp = {
+        f"{w}_{k}": v
+        for w in ("kinematic", "acceleration")
+        for k, v in GP_SCHEMA[estimator].items()
+    }
+    data = model_io.arrays_from_bytes(payload, where, [*EDIT_SCHEMA, *gp])
+    sizes = model_io.check_arrays(data, EDIT_SCHEMA, where)
+    for which in ("kinematic", "acceleration"):
+        own = {k: v for k, v in gp.items() if k.startswith(which)}
+        model_io.check_arrays(data, own, f"{where} ({which} GP)", {"D": sizes["D"]})
+    if str(data["estimator"]) != estimator:
+        raise ModelFileError(
+            f"{where}: estimator {estimator!r} but the arrays say {str(data['estimator'])!r}"
+        )
+    return _model_from_arrays(data, estimator)
+
+
+def _model_from_arrays(data: dict[str, np.ndarray], estimator: str) -> EditModel:
+    root, left, right = (int(v) for v in data["heading_joints"])
+    joints = FeatureJoints(tuple(int(v) for v in data["feature_joints"]), root, left, right)
+    model = EditModel(
+        joints,
+        Weights(*(float(w) for w in data["weights"])),
+        bool(data["residual"]),
+        int(data["max_iterations"]),
+        estimator=estimator,
+        input_scale=str(data["input_scale"]),
+    )
+    model.scale = ChannelScale(tuple(str(c) for c in data["channels"]), data["std"].copy())
+    kind = MovingLeastSquares if estimator == "mls" else SharedGP
+    for which in ("kinematic", "acceleration"):
+        state = {k[len(which) + 1 :]: data[k] for k in data if k.startswith(which)}
+        setattr(model, f"{which}_gp_", kind.from_state(state))
     return model

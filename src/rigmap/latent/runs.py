@@ -1,9 +1,9 @@
 """What the four latent stages do, from a plain config dict, a rig and a :class:`Layout`.
 
 - :func:`run_fit` (``latent_fit``): the rig's labelled sets, one scaling → PCA → GPLVM
-  model per label → ``models/<rig>/latent/fit/models.pkl`` and ``fit.json``;
+  model per label → ``models/<rig>/latent/fit/models.{json,npz}`` and ``fit.json``;
 - :func:`run_match` (``latent_match``): matching points of every model pair (§5.2) →
-  ``models/<rig>/latent/match/transitions.pkl`` and ``match.json``;
+  ``models/<rig>/latent/match/transitions.{json,npz}`` and ``match.json``;
 - :func:`run_synthesize` (``latent_synthesize``): every command script of the rig played
   by the controller once per seed → ``data/<rig>/latent/<script>-seed<k>.parquet``
   (frame, one column per used control) and ``log.json`` (each command's frames, success);
@@ -11,28 +11,28 @@
   :mod:`rigmap.latent.measures` → ``metrics/<rig>/latent/summary.json`` and one CSV per
   table, and Fig 2 → ``reports/figures/latent_<rig>.png``.
 
-The ``.pkl`` files are pickles written and read only by these stages (and ``rigmap
-synth``), in the DVC cache: load them only from a checkout you trust.
+The models are arrays + JSON (:mod:`rigmap.latent.files`): nothing is unpickled, so a
+tampered model file in the DVC cache or remote is refused, never run.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import pickle
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from rigmap.latent import files
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVMSettings
 from rigmap.latent.library import FittedModels, fit_models, rig_sets
 from rigmap.latent.scripts import read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
-from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store import Layout, json_ready, write_json_atomic, write_text_atomic
 from rigmap.store.table_file import write_table_file
 
 LATENT = "latent"
@@ -63,20 +63,11 @@ def match_folder(layout: Layout, rig: str) -> Path:
     return layout.rig_models(rig) / LATENT / "match"
 
 
-def _dump(path: Path, value) -> None:
-    with atomic_file(path, suffix=".pkl") as temporary:
-        with open(temporary, "wb") as f:
-            pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
-
-
-def _load(path: Path, kind: type, stage: str):
+def _written(path: Path, stage: str) -> Path:
+    """``path``'s folder, or the error that says which stage writes it."""
     if not path.is_file():
         raise FileNotFoundError(f"{path} does not exist; run the {stage} stage first")
-    with open(path, "rb") as f:
-        value = pickle.load(f)
-    if not isinstance(value, kind):
-        raise LatentInputError(f"{path} holds a {type(value).__name__}, not {kind.__name__}")
-    return value
+    return path.parent
 
 
 def sets_of(config: dict, rig, *, heldout: bool = False):
@@ -93,7 +84,7 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
         variance=float(config["variance"]), n_pca=n_pca_of(config),
     )  # fmt: skip
     folder = fit_folder(layout, rig.name)
-    _dump(folder / "models.pkl", fitted)
+    files.save_fitted(folder, fitted)
     info = {
         label: {
             "frames": sets[label].n_frames,
@@ -111,11 +102,14 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
 
 
 def load_fitted(layout: Layout, rig: str) -> FittedModels:
-    return _load(fit_folder(layout, rig) / "models.pkl", FittedModels, "latent_fit")
+    """The ``latent_fit`` stage's models (arrays + JSON, checked; never unpickled)."""
+    return files.load_fitted(_written(fit_folder(layout, rig) / "models.json", "latent_fit"))
 
 
 def load_table(layout: Layout, rig: str) -> TransitionTable:
-    return _load(match_folder(layout, rig) / "transitions.pkl", TransitionTable, "latent_match")
+    """The ``latent_match`` stage's matching points (arrays + JSON, checked)."""
+    folder = _written(match_folder(layout, rig) / "transitions.json", "latent_match")
+    return files.load_table(folder)
 
 
 def match_threshold(config: dict, rig) -> float:
@@ -133,7 +127,7 @@ def run_match(config: dict, rig, layout: Layout) -> Path:
     )  # fmt: skip
     seconds = time.perf_counter() - start
     folder = match_folder(layout, rig.name)
-    _dump(folder / "transitions.pkl", table)
+    files.save_table(folder, table)
     from rigmap.latent.measures import matching_rows
 
     info = {"threshold_cm": table.threshold_cm, "seconds": seconds,

@@ -46,7 +46,12 @@ def served_model(
     start_timeout_s: float = START_TIMEOUT_S,
     request_timeout_s: int = REQUEST_TIMEOUT_S,
 ) -> Iterator[str]:
-    """``http://127.0.0.1:<port>`` of ``mlflow models serve -m folder`` once ``/ping`` answers."""
+    """``http://127.0.0.1:<port>`` of ``mlflow models serve -m folder`` once ``/ping`` answers.
+
+    The folder's ``MLmodel`` must name one of rigmap's loaders (no code from the folder)."""
+    from rigmap.tracking.pyfunc_model import check_mlmodel
+
+    check_mlmodel(Path(folder))
     port = port or free_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
     # the server execs `uvicorn` by name: this interpreter's own, even from an unactivated venv

@@ -11,13 +11,14 @@ targets, unwrapped and (optionally) smoothed curves, pinned feet, keys reduced w
 the tolerance. Two request parameters override the saved settings: ``fps`` (for foot
 contacts) and ``refine_iterations``.
 
-Stored with the model (``artifacts/``): the :class:`SubsetMapping` folder (its own
+Stored with the model (``data/map_model/``): the :class:`SubsetMapping` folder (its own
 ``save``), and ``map_model.json`` with the rig's name and used controls, the
 :class:`~rigmap.map.clip.MapSettings`, the per-used-control training std and held values.
 Models are data, not code (as in :mod:`rigmap.tracking.pyfunc_model`, whose checks this
 reuses): the rig is built only from a registered rig name, regressors only from
-rigmap's own classes, and every artifact path must stay inside the model folder. The
-pyfunc wrapper is logged as *models from code* (``pyfunc_entry.py``); nothing is pickled.
+rigmap's own classes, and every data path must stay inside the model folder. The model's
+code is the installed rigmap: ``MLmodel`` names this module as ``loader_module``
+(:func:`_load_pyfunc`), no code file is copied into the folder, and nothing is pickled.
 """
 
 from __future__ import annotations
@@ -46,14 +47,18 @@ from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.tracks import JointTracks, TracksError
 from rigmap.store import write_folder_atomic, write_json_atomic
 from rigmap.tracking.pyfunc_model import (
+    RIGMAP_LOADERS,
+    LoadedPyfunc,
     UntrustedModelError,
     check_payload,
+    checked_data_folder,
     inside_folder,
     joint_columns,
     pinned_requirements,
 )
 
-ENTRY_FILE = Path(__file__).with_name("pyfunc_entry.py")
+LOADER_MODULE = __name__  # what MLmodel names as the model's code: the installed rigmap
+DATA_FOLDER = RIGMAP_LOADERS[LOADER_MODULE]  # the model's data folder, ``data/map_model``
 MAPPING_ARTIFACT = "subset_mapping"
 SPEC_ARTIFACT = "map_model"
 SPEC_FORMAT = "rigmap.map_pyfunc/1"
@@ -82,19 +87,31 @@ def input_frame(world: np.ndarray, joints: Sequence[str]) -> pd.DataFrame:
     return pd.DataFrame(world.reshape(len(world), -1), columns=joint_columns(joints))
 
 
+def _load_pyfunc(data_path: str) -> LoadedPyfunc:
+    """MLflow's ``loader_module`` entry: the map model in ``data/map_model``."""
+    root = checked_data_folder(data_path, LOADER_MODULE, DATA_FOLDER)
+    model = MapClipModel(root)
+    model.load_folder(Path(data_path))
+    return LoadedPyfunc(model)
+
+
 class MapClipModel(PythonModel):
     """Pyfunc wrapper: a clip's joint targets in, every control per frame out (see module).
 
-    ``model_root``: the saved model's folder (the entry file's); artifacts must stay inside it.
+    ``model_root``: the saved model's folder; its data must stay inside it.
     """
 
     def __init__(self, model_root: str | os.PathLike):
         self._model_root = Path(model_root)
 
-    def load_context(self, context: Any) -> None:
+    def load_folder(self, data: Path) -> None:
+        """The mapping and its spec from the model's data folder."""
         from rigmap.rigs import load
 
-        paths = {key: Path(context.artifacts[key]) for key in (SPEC_ARTIFACT, MAPPING_ARTIFACT)}
+        paths = {
+            SPEC_ARTIFACT: data / f"{SPEC_ARTIFACT}.json",
+            MAPPING_ARTIFACT: data / MAPPING_ARTIFACT,
+        }
         spec_file = inside_folder(paths[SPEC_ARTIFACT], self._model_root, "map model artifact")
         check_payload(paths[MAPPING_ARTIFACT], self._model_root)
         spec = read_spec(spec_file)
@@ -207,7 +224,10 @@ def check_spec_fits_rig(spec: dict, rig, where: Path) -> None:
 
 
 # --------------------------------------------------------------------------- saving
-def _write_artifacts(scratch: Path, rig, mapping, settings, control_std, hold_values, fps) -> dict:
+def _write_artifacts(scratch: Path, rig, mapping, settings, control_std, hold_values, fps) -> str:
+    """The model's data folder in ``scratch``: the mapping and ``map_model.json``."""
+    scratch = scratch / DATA_FOLDER
+    scratch.mkdir()
     mapping.subset.check_rig(rig)
     mapping.save(scratch / MAPPING_ARTIFACT)
     used = len(rig.used_controls)
@@ -231,8 +251,7 @@ def _write_artifacts(scratch: Path, rig, mapping, settings, control_std, hold_va
         "hold_values": hold.tolist(),
     }
     write_json_atomic(scratch / f"{SPEC_ARTIFACT}.json", spec)
-    return {MAPPING_ARTIFACT: str(scratch / MAPPING_ARTIFACT),
-            SPEC_ARTIFACT: str(scratch / f"{SPEC_ARTIFACT}.json")}  # fmt: skip
+    return str(scratch)
 
 
 def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignature:
@@ -248,9 +267,8 @@ def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignatur
 def _model_arguments(scratch, rig, mapping, settings, control_std, hold_values, fps,
                      input_example) -> dict:  # fmt: skip
     """What ``save_model`` and ``log_model`` both take."""
-    artifacts = _write_artifacts(Path(scratch), rig, mapping, settings, control_std,
-                                 hold_values, fps)  # fmt: skip
-    return {"python_model": str(ENTRY_FILE), "artifacts": artifacts,
+    data = _write_artifacts(Path(scratch), rig, mapping, settings, control_std, hold_values, fps)
+    return {"loader_module": LOADER_MODULE, "data_path": data,
             "signature": _signature(rig, mapping, settings, fps), "input_example": input_example,
             "pip_requirements": pinned_requirements(SubsetMapping)}  # fmt: skip
 

@@ -43,7 +43,6 @@ and weight here is ours (the paper has no such network); see
 from __future__ import annotations
 
 import hashlib
-import io
 import itertools
 import math
 from collections.abc import Sequence
@@ -53,6 +52,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from rigmap.regression import model_io
 from rigmap.regression.base import Regressor
 from rigmap.regression.errors import ModelFileError
 from rigmap.regression.fingerprint import ModelFingerprint
@@ -174,7 +174,6 @@ class JointSpaceNetworkRegressor(Regressor):
     """
 
     name = "nn_joint_space"
-    payload_suffix = ".pt"
 
     def __init__(
         self,
@@ -474,9 +473,9 @@ class JointSpaceNetworkRegressor(Regressor):
         return {"history": self.history_, "draws_digest": self.draws_digest_}
 
     def _payload(self) -> bytes:
-        buffer = io.BytesIO()
-        torch.save({k: v.detach().clone() for k, v in self.network_.state_dict().items()}, buffer)
-        return buffer.getvalue()
+        """The network's state dict as npz bytes (plain arrays, no pickle)."""
+        state = self.network_.state_dict()
+        return model_io.arrays_to_bytes({k: v.detach().numpy() for k, v in state.items()})
 
     def _restore(self, meta: dict[str, Any], payload: bytes, source: str) -> None:
         fingerprint = self.fingerprint_
@@ -486,7 +485,9 @@ class JointSpaceNetworkRegressor(Regressor):
         try:
             self.history_ = dict(meta["history"])
             self.draws_digest_ = meta.get("draws_digest")
-            network.load_state_dict(torch.load(io.BytesIO(payload), weights_only=True))
+            names = list(network.state_dict())
+            arrays = model_io.arrays_from_bytes(payload, source, names)
+            network.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
         except (KeyError, TypeError, ValueError, RuntimeError) as error:
             raise ModelFileError(f"{source}: not a valid {self.name} model ({error})") from None
         network.eval()

@@ -28,7 +28,6 @@ clip is two matrix products in float32 with no per-frame work.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
 from contextlib import contextmanager
@@ -39,6 +38,7 @@ import torch
 from tqdm.auto import tqdm
 
 from rigmap.errors import RigmapError
+from rigmap.regression import model_io
 from rigmap.regression.base import Regressor
 from rigmap.regression.errors import ModelFileError
 from rigmap.regression.fingerprint import ModelFingerprint
@@ -102,7 +102,6 @@ class FeedForwardRegressor(Regressor):
 
     name = "nn"
     legacy_names = ("network",)  # model folders written before the one-name change
-    payload_suffix = ".pt"
 
     def __init__(
         self,
@@ -307,13 +306,11 @@ class FeedForwardRegressor(Regressor):
         }
 
     def _payload(self) -> bytes:
-        """The torch state dict of the network plus the standardisation, as ``.pt`` bytes."""
-        state = {name: value.detach().clone() for name, value in self.network_.state_dict().items()}
+        """The network's state dict plus the standardisation, as npz bytes (plain arrays)."""
+        state = {name: v.detach().numpy() for name, v in self.network_.state_dict().items()}
         for name in ("x_mean", "x_std", "y_mean", "y_std"):
-            state[name] = torch.from_numpy(np.asarray(getattr(self, f"{name}_")))
-        buffer = io.BytesIO()
-        torch.save(state, buffer)
-        return buffer.getvalue()
+            state[name] = np.asarray(getattr(self, f"{name}_"))
+        return model_io.arrays_to_bytes(state)
 
     def _restore(self, meta: dict[str, Any], payload: bytes, source: str) -> None:
         try:
@@ -324,7 +321,6 @@ class FeedForwardRegressor(Regressor):
                 f"{source}: metadata is incomplete or invalid ({error!r})"
             ) from None
         fingerprint, hidden = self.fingerprint_, int(self.hidden)
-        state = torch.load(io.BytesIO(payload), weights_only=True)
         expected = {
             "W0": (hidden, fingerprint.input_dim),
             "b0": (hidden,),
@@ -335,6 +331,8 @@ class FeedForwardRegressor(Regressor):
             "y_mean": (fingerprint.output_dim,),
             "y_std": (fingerprint.output_dim,),
         }
+        arrays = model_io.arrays_from_bytes(payload, source, list(expected))
+        state = {name: torch.from_numpy(values) for name, values in arrays.items()}
         for name, shape in expected.items():
             if name not in state or tuple(state[name].shape) != shape:
                 found = tuple(state[name].shape) if name in state else "missing"

@@ -3,7 +3,8 @@
 ``Tracker.open()`` resolves and checks the store (local SQLite by default),
 ``start_parent_run`` opens a sweep's run in the rig's experiment,
 ``log_method_run`` adds one method's child run, and ``log_inverse_mapping``
-stores a fitted mapping as a pyfunc model registered as ``rigmap-<rig>-<regressor>``.
+stores a fitted mapping as a pyfunc model registered as ``rigmap-<rig>-<regressor>``;
+``load_pyfunc_model`` loads one after checking it holds no code.
 """
 
 from rigmap.tracking.champion import CHAMPION, champion_uri, promote_if_better
@@ -16,6 +17,7 @@ from rigmap.tracking.pyfunc_model import (
     allow_mapping_class,
     allowed_mapping_classes,
     joint_columns,
+    load_pyfunc_model,
     log_inverse_mapping,
     registered_model_name,
 )
@@ -57,6 +59,7 @@ __all__ = [
     "find_project_root",
     "flatten_config",
     "joint_columns",
+    "load_pyfunc_model",
     "log_inverse_mapping",
     "log_method_run",
     "method_metrics",

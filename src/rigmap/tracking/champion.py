@@ -20,7 +20,8 @@ CHAMPION_METRIC = "joint_error"  # mean squared joint distance on the test clips
 
 
 def champion_uri(rig: str, regressor: str) -> str:
-    """``models:/rigmap-<rig>-<regressor>@champion``: load it with ``mlflow.pyfunc.load_model``."""
+    """``models:/rigmap-<rig>-<regressor>@champion``: load it with
+    ``rigmap.tracking.load_pyfunc_model``."""
     return f"models:/{registered_model_name(rig, regressor)}@{CHAMPION}"
 
 

@@ -4,8 +4,12 @@ Any scikit-learn-style mapping works: ``predict(X (N, D)) -> (N, C)``,
 ``save(path)`` and a ``load(path)`` classmethod. The model is stored through
 its own ``save`` (no pickling of the object), and rebuilt at load time by the
 class that ``interface.json`` names, so ``mlflow.pyfunc.load_model`` in a fresh
-process gives the same controls. The pyfunc wrapper itself is logged as
-*models from code* (``pyfunc_entry.py``), so nothing is cloudpickled.
+process gives the same controls. The model's code is the installed rigmap: it is
+logged with ``loader_module`` (this module's :func:`_load_pyfunc`) and its data under
+``data/``, so no code file is copied into the model folder (no ``python_model``, no
+``code_paths``) and nothing is cloudpickled; editing files in a model folder cannot
+run code through rigmap's loader (:func:`load_pyfunc_model`, which checks ``MLmodel``
+names this loader before MLflow reads it).
 
 Models are data, not code: the name in ``interface.json`` is looked up in an
 allow-list of rigmap's own mapping classes (:func:`allowed_mapping_classes`),
@@ -26,7 +30,7 @@ import importlib.metadata
 import json
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,7 +45,8 @@ from mlflow.types import ColSpec, Schema
 from rigmap.errors import RigmapError
 from rigmap.tracking.keys import safe_name
 
-ENTRY_FILE = Path(__file__).with_name("pyfunc_entry.py")
+LOADER_MODULE = __name__  # what MLmodel names as the model's code: the installed rigmap
+DATA_FOLDER = "inverse_mapping"  # the model's data folder, ``data/inverse_mapping``
 MAPPING_ARTIFACT = "mapping"
 INTERFACE_ARTIFACT = "interface"
 INTERFACE_FORMAT = "rigmap.pyfunc_interface/1"
@@ -142,21 +147,99 @@ def class_path(cls: type) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
+#: rigmap's pyfunc loaders (``loader_module``) and the data folder each reads
+RIGMAP_LOADERS = {LOADER_MODULE: DATA_FOLDER, "rigmap.map.pyfunc_model": "map_model"}
+
+
+def check_mlmodel(root: Path, loaders: Mapping[str, str] = RIGMAP_LOADERS) -> None:
+    """``root/MLmodel`` loads its python_function flavour with one of ``loaders`` (module →
+    data folder) from ``data/<folder>``, and nothing else: no code, python_model or pickle."""
+    import yaml
+
+    path = root / "MLmodel"
+    try:
+        conf = yaml.safe_load(path.read_text("utf-8"))["flavors"]["python_function"]
+        module = conf.get("loader_module")
+        extra = [k for k in ("code", "python_model", "cloudpickle_version") if conf.get(k)]
+    except (
+        OSError,
+        UnicodeDecodeError,
+        yaml.YAMLError,
+        LookupError,
+        TypeError,
+        AttributeError,
+    ) as error:
+        raise UntrustedModelError(f"{path}: not a readable pyfunc MLmodel ({error!r})") from None
+    if module not in loaders or extra:
+        raise UntrustedModelError(
+            f"{path}: loader_module {module!r}{' with ' + str(extra) if extra else ''} is not "
+            f"one of rigmap's loaders {sorted(loaders)}; the model is refused (its code must be "
+            "the installed rigmap, never files in the model folder)"
+        )
+    if conf.get("data") != f"data/{loaders[module]}":
+        raise UntrustedModelError(
+            f"{path}: data {conf.get('data')!r} is not data/{loaders[module]}; the model is refused"
+        )
+
+
+def checked_data_folder(data_path: str | os.PathLike, loader_module: str, name: str) -> Path:
+    """The model folder of ``data_path`` (``<root>/data/<name>``), after :func:`check_mlmodel`
+    and with every file under the data folder inside the model folder (links too)."""
+    data = Path(data_path)
+    if data.name != name or data.parent.name != "data":
+        raise UntrustedModelError(
+            f"{data}: a {loader_module} model keeps its data in data/{name}; the model is refused"
+        )
+    root = data.parent.parent
+    check_mlmodel(root, {loader_module: name})
+    check_payload(data, root)
+    return root
+
+
+def load_pyfunc_model(model_uri: str):
+    """rigmap's door to a logged or saved pyfunc model (a folder, ``runs:/``, ``models:/``):
+    its ``MLmodel`` is checked to name one of rigmap's loaders (no code from the folder)
+    before MLflow reads it; then ``mlflow.pyfunc.load_model``."""
+    from mlflow.artifacts import download_artifacts
+
+    local = Path(model_uri) if Path(model_uri).is_dir() else Path(download_artifacts(model_uri))
+    check_mlmodel(local)
+    return mlflow.pyfunc.load_model(str(local))
+
+
+class LoadedPyfunc:
+    """What :func:`_load_pyfunc` gives MLflow: ``predict(frame, params)`` of a wrapper,
+    which ``unwrap_python_model()`` returns."""
+
+    def __init__(self, python_model: Any):
+        self.python_model = python_model
+
+    def predict(self, model_input: Any, params: Any = None) -> Any:
+        return self.python_model.predict(None, model_input, params)
+
+
+def _load_pyfunc(data_path: str) -> LoadedPyfunc:
+    """MLflow's ``loader_module`` entry: the inverse mapping in ``data/inverse_mapping``."""
+    root = checked_data_folder(data_path, LOADER_MODULE, DATA_FOLDER)
+    model = InverseMappingModel(root)
+    model.load_folder(Path(data_path))
+    return LoadedPyfunc(model)
+
+
 class InverseMappingModel(PythonModel):
     """Pyfunc wrapper: joint-position DataFrame in, control DataFrame out.
 
-    ``model_root``: the logged model's folder (the entry file's folder); payload paths
-    must stay in it. Without it, the folder holding the ``artifacts`` folder is used.
+    ``model_root``: the logged model's folder; payload paths must stay in it.
     """
 
-    def __init__(self, model_root: str | os.PathLike | None = None):
-        self._model_root = None if model_root is None else Path(model_root)
+    def __init__(self, model_root: str | os.PathLike):
+        self._model_root = Path(model_root)
 
-    def load_context(self, context: Any) -> None:
-        paths = {
-            key: Path(context.artifacts[key]) for key in (INTERFACE_ARTIFACT, MAPPING_ARTIFACT)
-        }
-        root = self._model_root or _model_root(paths[INTERFACE_ARTIFACT])
+    def load_folder(self, data: Path) -> None:
+        """The mapping and interface from the model's data folder."""
+        paths = {MAPPING_ARTIFACT: data / MAPPING_ARTIFACT}
+        paths[INTERFACE_ARTIFACT] = data / "interface.json"
+        root = self._model_root
         interface_file = inside_folder(paths[INTERFACE_ARTIFACT], root, "interface artifact")
         check_payload(paths[MAPPING_ARTIFACT], root)
         interface = _read_interface(interface_file)
@@ -186,14 +269,6 @@ class InverseMappingModel(PythonModel):
                 f"expected {len(self._outputs)}"
             )
         return pd.DataFrame(Y, columns=self._outputs, index=model_input.index)
-
-
-def _model_root(artifact: Path) -> Path:
-    """The folder above ``artifacts/`` as MLflow lays a model out (unresolved, so ``..`` shows)."""
-    parts = artifact.parts
-    if "artifacts" in parts:
-        return Path(*parts[: parts.index("artifacts")])
-    return artifact.parent
 
 
 def _read_interface(path: Path) -> dict:
@@ -239,7 +314,6 @@ def log_inverse_mapping(
     input_columns: Sequence[str],
     output_columns: Sequence[str],
     register: bool = True,
-    code_paths: Sequence[str | os.PathLike] | None = None,
     pip_requirements: Sequence[str] | None = None,
     input_example: pd.DataFrame | None = None,
     name: str = "inverse_mapping",
@@ -249,8 +323,8 @@ def log_inverse_mapping(
     Before logging, the mapping is saved and reloaded, and both copies must
     predict the same controls on a probe input of the declared width, so a
     model whose ``save``/``load`` loses state is refused here, not found later.
-    ``code_paths`` ships source files of a mapping class that is not installed
-    (MLflow puts them on ``sys.path`` at load time). ``input_example`` (a few rows
+    No code is shipped with the model: a mapping class outside rigmap is trusted by
+    :func:`allow_mapping_class` in the loading process. ``input_example`` (a few rows
     of joint positions) is stored with the model and MLflow runs the logged model
     on it once, as a check that the stored model loads and predicts.
     """
@@ -263,7 +337,9 @@ def log_inverse_mapping(
         if not columns or len(set(columns)) != len(columns):
             raise MappingLoggingError(f"{what}_columns: expected unique, non-empty column names")
     with tempfile.TemporaryDirectory(prefix="rigmap-pyfunc-") as scratch:
-        saved = Path(scratch) / MAPPING_ARTIFACT
+        data = Path(scratch) / DATA_FOLDER
+        saved = data / MAPPING_ARTIFACT
+        data.mkdir()
         mapping.save(str(saved))
         if not saved.exists():
             raise MappingLoggingError(
@@ -272,7 +348,7 @@ def log_inverse_mapping(
         _check_round_trip(
             mapping, mapping_class.load(str(saved)), len(input_columns), output_columns
         )
-        interface = Path(scratch) / "interface.json"
+        interface = data / "interface.json"
         interface.write_text(
             json.dumps(
                 {
@@ -296,9 +372,8 @@ def log_inverse_mapping(
         with mlflow.start_run(run_id=run_id, nested=mlflow.active_run() is not None):
             info = mlflow.pyfunc.log_model(
                 name=name,
-                python_model=str(ENTRY_FILE),
-                artifacts={MAPPING_ARTIFACT: str(saved), INTERFACE_ARTIFACT: str(interface)},
-                code_paths=[str(p) for p in code_paths] if code_paths else None,
+                loader_module=LOADER_MODULE,
+                data_path=str(data),
                 signature=signature,
                 input_example=input_example,
                 pip_requirements=list(pip_requirements or pinned_requirements(mapping_class)),

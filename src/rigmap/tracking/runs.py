@@ -241,7 +241,6 @@ class MappingToLog:
     input_columns: Sequence[str]
     output_columns: Sequence[str]
     register: bool = True
-    code_paths: Sequence[str | os.PathLike] | None = None
     input_example: pd.DataFrame | None = None
 
 
@@ -317,7 +316,6 @@ def log_method_run(
                 input_columns=model.input_columns,
                 output_columns=model.output_columns,
                 register=model.register and parent.tracker.register_models,
-                code_paths=model.code_paths,
                 input_example=model.input_example,
             )
             if logged.registered_name is not None and CHAMPION_METRIC in metrics:
