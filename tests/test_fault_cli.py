@@ -162,3 +162,74 @@ def test_stale_params_yaml_fails_the_check(tmp_path, monkeypatch, capsys):
     assert f"differs from what conf/ composes at {tuned}.control_weight, {tuned}.steps" in err
     shutil.copy(ROOT / "params.yaml", project / "params.yaml")
     assert main(["fresh"]) == 0
+
+
+def _write_one(job: tuple[str, str, int]) -> tuple[int, str]:
+    """One stress writer: ``kind`` "folder" or "file", its ``ident``; (ident, error or "")."""
+    import time
+
+    from rigmap.errors import RigmapError
+    from rigmap.store import write_folder_atomic, write_text_atomic
+
+    target, kind, ident = job
+
+    def fill(folder: Path) -> None:
+        for part in range(5):
+            (folder / f"part{part}.txt").write_text(f"writer {ident} part {part}\n" * 200)
+            time.sleep(0.002)
+
+    try:
+        for _ in range(10):
+            if kind == "folder":
+                write_folder_atomic(target, fill)
+            else:
+                write_text_atomic(target, f"writer {ident}\n" * 1000)
+    except RigmapError as error:
+        return ident, str(error)
+    return ident, ""
+
+
+def _stress(target: Path, kinds: list[str]) -> list[tuple[int, str]]:
+    import multiprocessing
+
+    jobs = [(str(target), kind, ident) for ident, kind in enumerate(kinds)]
+    with multiprocessing.get_context("fork").Pool(len(jobs)) as pool:
+        return pool.map(_write_one, jobs)
+
+
+def _one_writers_content(target: Path) -> str:
+    """Which writer's output ``target`` is, whole; fails on a mix."""
+    if target.is_dir():
+        names = sorted(p.name for p in target.iterdir())
+        assert names == [f"part{i}.txt" for i in range(5)], names
+        texts = {p.read_text().split(" part ")[0] for p in target.iterdir()}
+        assert len(texts) == 1, texts  # every part from the same writer
+        return texts.pop()
+    text = target.read_text()
+    lines = set(text.splitlines())
+    assert len(lines) == 1 and text.count("\n") == 1000, lines
+    return lines.pop()
+
+
+def test_six_writers_of_one_output_folder_each_win_whole(tmp_path):
+    """Trial: 6 processes x 10 writes of one folder (60 writes): no IsADirectoryError,
+    NotADirectoryError or ENOTEMPTY; the folder is one writer's, whole."""
+    target = tmp_path / "out" / "corpus"
+    results = _stress(target, ["folder"] * 6)
+    assert [error for _, error in results] == [""] * 6
+    assert _one_writers_content(target).startswith("writer ")
+    assert sorted(p.name for p in target.parent.iterdir()) == ["corpus"]  # no leftovers
+
+
+def test_six_writers_of_one_output_file_and_folder_mixed_get_a_clear_error(tmp_path):
+    """Trial: 3 file writers and 3 folder writers of one path: each wins whole or gets
+    one line naming the path; never a mixed file/folder."""
+    target = tmp_path / "out" / "model"
+    results = _stress(target, ["file", "folder"] * 3)
+    errors = [error for _, error in results if error]
+    for error in errors:
+        assert error.startswith(f"{target}: a ") and "\n" not in error, error
+        assert "not replacing it with a" in error
+    winner = _one_writers_content(target)
+    assert winner.startswith("writer ")
+    assert sorted(p.name for p in target.parent.iterdir()) == ["model"]
