@@ -233,3 +233,180 @@ def test_six_writers_of_one_output_file_and_folder_mixed_get_a_clear_error(tmp_p
     winner = _one_writers_content(target)
     assert winner.startswith("writer ")
     assert sorted(p.name for p in target.parent.iterdir()) == ["model"]
+
+
+def _raising(error: BaseException):
+    def run(args) -> int:
+        raise error
+
+    return run
+
+
+EXPECTED_FAILURES = [
+    ("is_a_directory", IsADirectoryError(21, "Is a directory", "out/model"),
+     "out/model: Is a directory"),
+    ("not_a_directory", NotADirectoryError(20, "Not a directory", "out/file/x"),
+     "out/file/x: Not a directory"),
+    ("enotempty", OSError(39, "Directory not empty", "out/.corpus.tmp", None, "out/corpus"),
+     "out/.corpus.tmp -> out/corpus: Directory not empty"),
+    ("disk_full", OSError(28, "No space left on device", "models/q/fit.npz"),
+     "models/q/fit.npz: No space left on device"),
+    ("memory", MemoryError(), "out of memory (ask for less)"),
+    ("value", ValueError("map.frames: expected an integer >= 1"),
+     "map.frames: expected an integer >= 1"),
+    ("key", KeyError("unknown control 'tail.curly'"), "unknown control 'tail.curly'"),
+    ("multi_line", ValueError("2 bad value(s):\n  seed = -1\n  budget.samples = 0"),
+     "2 bad value(s): | seed = -1 | budget.samples = 0"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("trial", "error", "message"), EXPECTED_FAILURES, ids=[t[0] for t in EXPECTED_FAILURES]
+)
+def test_cli_expected_failure_is_one_line_with_exit_2(monkeypatch, capsys, trial, error, message):
+    """Trials: OSErrors (IsADirectory, NotADirectory, ENOTEMPTY, ENOSPC), MemoryError,
+    ValueError, KeyError, a multi-line message: ``rigmap: error: <command>: <message>``."""
+    import rigmap.cli as cli
+
+    monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "_rigs_list", _raising(error))
+    assert cli.main(["rigs", "list"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"rigmap: error: rigs list: {message}\n"
+
+
+def test_cli_bug_keeps_its_traceback_and_rigmap_debug_shows_expected_ones(monkeypatch):
+    """Trials: a TypeError (a bug) propagates; RIGMAP_DEBUG=1 re-raises an expected one."""
+    import rigmap.cli as cli
+
+    monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "_rigs_list", _raising(TypeError("unsupported operand")))
+    with pytest.raises(TypeError, match="unsupported operand"):
+        cli.main(["rigs", "list"])
+    monkeypatch.setenv("RIGMAP_DEBUG", "1")
+    monkeypatch.setattr(cli, "_rigs_list", _raising(IsADirectoryError(21, "Is a dir", "x")))
+    with pytest.raises(IsADirectoryError):
+        cli.main(["rigs", "list"])
+
+
+def test_cli_params_yaml_that_is_a_folder_is_one_line(tmp_path, capsys, monkeypatch):
+    """Trial: ``rigmap reproduce --params-only`` where params.yaml is a folder."""
+    from rigmap.cli import main
+
+    monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
+    project = tmp_path / "project"
+    shutil.copytree(ROOT / "conf", project / "conf")
+    shutil.copy(ROOT / "dvc.yaml", project / "dvc.yaml")
+    (project / "params.yaml").mkdir()
+    assert main(["reproduce", "--params-only", "--project", str(project)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rigmap: error: reproduce: ") and err.count("\n") == 1, err
+    assert "params.yaml" in err and "Traceback" not in err
+    assert (project / "params.yaml").is_dir()  # left as it was
+
+
+FAKE_STAGE = """\
+import sys
+from pathlib import Path
+
+args = dict(a.lstrip("+").split("=", 1) for a in sys.argv[1:] if "=" in a)
+name = Path(sys.argv[0]).stem
+sys.stderr.write(f"{name}: progress 50%\\r{name}: progress 100%\\n")
+Path(args["paths.data"], "from_" + name).mkdir(parents=True, exist_ok=True)
+if args.get("fail") == name:
+    sys.stderr.write(f"error: {name}: corpus file x.parquet does not exist\\n")
+    raise SystemExit(2)
+"""
+
+
+def _learn_project(tmp_path: Path) -> Path:
+    """conf/ of the repository and stand-in stage scripts that record where they write."""
+    project = tmp_path / "project"
+    shutil.copytree(ROOT / "conf", project / "conf")
+    (project / "pipelines").mkdir()
+    for script in ("animate", "pose", "supersample", "fit", "evaluate"):
+        (project / "pipelines" / f"{script}.py").write_text(FAKE_STAGE)
+    (project / "hero.blend").write_bytes(b"BLENDER-v500")
+    return project
+
+
+def _learn(project: Path, *args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    env.pop("RIGMAP_DEBUG", None)
+    return subprocess.run(
+        [sys.executable, "-m", "rigmap.cli", "learn", "--project", str(project), *args],
+        cwd=project,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def test_learn_stage_failure_is_one_line_error_not_runtime_error(tmp_path):
+    """Trial: a stage of ``rigmap learn`` fails with its clear message (was a RuntimeError
+    traceback): the message once, as learn's own, exit 2; the stage's progress still shown."""
+    project = _learn_project(tmp_path)
+    done = _learn(project, str(project / "hero.blend"), "+fail=pose")
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr and "RuntimeError" not in done.stderr
+    lines = [line for line in done.stderr.splitlines() if "error" in line]
+    assert lines == ["rigmap: error: learn: stage pose: corpus file x.parquet does not exist"], (
+        done.stderr
+    )
+    assert "pose: progress 100%" in done.stderr
+
+
+def test_learn_writes_under_outputs_never_into_tracked_folders(tmp_path):
+    """Trial: ``rigmap learn my.blend`` wrote data/, models/, metrics/ into the checkout;
+    now outputs/ (git-ignored) by default, or the folder given with --out."""
+    project = _learn_project(tmp_path)
+    done = _learn(project, str(project / "hero.blend"))
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in project.iterdir()) == [
+        "conf", "hero.blend", "outputs", "pipelines"
+    ]  # fmt: skip
+    written = sorted(p.name for p in (project / "outputs" / "data").iterdir())
+    assert written == ["from_animate", "from_evaluate", "from_fit", "from_pose", "from_supersample"]
+    assert "/outputs/" in (ROOT / ".gitignore").read_text().splitlines()
+    mine = tmp_path / "mine"
+    done = _learn(project, "--out", str(mine), str(project / "hero.blend"))
+    assert done.returncode == 0, done.stderr
+    assert (mine / "data" / "from_evaluate").is_dir()
+
+
+ALL_PATHS = ("data", "models", "metrics", "reports")
+
+
+@pytest.mark.parametrize(
+    ("command", "tail", "keys"),
+    [
+        (["edits", "fit"], [], ALL_PATHS),
+        (["edits", "add"], [], ALL_PATHS),
+        (["synth", "fit"], [], ALL_PATHS),
+        (["synth", "run", "s.yaml"], ["--out", "x.parquet"], ALL_PATHS),
+        (["synth", "demo"], [], ALL_PATHS),
+        (["map", "input=a.bvh", "rig=biped"], [], ("models",)),
+    ],
+    ids=["edits_fit", "edits_add", "synth_fit", "synth_run", "synth_demo", "map"],
+)
+def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, keys):
+    """Trials: ``rigmap edits``, ``synth`` and ``map`` (its model cache) write under outputs/
+    unless a paths.* override names another folder; DVC stages keep conf/'s paths."""
+    import rigmap.cli as cli
+
+    seen = []
+
+    def compose(overrides, config_dir=None, **kwargs):
+        seen.append(list(overrides))
+        raise ValueError("composed")  # stop before any work
+
+    monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "compose_config", compose)
+    assert cli.main([*command, *tail]) == 2
+    paths = [o for o in seen[0] if o.startswith("paths.")]
+    assert paths == [f"paths.{k}=outputs/{k}" for k in keys]
+    seen.clear()
+    assert cli.main([*command, "paths.models=/tmp/mine", *tail]) == 2
+    assert "paths.models=outputs/models" not in seen[0]
+    assert seen[0][-1] == "paths.models=/tmp/mine"

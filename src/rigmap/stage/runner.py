@@ -4,8 +4,8 @@ A stage script is ``run(cfg)`` plus ``if __name__ == "__main__": run_stage(run)`
 :func:`run_stage` hands ``run`` to ``hydra.main`` (the config is the project's
 ``conf/config.yaml``, found beside the script's folder) and sorts what goes wrong:
 
-- an error rigmap raises on purpose (:class:`rigmap.errors.RigmapError`), a missing or
-  unreadable file (``FileNotFoundError``, ``PermissionError``) and a config Hydra cannot
+- an error rigmap raises on purpose (:class:`rigmap.errors.RigmapError`), a file the OS
+  refuses (any ``OSError`` naming it), ``MemoryError`` and a config Hydra cannot
   compose (``rig=nope``, a bad override) print ``error: <stage>: <message>`` on stderr and
   exit with :data:`USER_ERROR_EXIT` — the user can fix them from the message alone;
 - anything else is a bug and keeps its full traceback (exit 1);
@@ -36,7 +36,7 @@ from rigmap.errors import RigmapError
 USER_ERROR_EXIT = 2  # the exit status of an error the user can fix (as argparse's usage errors)
 DEBUG_VARIABLE = "RIGMAP_DEBUG"
 CONFIG_NAME = "config"
-FILE_ERRORS = (FileNotFoundError, PermissionError)
+FILE_ERRORS = (FileNotFoundError, PermissionError)  # kept for importers; any OSError counts
 PIPELINE_LISTS = "pipeline"  # dvc.yaml's lists of rigs (conf/config.yaml), not a stage's input
 RIG_OVERRIDES = "_overrides_"  # config values a rig fixes for every stage (apply_rig_overrides)
 
@@ -140,9 +140,10 @@ def is_user_error(error: BaseException) -> bool:
     """An error whose message tells the user what to fix (not a bug in rigmap)."""
     from hydra.errors import HydraException
 
-    if isinstance(error, (RigmapError, HydraException)):
+    if isinstance(error, (RigmapError, HydraException, MemoryError)):
         return True
-    return isinstance(error, FILE_ERRORS) and bool(error.filename or str(error))
+    # any OSError naming its file: missing, a folder where a file is expected, a full disk
+    return isinstance(error, OSError) and bool(error.filename or str(error))
 
 
 def error_message(error: BaseException) -> str:

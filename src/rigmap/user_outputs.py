@@ -1,0 +1,25 @@
+"""Where a user's own runs write: ``outputs/`` (git-ignored), never the tracked folders.
+
+``rigmap learn``, ``rigmap edits``, ``rigmap synth`` and ``rigmap map`` are a user's own
+runs, not the reproduced experiment: written into ``data/``, ``models/`` or ``metrics/``
+they would show up in ``git status`` and change the inputs DVC hashes (``models/<rig>``
+is an evaluate stage's dependency). So their ``paths.*`` default to ``outputs/<key>``
+(``/outputs/`` is in .gitignore); a ``paths.<key>=DIR`` override names the user's own.
+The DVC stages (``pipelines/*.py``) keep ``conf/config.yaml``'s paths.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+USER_OUTPUTS = Path("outputs")  # ignored by .gitignore's /outputs/ (ours)
+PATH_KEYS = ("data", "models", "metrics", "reports")
+
+
+def user_paths(
+    overrides: Sequence[str], keys: Sequence[str] = PATH_KEYS, root: Path = USER_OUTPUTS
+) -> list[str]:
+    """Hydra overrides putting ``paths.<key>`` under ``root``, for each key not overridden."""
+    given = {str(o).partition("=")[0].lstrip("+~") for o in overrides}
+    return [f"paths.{key}={Path(root) / key}" for key in keys if f"paths.{key}" not in given]
