@@ -384,8 +384,8 @@ ALL_PATHS = ("data", "models", "metrics", "reports")
         (["edits", "fit"], [], ALL_PATHS),
         (["edits", "add"], [], ALL_PATHS),
         (["synth", "fit"], [], ALL_PATHS),
-        (["synth", "run", "s.yaml"], ["--out", "x.parquet"], ALL_PATHS),
-        (["synth", "demo"], [], ALL_PATHS),
+        (["synth", "run", "s.yaml"], ["--out", "x.parquet"], ()),  # writes --out only
+        (["synth", "demo"], [], ()),
         (["map", "input=a.bvh", "rig=biped"], [], ("models",)),
     ],
     ids=["edits_fit", "edits_add", "synth_fit", "synth_run", "synth_demo", "map"],

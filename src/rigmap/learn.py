@@ -172,7 +172,7 @@ def add_learn_command(commands, compose, find_config_dir) -> None:
     learn = commands.add_parser(
         "learn",
         help="the whole pipeline on your own .blend: its actions as the corpus, then fit and "
-        "evaluate (metrics/blend_file:<name>/)",
+        "evaluate (outputs/metrics/blend_file:<name>/)",
         description=__doc__.split("\n\n")[1].replace("\n", " "),
     )
     learn.add_argument("blend", type=Path, help="the .blend with an armature and its actions")

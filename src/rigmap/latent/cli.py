@@ -111,10 +111,14 @@ def _loaded(args, compose_config):
     from rigmap.latent import runs
     from rigmap.latent.stage import latent_config
     from rigmap.stage.inputs import layout_of, rig_from_config
-    from rigmap.user_outputs import user_paths
+    from rigmap.user_outputs import USER_OUTPUTS, user_paths
 
-    # the models `rigmap synth fit` and `match` wrote under outputs/ (or paths.models=DIR)
-    cfg = compose_config([*user_paths(args.overrides), *args.overrides], args.config_dir)
+    # only --out is written; the models are your own `synth fit` and `match`'s under
+    # outputs/ when there, else the pipeline's (models/), unless paths.models=DIR names them
+    cfg = compose_config(list(args.overrides), args.config_dir)
+    own = user_paths(args.overrides, keys=("models",))
+    if own and (USER_OUTPUTS / "models" / str(cfg.rig.name) / "latent" / "fit").is_dir():
+        cfg = compose_config([*own, *args.overrides], args.config_dir)
     rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
     config = latent_config(cfg)
     return rig, config, runs.load_fitted(layout, rig.name), runs.load_table(layout, rig.name)
