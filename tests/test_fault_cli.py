@@ -410,3 +410,57 @@ def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, k
     assert cli.main([*command, "paths.models=/tmp/mine", *tail]) == 2
     assert "paths.models=outputs/models" not in seen[0]
     assert seen[0][-1] == "paths.models=/tmp/mine"
+
+
+CONFIG_OF_SCRIPT = {"map_mocap": "map", "map": "map", "tune": "tune"}  # run_stage(config_name=)
+
+
+def _hydra_value(value) -> str:
+    """A value as DVC pasted it into a command (``${seed}`` -> ``0``; dvc.parsing's to_str)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+CHANGED = {"seed": 5, "budget.samples": 123, "budget.gpr_points": 77, "budget.cv_splits": 3,
+           "budget.refine_iterations": 2, "regressor.hidden": 64, "regressor.alpha": 0.25,
+           "corpus.variation": 0.5, "corpus.heldout_sides": "drawn", "latent.max_iter": 9,
+           "latent.blend_frames": 6}  # fmt: skip
+
+
+def test_every_stage_gets_the_config_its_interpolated_command_gave(tmp_path):
+    """Trial: one entry of every stage, its placeholders filled and params merged, composes
+    the very config the former ``KEY=${KEY}`` command composed, for changed values too."""
+    import shlex
+
+    from dvc.repo import Repo
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from rigmap.stage import stage_config
+    from rigmap.stage.placeholders import apply_params, resolve_argv
+
+    project = _project(tmp_path, **CHANGED)
+    firsts = {}
+    with Repo(str(ROOT)) as repo:
+        for stage in repo.index.stages:
+            firsts.setdefault(stage.name.partition("@")[0], stage)
+    compared, merged = 0, set()
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        for name, stage in firsts.items():
+            argv = shlex.split(stage.cmd)[1:]  # python <script> overrides...
+            if not argv[0].startswith("pipelines/"):
+                continue  # check_params: python -m rigmap.pipeline_params check params.yaml
+            resolved = resolve_argv(argv, project, stage.name)
+            config = CONFIG_OF_SCRIPT.get(Path(argv[0]).stem, "config")
+            pasted = [f"{k}={_hydra_value(v)}" for k, (_, v) in resolved.params.items()]
+            before = compose(config_name=config, overrides=resolved.argv[1:] + pasted)
+            now = compose(config_name=config, overrides=resolved.argv[1:])
+            now = apply_params(now, resolved.params)
+            assert OmegaConf.to_container(stage_config(now), resolve=True) == (
+                OmegaConf.to_container(stage_config(before), resolve=True)
+            ), name
+            merged |= set(resolved.params)
+            compared += 1
+    assert compared >= 30, compared
+    assert set(CHANGED) <= merged  # each changed value reached some stage
