@@ -13,6 +13,7 @@ wins whole and the other waits its turn; a file where a folder is (or the revers
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -43,7 +44,11 @@ def _swap_lock(parent: Path) -> Iterator[None]:
         return
     handle = os.open(parent, os.O_RDONLY)
     try:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError as error:  # a file system without flock: the rename alone, as before
+            if error.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
         yield
     finally:
         os.close(handle)  # closing releases the lock
