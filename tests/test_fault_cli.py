@@ -387,12 +387,15 @@ ALL_PATHS = ("data", "models", "metrics", "reports")
         (["synth", "run", "s.yaml"], ["--out", "x.parquet"], ()),  # writes --out only
         (["synth", "demo"], [], ()),
         (["map", "input=a.bvh", "rig=biped"], [], ("models",)),
+        (["fit", "rig=biped"], [], ("models",)),
+        (["evaluate", "rig=biped"], [], ("metrics", "reports")),
     ],
-    ids=["edits_fit", "edits_add", "synth_fit", "synth_run", "synth_demo", "map"],
+    ids=["edits_fit", "edits_add", "synth_fit", "synth_run", "synth_demo", "map", "fit", "eval"],
 )
 def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, keys):
-    """Trials: ``rigmap edits``, ``synth`` and ``map`` (its model cache) write under outputs/
-    unless a paths.* override names another folder; DVC stages keep conf/'s paths."""
+    """Trials: ``rigmap edits``, ``synth``, ``map`` (its model cache), ``fit`` and ``evaluate``
+    write under outputs/ unless a paths.* override names another folder; the data they only
+    read stays the pipeline's; DVC stages keep conf/'s paths."""
     import rigmap.cli as cli
 
     seen = []

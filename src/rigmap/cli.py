@@ -198,11 +198,13 @@ def _add_fit(commands) -> None:
     _add_stage_command(
         commands,
         "fit",
-        help="fit an inverse mapping into models/<rig>/<regressor>-<sampler>-<kernel>/",
+        help="fit an inverse mapping into outputs/models/<rig>/<regressor>-<sampler>-<kernel>/",
         description="Runs the fit stage (pipelines/fit.py) with Hydra overrides, e.g. "
         "rigmap fit rig=biped regressor=gpr kernel=gaussian sampler=none, or "
         "rigmap fit rig=quadruped regressor=nn sampler=pca_gaussian experiment=paper. "
-        "Paths in the config (paths.data, paths.models) are relative to the working directory.",
+        "The corpus is read from paths.data (data/); the model goes under outputs/models/ "
+        "(git-ignored; paths.models=DIR names another folder), never the pipeline's models/. "
+        "Paths are relative to the working directory.",
         overrides="rig=, regressor=, kernel=, sampler=, experiment=, budget.*=, paths.*=",
         run=_fit,
     )
@@ -212,13 +214,15 @@ def _add_evaluate(commands) -> None:
     _add_stage_command(
         commands,
         "evaluate",
-        help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
+        help="score methods on a rig's test clips into outputs/metrics/<rig>/<set>/ (and MLflow)",
         description="Runs the evaluate stage (as pipelines/evaluate.py, in this process) with "
         "Hydra overrides, e.g. "
         "rigmap evaluate rig=quadruped evaluate.set=methods, rigmap evaluate rig=biped "
         "evaluate.set=samplers, rigmap evaluate rig=face 'evaluate.methods=[gpr,nn]' "
-        "evaluate.log_to_mlflow=false. Paths in the config (paths.data, paths.models, "
-        "paths.metrics) are relative to the working directory.",
+        "evaluate.log_to_mlflow=false. Reads paths.data and paths.models (the pipeline's "
+        "data/ and models/; paths.models=outputs/models for your own rigmap fit); writes "
+        "under outputs/ (paths.metrics=DIR names another folder), relative to the working "
+        "directory.",
         overrides="rig=, evaluate.set=, evaluate.methods=, sampler=, kernel=, experiment=, "
         "tracking.uri=, paths.*=",
         run=_evaluate,
@@ -451,7 +455,8 @@ def _fit(args) -> int:
     from rigmap.regression.fitting import fit_from_config
     from rigmap.stage.runner import apply_rig_overrides
 
-    cfg = apply_rig_overrides(compose_config(args.overrides, args.config_dir))
+    overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
+    cfg = apply_rig_overrides(compose_config(overrides, args.config_dir))
     result = fit_from_config(OmegaConf.to_container(cfg, resolve=True))
     print(result.folder)
     return 0
@@ -463,7 +468,8 @@ def _evaluate(args) -> int:
 
     from rigmap.evaluation import evaluate_from_config
 
-    cfg = compose_config(args.overrides, args.config_dir, with_hydra=True)
+    overrides = [*user_paths(args.overrides, keys=("metrics", "reports")), *args.overrides]
+    cfg = compose_config(overrides, args.config_dir, with_hydra=True)
     experiment = cfg.hydra.runtime.choices.get("experiment")
     stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
     evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)

@@ -1,10 +1,11 @@
 """Where a user's own runs write: ``outputs/`` (git-ignored), never the tracked folders.
 
-``rigmap learn``, ``rigmap edits``, ``rigmap synth`` and ``rigmap map`` are a user's own
+``rigmap learn``, ``edits``, ``synth``, ``map``, ``fit`` and ``evaluate`` are a user's own
 runs, not the reproduced experiment: written into ``data/``, ``models/`` or ``metrics/``
 they would show up in ``git status`` and change the inputs DVC hashes (``models/<rig>``
-is an evaluate stage's dependency). So their ``paths.*`` default to ``outputs/<key>``
-(``/outputs/`` is in .gitignore); a ``paths.<key>=DIR`` override names the user's own.
+is an evaluate stage's dependency). So the ``paths.*`` they write default to
+``outputs/<key>`` (``/outputs/`` is in .gitignore); the pipeline's data they only read stays
+where it is; a ``paths.<key>=DIR`` override names the user's own folder.
 The DVC stages (``pipelines/*.py``) keep ``conf/config.yaml``'s paths.
 """
 
