@@ -1,9 +1,11 @@
 """A value with shell syntax in params.yaml is stopped before any DVC stage command runs it.
 
-Issue 20, defect 3: values reach DVC's stage commands unquoted (``corpus.variation=${…}``), so
+Issue 20, defect 3: values reached DVC's stage commands unquoted (``corpus.variation=${…}``), so
 ``1.0;touch PWNED`` in params.yaml (from ``dvc exp run -S`` or a hand edit, which bypass
 ``rigmap reproduce``'s checks) ran ``touch``. The ``check_params`` stage, on which every stage
-depends, refuses the file first.
+depends, refuses the file first; since issue 36 the commands name their values
+(``corpus.variation=@corpus.variation``) and no value reaches a shell even without it
+(tests/test_fault_cli.py, under ``dvc repro --single-item``).
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.errors import RigmapError
+from rigmap.user_outputs import user_paths
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,11 +33,61 @@ def main(argv: list[str] | None = None) -> int:
         # cannot raise again (Python's documented recipe)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
-    except (RigmapError, KeyError, ValueError, FileNotFoundError, PermissionError) as error:
-        # KeyError's str() wraps the message in quotes; show it plain
-        message = error.args[0] if isinstance(error, KeyError) and error.args else error
-        print(f"rigmap: error: {message}", file=sys.stderr)
+    except Exception as error:
+        if not expected_failure(error) or _debugging():
+            raise  # a bug (or RIGMAP_DEBUG=1): the traceback
+        what = command_name(parser, sys.argv[1:] if argv is None else argv)
+        print(f"rigmap: error: {what}: {failure_message(error)}", file=sys.stderr)
         return 2
+
+
+def expected_failure(error: BaseException) -> bool:
+    """A failure the user can act on from its message: bad input, a file, the machine.
+
+    rigmap's own errors, bad values (``ValueError``, ``KeyError``), anything the operating
+    system refuses (every ``OSError``: a missing file, a folder where a file is expected,
+    a full disk), ``MemoryError``, and a config Hydra cannot compose. Anything else is a bug.
+    """
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    expected = (RigmapError, ValueError, KeyError, OSError, MemoryError, HydraException)
+    return isinstance(error, (*expected, OmegaConfBaseException))
+
+
+def failure_message(error: BaseException) -> str:
+    """The error as one line: its message, or what the OS said about which file."""
+    if isinstance(error, KeyError) and error.args:
+        text = str(error.args[0])  # KeyError's str() wraps the message in quotes
+    elif isinstance(error, OSError) and error.strerror and error.filename is not None:
+        names = [str(n) for n in (error.filename, error.filename2) if n is not None]
+        text = f"{' -> '.join(names)}: {error.strerror}"
+    elif isinstance(error, MemoryError):
+        text = f"out of memory{': ' + str(error) if str(error) else ''} (ask for less)"
+    else:
+        text = str(error).strip() or type(error).__name__
+    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def command_name(parser: argparse.ArgumentParser, argv: list[str]) -> str:
+    """The subcommand words of ``argv`` (``learn``, ``synth run``, ``rigs describe``)."""
+    words, current = [], parser
+    for token in argv:
+        choices = next(
+            (a.choices for a in current._actions if isinstance(a, argparse._SubParsersAction)),
+            None,
+        )
+        if not choices or token not in choices:
+            break
+        words.append(token)
+        current = choices[token]
+    return " ".join(words) or "rigmap"
+
+
+def _debugging() -> bool:
+    from rigmap.stage.runner import debugging
+
+    return debugging()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -147,11 +198,13 @@ def _add_fit(commands) -> None:
     _add_stage_command(
         commands,
         "fit",
-        help="fit an inverse mapping into models/<rig>/<regressor>-<sampler>-<kernel>/",
+        help="fit an inverse mapping into outputs/models/<rig>/<regressor>-<sampler>-<kernel>/",
         description="Runs the fit stage (pipelines/fit.py) with Hydra overrides, e.g. "
         "rigmap fit rig=biped regressor=gpr kernel=gaussian sampler=none, or "
         "rigmap fit rig=quadruped regressor=nn sampler=pca_gaussian experiment=paper. "
-        "Paths in the config (paths.data, paths.models) are relative to the working directory.",
+        "The corpus is read from paths.data (data/); the model goes under outputs/models/ "
+        "(git-ignored; paths.models=DIR names another folder), never the pipeline's models/. "
+        "Paths are relative to the working directory.",
         overrides="rig=, regressor=, kernel=, sampler=, experiment=, budget.*=, paths.*=",
         run=_fit,
     )
@@ -161,13 +214,15 @@ def _add_evaluate(commands) -> None:
     _add_stage_command(
         commands,
         "evaluate",
-        help="score methods on a rig's test clips into metrics/<rig>/<set>/ (and MLflow)",
+        help="score methods on a rig's test clips into outputs/metrics/<rig>/<set>/ (and MLflow)",
         description="Runs the evaluate stage (as pipelines/evaluate.py, in this process) with "
         "Hydra overrides, e.g. "
         "rigmap evaluate rig=quadruped evaluate.set=methods, rigmap evaluate rig=biped "
         "evaluate.set=samplers, rigmap evaluate rig=face 'evaluate.methods=[gpr,nn]' "
-        "evaluate.log_to_mlflow=false. Paths in the config (paths.data, paths.models, "
-        "paths.metrics) are relative to the working directory.",
+        "evaluate.log_to_mlflow=false. Reads paths.data and paths.models (the pipeline's "
+        "data/ and models/; paths.models=outputs/models for your own rigmap fit); writes "
+        "under outputs/ (paths.metrics=DIR names another folder), relative to the working "
+        "directory.",
         overrides="rig=, evaluate.set=, evaluate.methods=, sampler=, kernel=, experiment=, "
         "tracking.uri=, paths.*=",
         run=_evaluate,
@@ -182,13 +237,13 @@ def _add_edits(commands) -> None:
     )
     verbs = edits.add_subparsers(title="edit commands", metavar="EDIT_COMMAND")
     for verb, what in (
-        ("fit", "fit each edit's GPs into models/<subject>/edits/"),
-        ("apply", "propagate each edit to the held-out clips into data/<subject>/edits/"),
-        ("evaluate", "score the propagated edits into metrics/<subject>/edits/"),
+        ("fit", "fit each edit's GPs into outputs/models/<subject>/edits/"),
+        ("apply", "propagate each edit to the held-out clips into outputs/data/<subject>/edits/"),
+        ("evaluate", "score the propagated edits into outputs/metrics/<subject>/edits/"),
         (
             "add",
             "fix frames round by round (suggested vs random) and refit, into "
-            "metrics/<subject>/edits/refinement/",
+            "outputs/metrics/<subject>/edits/refinement/",
         ),
     ):
         _add_stage_command(
@@ -207,7 +262,8 @@ def _add_edits(commands) -> None:
             )
             + "conf/edits/default.yaml (edits=mls or edits=mirrored: conf/edits/) with Hydra "
             f"overrides, e.g. rigmap edits {verb} 'edits.run=[biped]' 'edits.names=[arm_swing]'. "
-            "Paths are relative to the working directory.",
+            "Writes under outputs/ (paths.data=, paths.models=, paths.metrics= name other "
+            "folders); paths are relative to the working directory.",
             overrides="edits=, edits.run=, edits.names=, edits.residual=, edits.weights.*=, "
             "paths.*=",
             run=lambda args, verb=verb: _edits(verb, args),
@@ -220,7 +276,8 @@ def _edits(verb: str, args) -> int:
     from rigmap.edits import runs
     from rigmap.store import Layout
 
-    cfg = compose_config(["+edits=default", *args.overrides], args.config_dir)
+    overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
+    cfg = compose_config(["+edits=default", *overrides], args.config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
     for path in getattr(runs, f"run_{verb}")(config, layout):
@@ -398,7 +455,8 @@ def _fit(args) -> int:
     from rigmap.regression.fitting import fit_from_config
     from rigmap.stage.runner import apply_rig_overrides
 
-    cfg = apply_rig_overrides(compose_config(args.overrides, args.config_dir))
+    overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
+    cfg = apply_rig_overrides(compose_config(overrides, args.config_dir))
     result = fit_from_config(OmegaConf.to_container(cfg, resolve=True))
     print(result.folder)
     return 0
@@ -410,7 +468,8 @@ def _evaluate(args) -> int:
 
     from rigmap.evaluation import evaluate_from_config
 
-    cfg = compose_config(args.overrides, args.config_dir, with_hydra=True)
+    overrides = [*user_paths(args.overrides, keys=("metrics", "reports")), *args.overrides]
+    cfg = compose_config(overrides, args.config_dir, with_hydra=True)
     experiment = cfg.hydra.runtime.choices.get("experiment")
     stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
     evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
@@ -422,7 +481,9 @@ def _map_config(args) -> dict:
 
     from rigmap.stage.runner import stage_config
 
-    cfg = stage_config(compose_config(args.overrides, args.config_dir, config_name="map"))
+    # the map's model cache (paths.models) goes under outputs/; the corpus is read from data/
+    overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
+    cfg = stage_config(compose_config(overrides, args.config_dir, config_name="map"))
     return OmegaConf.to_container(cfg, resolve=True)
 
 

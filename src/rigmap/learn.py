@@ -5,10 +5,12 @@ corpus (:mod:`rigmap.rigs.blender.blend_corpus`); then the stages the built-in B
 run in dvc.yaml, with the same commands (``pipelines/<stage>.py``): pose, supersample (the
 ``pipeline.blender_samplers``), the network, the GPR (``pipeline.blender_kernels``) and the
 mean predictor, and Table 1's methods on the test clips (``evaluate.set=methods``) into
-``metrics/blend_file:<stem>/methods/``. The budgets are the rig config's ``_overrides_``.
-Each stage runs in a process of its own, as DVC would run it; the wall time of each is
-printed as JSON at the end. The .blend is only read. Not a DVC stage: a user's file is not
-one of the reproduced experiments, so nothing here touches dvc.yaml or dvc.lock.
+``outputs/metrics/blend_file:<stem>/methods/``. The budgets are the rig config's
+``_overrides_``. Each stage runs in a process of its own, as DVC would run it; the wall
+time of each is printed as JSON at the end. The .blend is only read. Not a DVC stage: a
+user's file is not one of the reproduced experiments, so nothing here touches dvc.yaml,
+dvc.lock or the tracked data/, models/, metrics/: everything goes under ``outputs/``
+(git-ignored) or the folder given with ``--out`` (:mod:`rigmap.user_outputs`).
 """
 
 from __future__ import annotations
@@ -21,7 +23,14 @@ import sys
 import time
 from pathlib import Path
 
+from rigmap.errors import RigmapError
+from rigmap.user_outputs import USER_OUTPUTS, user_paths
+
 STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
+
+
+class LearnError(RigmapError, RuntimeError):
+    """A stage of ``rigmap learn`` failed; the message is the stage's own."""
 
 
 def rig_overrides(blend: Path, armature: str | None) -> list[str]:
@@ -37,11 +46,13 @@ def learn_commands(
     project: Path,
     compose,
     python: str = sys.executable,
+    out: str | os.PathLike | None = None,
 ) -> list[tuple[str, list[str]]]:
     """``(stage, argv)`` of every stage, in the order they must run.
 
     ``compose(overrides, config_dir)`` is the Hydra composition (:func:`rigmap.cli.compose_config`)
-    that names the pipeline's Blender samplers and kernels.
+    that names the pipeline's Blender samplers and kernels. ``out``: the folder of the
+    stages' data/, models/, metrics/ and reports/ (default ``<project>/outputs``).
     """
     blend = Path(blend).expanduser().resolve()
     if not blend.is_file():
@@ -50,6 +61,8 @@ def learn_commands(
         raise ValueError(f"{blend}: expected a .blend file")
     rig = rig_overrides(blend, armature)
     extra = list(overrides)
+    out = Path(out).expanduser().resolve() if out is not None else project / USER_OUTPUTS
+    extra = [*user_paths(extra, root=out), *extra]
     cfg = compose([*rig, *extra], project / "conf")
     samplers = list(cfg.pipeline.blender_samplers)
     kernels = list(cfg.pipeline.blender_kernels)
@@ -78,12 +91,18 @@ def run_learn(
     until: str | None = None,
     dry: bool = False,
     out=sys.stdout,
+    outputs: str | os.PathLike | None = None,
 ) -> dict:
     """Run the stages (up to and including ``until``); ``{"stages": [{stage, seconds}]}``."""
     if until is not None and until not in STAGES:
         raise ValueError(f"--until must be one of {list(STAGES)}, got {until!r}")
     commands = learn_commands(
-        blend, armature=armature, overrides=overrides, project=project, compose=compose
+        blend,
+        armature=armature,
+        overrides=overrides,
+        project=project,
+        compose=compose,
+        out=outputs,
     )
     if until is not None:
         last = max(i for i, (name, _) in enumerate(commands) if name == until)
@@ -100,15 +119,49 @@ def run_learn(
         if dry:
             continue
         started = time.perf_counter()
-        done = subprocess.run(argv, cwd=project, env=env, check=False)
+        code, message = _run_stage(argv, project, env)
         seconds = time.perf_counter() - started
         timings.append({"stage": name, "command": argv[1:], "seconds": round(seconds, 2)})
-        if done.returncode != 0:
-            raise RuntimeError(f"rigmap learn: stage {name} failed (exit {done.returncode})")
+        if code != 0:
+            raise LearnError(
+                f"stage {name}: {message}"
+                if message
+                else f"stage {name} failed (exit {code}); its output is above"
+            )
     report = {"blend_file": str(Path(blend).resolve()), "stages": timings}
     if not dry:
         print(json.dumps(report, indent=1), file=out)
     return report
+
+
+STAGE_ERROR = "error: "  # how a stage prints an error the user can fix (rigmap.stage.runner)
+
+
+def _run_stage(argv: list[str], project: Path, env: dict) -> tuple[int, str]:
+    """Run one stage, its stderr passed through; (exit code, its ``error: <stage>:`` message).
+
+    The stage's own one-line error is held back and returned, so that ``rigmap learn``
+    prints it once, as its own error; everything else (progress, a bug's traceback)
+    reaches the terminal as the stage writes it.
+    """
+    process = subprocess.Popen(argv, cwd=project, env=env, stderr=subprocess.PIPE)
+    message, pending = "", b""
+    while chunk := os.read(process.stderr.fileno(), 65536):
+        *lines, pending = (pending + chunk).split(b"\n")
+        for line in lines:
+            text = line.decode("utf-8", "replace")
+            if text.startswith(STAGE_ERROR):
+                message = text.split(": ", 2)[-1]  # "error: <stage>: <message>"
+            else:
+                sys.stderr.buffer.write(line + b"\n")
+        if pending and not pending.startswith(STAGE_ERROR.encode()[: len(pending)]):
+            sys.stderr.buffer.write(pending)  # a progress bar's line, shown as it draws
+            pending = b""
+        sys.stderr.buffer.flush()
+    if pending:
+        sys.stderr.buffer.write(pending)
+    process.stderr.close()
+    return process.wait(), message
 
 
 def add_learn_command(commands, compose, find_config_dir) -> None:
@@ -119,7 +172,7 @@ def add_learn_command(commands, compose, find_config_dir) -> None:
     learn = commands.add_parser(
         "learn",
         help="the whole pipeline on your own .blend: its actions as the corpus, then fit and "
-        "evaluate (metrics/blend_file:<name>/)",
+        "evaluate (outputs/metrics/blend_file:<name>/)",
         description=__doc__.split("\n\n")[1].replace("\n", " "),
     )
     learn.add_argument("blend", type=Path, help="the .blend with an armature and its actions")
@@ -128,6 +181,12 @@ def add_learn_command(commands, compose, find_config_dir) -> None:
     )
     learn.add_argument("--until", default=None, choices=STAGES, help="stop after this stage")
     learn.add_argument("--dry", action="store_true", help="print the stage commands only")
+    learn.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="folder of the run's data/, models/, metrics/ (default: outputs/ in the project)",
+    )
     learn.add_argument(
         "overrides", nargs="*", metavar="KEY=VALUE", help="Hydra overrides given to every stage"
     )
@@ -150,5 +209,6 @@ def _learn(args, compose, find_config_dir) -> int:
         compose=compose,
         until=args.until,
         dry=args.dry,
+        outputs=args.out,
     )
     return 0

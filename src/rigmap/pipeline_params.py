@@ -4,8 +4,9 @@ DVC's Hydra integration (``hydra.enabled`` in ``.dvc/config``) makes
 ``dvc exp run -S experiment=paper -S regressor.hidden=1024`` compose
 ``conf/config.yaml`` with those overrides, resolve every interpolation and dump
 the result to ``params.yaml`` before reproducing. The stages in ``dvc.yaml``
-interpolate the values they use from it into their command lines
-(``python pipelines/supersample.py ... budget.samples=${budget.samples}``), so
+list the values they use from it (``params:``) and name them in their command lines
+(``python pipelines/supersample.py ... budget.samples=@budget.samples``; the stage reads
+the value itself, so no value ever passes through a shell), so
 DVC re-runs exactly the stages whose values changed, ``dvc.lock`` records the
 values each output was made with, and ``dvc exp show`` lists them.
 
@@ -175,12 +176,17 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 _INTERPOLATION = re.compile(r"\$\{\s*([A-Za-z_][\w.]*)\s*\}")
+_PLACEHOLDER = re.compile(r"=@([A-Za-z_][\w.]*)")  # a stage command's KEY=@NAME
 
 
 def interpolated_params(dvc_yaml: str | Path) -> set[str]:
-    """The ``params.yaml`` keys that ``dvc.yaml`` interpolates, such as ``${budget.samples}``."""
+    """The ``params.yaml`` keys that ``dvc.yaml`` reads: ``${pipeline.rigs}`` or ``seed=@seed``.
+
+    Commands name their values (``@seed``, filled in by :mod:`rigmap.stage.placeholders`,
+    never by a shell); ``${...}`` is left for matrix lists and paths.
+    """
     text = Path(dvc_yaml).read_text(encoding="utf-8")
-    keys = set(_INTERPOLATION.findall(text))
+    keys = set(_INTERPOLATION.findall(text)) | set(_PLACEHOLDER.findall(text))
     return {k for k in keys if not k.startswith("item.") and k != "item"}
 
 
@@ -215,13 +221,53 @@ def check_params_file(project: str | Path, params_file: str | Path = PARAMS_FILE
     write_text_atomic(project / "data" / CHECKED_STAMP, "params.yaml checked\n")
 
 
+def stale_params(project: str | Path, params_file: str | Path = PARAMS_FILE) -> list[str]:
+    """The keys where the committed ``params.yaml`` differs from what ``conf/`` composes.
+
+    A stale file makes a plain ``dvc repro`` on a fresh clone run other settings than
+    the ones the report states; CI runs this before reproducing (``.ci/run``).
+    """
+    import yaml
+
+    project = Path(project)
+    path = project / params_file
+    composed = compose_params(project / "conf", ())
+    try:
+        text = path.read_text(encoding="utf-8")
+        flat = flatten(yaml.safe_load(text) or {})
+    except (OSError, yaml.YAMLError) as error:
+        raise ParamsError(f"{path}: not readable as YAML ({error})") from None
+    if text == composed:
+        return []
+    plain = flatten(yaml.safe_load(composed))
+    keys = sorted(set(flat) | set(plain))
+    return [k for k in keys if flat.get(k, _ABSENT) != plain.get(k, _ABSENT)] or ["(layout)"]
+
+
+_USAGE = "usage: python -m rigmap.pipeline_params {check [params.yaml] | fresh}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m rigmap.pipeline_params check [params.yaml]`` (the check_params stage)."""
+    """``check [params.yaml]`` (the check_params stage); ``fresh`` (params.yaml is conf/'s)."""
     import sys
 
     args = list(sys.argv[1:] if argv is None else argv)
+    if args == ["fresh"]:
+        try:
+            stale = stale_params(Path.cwd())
+        except ParamsError as error:
+            print(f"error: params.yaml: {error}", file=sys.stderr)
+            return 2
+        if stale:
+            print(
+                f"error: params.yaml: differs from what conf/ composes at {', '.join(stale)}; "
+                "regenerate it with `rigmap reproduce --params-only` and commit it",
+                file=sys.stderr,
+            )
+            return 2
+        return 0
     if not args or args[0] != "check" or len(args) > 2:
-        print("usage: python -m rigmap.pipeline_params check [params.yaml]", file=sys.stderr)
+        print(_USAGE, file=sys.stderr)
         return 2
     try:
         check_params_file(Path.cwd(), args[1] if len(args) == 2 else PARAMS_FILE)

@@ -284,7 +284,7 @@ def _run(plan: ReproducePlan, update, out: TextIO) -> int:
         if not reached:
             print(
                 f"{PREFIX} warning: no stage in dvc.yaml interpolates any of these values "
-                "(${...} in its cmd), so they change nothing the pipeline runs",
+                "(KEY=@NAME in its cmd, or ${...}), so they change nothing the pipeline runs",
                 file=out,
             )
     if plan.params_only:

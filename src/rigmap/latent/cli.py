@@ -39,15 +39,18 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
     )
     verbs = synth.add_subparsers(title="synth commands", metavar="SYNTH_COMMAND")
     for verb, what in (
-        ("fit", "fit one latent model per label into models/<rig>/latent/fit/"),
-        ("match", "find matching points of every model pair into models/<rig>/latent/match/"),
+        ("fit", "fit one latent model per label into outputs/models/<rig>/latent/fit/"),
+        (
+            "match",
+            "find matching points of every model pair into outputs/models/<rig>/latent/match/",
+        ),
     ):
         command = verbs.add_parser(
             verb, help=what,
             description=f"Runs the latent_{verb} stage (pipelines/latent.py "
             f"+latent_step={verb}) in this process: {what}. Example: rigmap synth {verb} "
-            "rig=face latent.max_iter=100 latent.log_to_mlflow=false. Paths are relative to "
-            "the working directory.",
+            "rig=face latent.max_iter=100 latent.log_to_mlflow=false. Writes under outputs/ "
+            "(paths.models=DIR names another folder), relative to the working directory.",
         )  # fmt: skip
         _overrides(command)
         command.set_defaults(run=lambda args, verb=verb: _stage(verb, args, compose_config))
@@ -96,8 +99,10 @@ def _overrides(command) -> None:
 
 def _stage(verb: str, args, compose_config) -> int:
     from rigmap.latent.stage import run_step
+    from rigmap.user_outputs import user_paths
 
-    cfg = compose_config([f"+latent_step={verb}", *args.overrides], args.config_dir)
+    overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
+    cfg = compose_config([f"+latent_step={verb}", *overrides], args.config_dir)
     print(run_step(cfg))
     return 0
 
@@ -106,8 +111,14 @@ def _loaded(args, compose_config):
     from rigmap.latent import runs
     from rigmap.latent.stage import latent_config
     from rigmap.stage.inputs import layout_of, rig_from_config
+    from rigmap.user_outputs import USER_OUTPUTS, user_paths
 
+    # only --out is written; the models are your own `synth fit` and `match`'s under
+    # outputs/ when there, else the pipeline's (models/), unless paths.models=DIR names them
     cfg = compose_config(list(args.overrides), args.config_dir)
+    own = user_paths(args.overrides, keys=("models",))
+    if own and (USER_OUTPUTS / "models" / str(cfg.rig.name) / "latent" / "fit").is_dir():
+        cfg = compose_config([*own, *args.overrides], args.config_dir)
     rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
     config = latent_config(cfg)
     return rig, config, runs.load_fitted(layout, rig.name), runs.load_table(layout, rig.name)

@@ -4,13 +4,15 @@ A stage script is ``run(cfg)`` plus ``if __name__ == "__main__": run_stage(run)`
 :func:`run_stage` hands ``run`` to ``hydra.main`` (the config is the project's
 ``conf/config.yaml``, found beside the script's folder) and sorts what goes wrong:
 
-- an error rigmap raises on purpose (:class:`rigmap.errors.RigmapError`), a missing or
-  unreadable file (``FileNotFoundError``, ``PermissionError``) and a config Hydra cannot
+- an error rigmap raises on purpose (:class:`rigmap.errors.RigmapError`), a file the OS
+  refuses (any ``OSError`` naming it), ``MemoryError`` and a config Hydra cannot
   compose (``rig=nope``, a bad override) print ``error: <stage>: <message>`` on stderr and
   exit with :data:`USER_ERROR_EXIT` — the user can fix them from the message alone;
 - anything else is a bug and keeps its full traceback (exit 1);
 - ``RIGMAP_DEBUG=1`` shows the traceback of every error.
 
+A command's ``KEY=@NAME`` and ``KEY=@item.K`` take their values from params.yaml and the
+DVC matrix entry (:mod:`~rigmap.stage.placeholders`), checked before ``run`` starts.
 Before ``run`` sees the config, the chosen rig's ``_overrides_`` are merged over it
 (:func:`apply_rig_overrides`: a slow rig's smaller budgets) and dvc.yaml's ``pipeline``
 lists are dropped (:func:`stage_config`).
@@ -34,7 +36,7 @@ from rigmap.errors import RigmapError
 USER_ERROR_EXIT = 2  # the exit status of an error the user can fix (as argparse's usage errors)
 DEBUG_VARIABLE = "RIGMAP_DEBUG"
 CONFIG_NAME = "config"
-FILE_ERRORS = (FileNotFoundError, PermissionError)
+FILE_ERRORS = (FileNotFoundError, PermissionError)  # kept for importers; any OSError counts
 PIPELINE_LISTS = "pipeline"  # dvc.yaml's lists of rigs (conf/config.yaml), not a stage's input
 RIG_OVERRIDES = "_overrides_"  # config values a rig fixes for every stage (apply_rig_overrides)
 
@@ -56,11 +58,20 @@ def run_stage(
     name = name or script.stem
     config_dir = Path(config_dir) if config_dir is not None else script.parent.parent / "conf"
 
+    from rigmap.stage.placeholders import apply_params, resolve_argv
+
+    try:  # dvc.yaml's @placeholders: values from params.yaml, never through a shell
+        resolved = resolve_argv(sys.argv)
+    except Exception as error:
+        _exit_if_users(name, error)
+        raise
+    sys.argv[:] = resolved.argv
+
     def stage_task(cfg: Any) -> Any:
         # errors inside the task are sorted here: past this point Hydra would print
         # "Error executing job ..." before re-raising
         try:
-            return task(stage_config(cfg))
+            return task(stage_config(apply_params(cfg, resolved.params)))
         except Exception as error:
             _exit_if_users(name, error)
             raise
@@ -129,9 +140,10 @@ def is_user_error(error: BaseException) -> bool:
     """An error whose message tells the user what to fix (not a bug in rigmap)."""
     from hydra.errors import HydraException
 
-    if isinstance(error, (RigmapError, HydraException)):
+    if isinstance(error, (RigmapError, HydraException, MemoryError)):
         return True
-    return isinstance(error, FILE_ERRORS) and bool(error.filename or str(error))
+    # any OSError naming its file: missing, a folder where a file is expected, a full disk
+    return isinstance(error, OSError) and bool(error.filename or str(error))
 
 
 def error_message(error: BaseException) -> str:

@@ -11,6 +11,7 @@
 """
 
 from rigmap.store.atomic import (
+    OutputConflictError,
     atomic_file,
     write_bytes_atomic,
     write_folder_atomic,
@@ -25,6 +26,7 @@ from rigmap.store.table_file import TableFileError, read_table_file, write_table
 __all__ = [
     "Layout",
     "ModelId",
+    "OutputConflictError",
     "TableFileError",
     "atomic_file",
     "json_ready",

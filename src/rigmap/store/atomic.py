@@ -3,10 +3,17 @@
 A writer killed mid-way leaves at most a hidden temporary file (removed on any Python
 exception) and never a truncated target, so a DVC stage that dies can simply be re-run.
 Files are made readable by everyone (``mkstemp`` creates them 0600).
+
+Two writers of one output (two runs of one stage, a user's command beside DVC): each fills
+its own temporary, then swaps it in holding an exclusive ``flock`` on the target's parent
+folder (a lock on the folder itself, so no lock file is left among the outputs). So one
+wins whole and the other waits its turn; a file where a folder is (or the reverse) is an
+``OutputConflictError`` naming the path, never a mixed file/folder.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -17,8 +24,34 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from rigmap.errors import RigmapError
+
 FILE_MODE = 0o644
 FOLDER_MODE = 0o755
+
+
+class OutputConflictError(RigmapError, FileExistsError):
+    """The target is a folder where a file is written, or a file where a folder is."""
+
+
+@contextmanager
+def _swap_lock(parent: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``parent`` (its own inode) while an output is swapped in."""
+    try:
+        import fcntl
+    except ImportError:  # no flock (Windows): the rename alone, as before
+        yield
+        return
+    handle = os.open(parent, os.O_RDONLY)
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except OSError as error:  # a file system without flock: the rename alone, as before
+            if error.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+        yield
+    finally:
+        os.close(handle)  # closing releases the lock
 
 
 @contextmanager
@@ -37,7 +70,13 @@ def atomic_file(path: str | os.PathLike, *, suffix: str = ".tmp") -> Iterator[Pa
         with open(temporary, "rb") as stream:
             os.fsync(stream.fileno())
         os.chmod(temporary, FILE_MODE)
-        os.replace(temporary, out)
+        with _swap_lock(out.parent):
+            if out.is_dir() and not out.is_symlink():
+                raise OutputConflictError(
+                    f"{out}: a folder is there (another writer's output?); not replacing it "
+                    "with a file"
+                )
+            os.replace(temporary, out)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
@@ -74,19 +113,28 @@ def write_folder_atomic(folder: str | os.PathLike, fill: Callable[[Path], None])
     _remove_abandoned(folder)
     prefix = f".{folder.name}.{os.getpid()}."
     staging = Path(tempfile.mkdtemp(prefix=prefix, suffix=".tmp", dir=folder.parent))
+    retired = None
     try:
         fill(staging)
         staging.chmod(FOLDER_MODE)
-        if folder.exists():
-            retired = Path(tempfile.mkdtemp(prefix=prefix, suffix=".old", dir=folder.parent))
-            os.replace(folder, retired / folder.name)
-            os.replace(staging, folder)
-            shutil.rmtree(retired)
-        else:
+        with _swap_lock(folder.parent):  # another writer of `folder` waits here
+            if folder.exists() or folder.is_symlink():
+                if not folder.is_dir() or folder.is_symlink():
+                    raise OutputConflictError(
+                        f"{folder}: a file is there (another writer's output?); not "
+                        "replacing it with a folder"
+                    )
+                retired = Path(tempfile.mkdtemp(prefix=prefix, suffix=".old", dir=folder.parent))
+                os.replace(folder, retired / folder.name)
             os.replace(staging, folder)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
+        if retired is not None and not folder.exists() and (retired / folder.name).exists():
+            os.replace(retired / folder.name, folder)  # put the old output back
         raise
+    finally:
+        if retired is not None:
+            shutil.rmtree(retired, ignore_errors=True)
     return folder
 
 
