@@ -34,10 +34,13 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
     except Exception as error:
-        if not expected_failure(error) or _debugging():
+        from rigmap.tracking.store import tracking_failure
+
+        shown = tracking_failure(error) or error  # a stalled tracking server, in one line
+        if not expected_failure(shown) or _debugging():
             raise  # a bug (or RIGMAP_DEBUG=1): the traceback
         what = command_name(parser, sys.argv[1:] if argv is None else argv)
-        print(f"rigmap: error: {what}: {failure_message(error)}", file=sys.stderr)
+        print(f"rigmap: error: {what}: {failure_message(shown)}", file=sys.stderr)
         return 2
 
 

@@ -89,6 +89,9 @@ def run_stage(
 
 def _exit_if_users(name: str, error: Exception) -> None:
     """Print a user error as one message and exit; return for a bug (or when debugging)."""
+    from rigmap.tracking.store import tracking_failure
+
+    error = tracking_failure(error) or error  # a stalled tracking server, in one line
     if debugging() or not is_user_error(error):
         return
     sys.stderr.write(f"error: {name}: {error_message(error)}\n")

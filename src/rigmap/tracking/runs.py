@@ -43,6 +43,8 @@ from rigmap.tracking.keys import (
 from rigmap.tracking.pyfunc_model import LoggedMapping, log_inverse_mapping
 from rigmap.tracking.store import (
     DEFAULT_PROBE_TIMEOUT_S,
+    DEFAULT_REQUEST_RETRIES,
+    DEFAULT_REQUEST_TIMEOUT_S,
     bound_http_retries,
     check_reachable,
     find_project_root,
@@ -86,6 +88,8 @@ class Tracker:
         *,
         root: str | os.PathLike | None = None,
         probe_timeout_s: float = DEFAULT_PROBE_TIMEOUT_S,
+        request_timeout_s: int = DEFAULT_REQUEST_TIMEOUT_S,
+        request_retries: int = DEFAULT_REQUEST_RETRIES,
         experiment_prefix: str = EXPERIMENT_PREFIX,
         register_models: bool = True,
         system_metrics_interval_s: float | None = None,
@@ -95,7 +99,7 @@ class Tracker:
         resolved = resolve_tracking_uri(uri, root=project)
         check_reachable(resolved, probe_timeout_s)
         if is_http_uri(resolved):
-            bound_http_retries()
+            bound_http_retries(request_timeout_s, request_retries)
         return cls(
             resolved,
             root=project,
@@ -108,8 +112,15 @@ class Tracker:
     def from_config(cls, config: Mapping | None, *, root: str | os.PathLike | None = None):
         """From the Hydra ``tracking`` group (see conf/tracking/local.yaml for the fields)."""
         config = dict(config or {})
-        known = {"uri", "probe_timeout_s", "experiment_prefix", "register_models",
-                 "system_metrics_interval_s"}  # fmt: skip
+        known = {
+            "uri",
+            "probe_timeout_s",
+            "request_timeout_s",
+            "request_retries",
+            "experiment_prefix",
+            "register_models",
+            "system_metrics_interval_s",
+        }
         unknown = sorted(set(config) - known)
         if unknown:
             raise ValueError(
@@ -120,6 +131,8 @@ class Tracker:
             config.get("uri"),
             root=root,
             probe_timeout_s=float(config.get("probe_timeout_s", DEFAULT_PROBE_TIMEOUT_S)),
+            request_timeout_s=config.get("request_timeout_s", DEFAULT_REQUEST_TIMEOUT_S),
+            request_retries=config.get("request_retries", DEFAULT_REQUEST_RETRIES),
             experiment_prefix=str(config.get("experiment_prefix", EXPERIMENT_PREFIX)),
             register_models=bool(config.get("register_models", True)),
             system_metrics_interval_s=None if interval is None else float(interval),

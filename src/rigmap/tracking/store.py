@@ -30,12 +30,12 @@ DEFAULT_ARTIFACT_DIR = "mlartifacts"
 DEFAULT_PROBE_TIMEOUT_S = 3.0
 MAX_PROBE_TIMEOUT_S = 10.0  # ours: a check that waits longer than this is no early check
 
-#: bounds on MLflow's own HTTP retries once a server answered the probe (env wins if set)
-HTTP_RETRY_DEFAULTS = {
-    "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "3",
-    "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
-    "MLFLOW_HTTP_REQUEST_TIMEOUT": "60",
-}
+#: ours: one HTTP request to a tracking server waits at most this long, and is retried
+#: this often, so a server that answers the probe and then stalls is named within 10 s
+#: (MLflow's own defaults wait 120 s and retry 7 times)
+DEFAULT_REQUEST_TIMEOUT_S = 4  # whole seconds: MLflow reads an integer
+DEFAULT_REQUEST_RETRIES = 1
+REQUEST_BACKOFF_FACTOR = 1  # ours, an integer as MLflow reads it: urllib3 retries once at once
 
 
 class TrackingUnavailableError(RigmapError, RuntimeError):
@@ -197,10 +197,39 @@ def _check_writable_folder(folder: Path, uri: str) -> None:
         raise TrackingUnavailableError(f"tracking store {uri}: folder {folder} is not writable")
 
 
-def bound_http_retries() -> None:
-    """Cap MLflow's HTTP retries so a server that dies mid-run fails in about a minute.
+def bound_http_retries(
+    timeout_s: int = DEFAULT_REQUEST_TIMEOUT_S, retries: int = DEFAULT_REQUEST_RETRIES
+) -> None:
+    """Bound every MLflow HTTP request: ``timeout_s`` per attempt, ``retries`` more attempts.
 
-    Sets only variables the user has not set (``HTTP_RETRY_DEFAULTS``).
+    The values come from ``tracking.request_timeout_s`` / ``tracking.request_retries``
+    (one setting for every call rigmap makes); MLflow reads these variables per request.
     """
-    for name, value in HTTP_RETRY_DEFAULTS.items():
-        os.environ.setdefault(name, value)
+    if isinstance(timeout_s, bool) or int(timeout_s) != timeout_s or timeout_s < 1:
+        raise ValueError(f"tracking.request_timeout_s must be whole seconds >= 1, got {timeout_s}")
+    if isinstance(retries, bool) or int(retries) != retries or retries < 0:
+        raise ValueError(f"tracking.request_retries must be an integer >= 0, got {retries}")
+    os.environ["MLFLOW_HTTP_REQUEST_TIMEOUT"] = str(int(timeout_s))
+    os.environ["MLFLOW_HTTP_REQUEST_MAX_RETRIES"] = str(int(retries))
+    os.environ["MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR"] = str(REQUEST_BACKOFF_FACTOR)
+
+
+def tracking_failure(error: BaseException) -> TrackingUnavailableError | None:
+    """The one-line error for an MLflow call that found no answer (a server that stalls or
+    went away mid-run), or ``None`` when ``error`` is something else."""
+    from mlflow.exceptions import MlflowException
+
+    if not isinstance(error, MlflowException):
+        return None
+    text = str(error.message if hasattr(error, "message") else error)
+    if "API request to" not in text:
+        return None
+    endpoint = text.split("API request to", 1)[1].split()[0]
+    reason = "timed out" if "timed out" in text.lower() else "failed"
+    timeout = os.environ.get("MLFLOW_HTTP_REQUEST_TIMEOUT", "?")
+    retries = os.environ.get("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "?")
+    return TrackingUnavailableError(
+        f"the tracking server did not answer {endpoint} ({reason} after {retries} "
+        f"retr{'y' if retries == '1' else 'ies'} of {timeout} s; tracking.request_timeout_s "
+        "and tracking.request_retries set these)"
+    )
