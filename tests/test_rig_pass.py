@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from rigmap.rigs import load
+from rigmap.rigs.engine import torch_rig
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.engine.structured import StructuredPass, check_controls
 from rigmap.rigs.engine.torch_rig import TorchRig
@@ -23,7 +24,7 @@ def _controls(rig, n: int, seed: int) -> torch.Tensor:
 
 
 def _positions(rig, Y: torch.Tensor, reference: bool) -> torch.Tensor:
-    pose = rig.reference_pose(Y) if reference else rig._pose_torch(Y)
+    pose = rig.reference_pose(Y) if reference else rig.structured_pose(Y)
     return pose.positions + pose.cog[:, None]
 
 
@@ -32,7 +33,7 @@ def _positions(rig, Y: torch.Tensor, reference: bool) -> torch.Tensor:
 def test_structured_poses_equal_the_reference(name, seed):
     rig = load(name)
     Y = _controls(rig, 9, seed)
-    got, want = rig._pose_torch(Y), rig.reference_pose(Y)
+    got, want = rig.structured_pose(Y), rig.reference_pose(Y)
     for a, b in zip(got, want, strict=True):
         assert a.shape == b.shape
         torch.testing.assert_close(a, b, rtol=0, atol=TOLERANCE)
@@ -44,7 +45,7 @@ def test_structured_pass_batches_the_repeated_units(name):
     structured = load(name).structured_pass
     kinds = {}
     for unit, size in zip(structured.units, structured.group_sizes, strict=True):
-        step = unit.steps[0] if size > 1 else unit
+        step = unit.steps[0] if size > 1 else getattr(unit, "step", unit)
         kinds.setdefault(step.__qualname__.split(".")[0], []).append(size)
     assert kinds["limb"] == [2, 2]
     assert max(kinds["fk_chain"]) >= 8
@@ -134,7 +135,7 @@ def test_units_that_cannot_fold_run_alone_and_still_equal_the_reference(axes):
     sizes = StructuredPass(rig._steps, rig.controls).group_sizes
     assert (max(sizes) == 2) == (axes[0] == axes[1])
     Y = _controls(rig, 5, 7)
-    for a, b in zip(rig._pose_torch(Y), rig.reference_pose(Y), strict=True):
+    for a, b in zip(rig.structured_pose(Y), rig.reference_pose(Y), strict=True):
         torch.testing.assert_close(a, b, rtol=0, atol=TOLERANCE)
 
 
@@ -142,6 +143,20 @@ def test_units_that_cannot_fold_run_alone_and_still_equal_the_reference(axes):
 def test_float32_poses_stay_within_rounding_of_the_reference(name):
     rig = load(name)
     Y = _controls(rig, 64, 8).float()
-    for a, b in zip(rig._pose_torch(Y), rig.reference_pose(Y), strict=True):
+    for a, b in zip(rig.structured_pose(Y), rig.reference_pose(Y), strict=True):
         assert a.dtype == torch.float32
         torch.testing.assert_close(a, b, rtol=0, atol=1e-3)
+
+
+def test_small_batches_run_by_structure_and_large_ones_and_traces_by_the_reference(
+    quadruped, monkeypatch
+):
+    calls = []
+    monkeypatch.setattr(TorchRig, "structured_pose", lambda self, Y: calls.append(len(Y)))
+    Y = _controls(quadruped, torch_rig.STRUCTURED_MAX_POSES + 1, 9)
+    quadruped._pose_torch(Y[:5])
+    assert calls == [5]
+    quadruped._pose_torch(Y)  # above the threshold: the reference, no call recorded
+    monkeypatch.setattr(torch_rig, "STRUCTURED", False)
+    quadruped._pose_torch(Y[:5])
+    assert calls == [5]

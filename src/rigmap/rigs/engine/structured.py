@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
+from rigmap.rigs.engine import builder
 from rigmap.rigs.engine.builder import Attribute, EvalContext, TransformControl
 from rigmap.rigs.engine.transforms import Transform
 
@@ -202,8 +203,11 @@ class _FoldedMap(dict):
         self._base, self._keys = base, keys
 
     def __missing__(self, key):
-        parts = [self._base[k] for k in self._keys[key]]
-        value = Transform(torch.cat([p.R for p in parts]), torch.cat([p.t for p in parts]))
+        gather = getattr(self._base, "gather", None)
+        value = gather(self._keys[key]) if gather is not None else None
+        if value is None:
+            parts = [self._base[k] for k in self._keys[key]]
+            value = Transform(torch.cat([p.R for p in parts]), torch.cat([p.t for p in parts]))
         dict.__setitem__(self, key, value)
         return value
 
@@ -218,6 +222,58 @@ class _FoldedMap(dict):
 
     def __contains__(self, key):
         return key in self._keys or dict.__contains__(self, key)
+
+
+class _BlockLocals(dict):
+    """The control objects' locals kept as the blocks they were computed in: one control's
+    transform is a view made when asked for, several of one block one ``index_select``."""
+
+    def __init__(self, blocks: list[tuple[list[str], torch.Tensor, torch.Tensor]]):
+        super().__init__()
+        self._blocks = blocks
+        self._where = {
+            name: (b, k) for b, (names, _, _) in enumerate(blocks) for k, name in enumerate(names)
+        }
+
+    def __missing__(self, name):
+        b, k = self._where[name]
+        _, R, t = self._blocks[b]
+        value = Transform(R[k], t[k])
+        dict.__setitem__(self, name, value)
+        return value
+
+    def __contains__(self, name):
+        return name in self._where or dict.__contains__(self, name)
+
+    def gather(self, names: list[str]) -> Transform | None:
+        """``names``' transforms as ``(len(names)·N, …)`` rows, if they share one block."""
+        where = [self._where.get(n) for n in names]
+        if any(w is None for w in where) or len({b for b, _ in where}) != 1:
+            return None
+        _, R, t = self._blocks[where[0][0]]
+        index = torch.as_tensor([k for _, k in where])
+        return Transform(
+            R.index_select(0, index).reshape(-1, *R.shape[2:]),
+            t.index_select(0, index).reshape(-1, *t.shape[2:]),
+        )
+
+
+class _Locals:
+    """The locals step of a rig, run so its blocks stay whole (:class:`_BlockLocals`)."""
+
+    def __init__(self, step: Callable):
+        self.step = step
+
+    def __call__(self, ctx: EvalContext) -> None:
+        if not builder.CONTROL_MAJOR_LOCALS:  # the other layout writes transforms directly
+            self.step(ctx)
+            return
+        ctx.local = _BlockLocals(self.step.blocks(ctx))
+
+
+def _alone(step: Callable) -> Callable:
+    """A step run by itself (the locals step keeping its blocks whole)."""
+    return _Locals(step) if hasattr(step, "blocks") else step
 
 
 class _FoldedContext:
@@ -416,7 +472,8 @@ class StructuredPass:
                 # members of a group that fails its check run one by one
                 parts = [members] if unit is not None else [[i] for i in members]
                 groups.extend(parts)
-                units.extend([unit] if unit is not None else [steps[i] for i in members])
+                alone = [_alone(steps[i]) for i in members]
+                units.extend([unit] if unit is not None else alone)
         level = _levels(deps, groups)
         if level is None:  # levelling failed: every step alone, in the reference order
             groups, units = [[i] for i in range(len(steps))], list(steps)

@@ -36,10 +36,18 @@ GENERIC_TRACE_SIZE = 16
 #: thread: 0.22-0.31 s each, then 6 ms for 16 poses), so they are paid where the trace is
 #: built, not in a timed pass (ours: it is what torch's executor needs)
 JIT_WARMUP_CALLS = 2
-#: every pass (numpy and torch, traced or not) runs the steps by structure
+#: batches of up to ``STRUCTURED_MAX_POSES`` poses run the steps by structure
 #: (:class:`~rigmap.rigs.engine.structured.StructuredPass`, equal to the step-by-step
-#: reference to 1e-10 in float64); off: the reference (:meth:`TorchRig.reference_pose`)
+#: reference to 1e-10 in float64, float32 positions to the bit); off: the reference
+#: (:meth:`TorchRig.reference_pose`) everywhere
 STRUCTURED = True
+#: the largest batch the structured pass runs (ours, ``benchmarks/rig_pass.py``, one thread):
+#: it saves torch's per-operation overhead, which dominates small batches (quadruped forward
+#: and backward: 100 poses 1.6x, 256 1.3x, 512 1.1x faster), but its folded instances turn
+#: products with a shared constant into batched ones, so larger batches ran slower (1 024
+#: poses 0.79x, 4 096 0.86x) and keep the reference; so do TorchScript traces, which have
+#: no Python overhead to save (1 024 poses replayed 0.93x)
+STRUCTURED_MAX_POSES = 512
 
 
 class TorchRig(Rig):
@@ -141,8 +149,12 @@ class TorchRig(Rig):
         return self._structured
 
     def _pose_torch(self, Y: torch.Tensor) -> Pose:
-        if not STRUCTURED:
+        if not STRUCTURED or Y.shape[0] > STRUCTURED_MAX_POSES or torch.jit.is_tracing():
             return self.reference_pose(Y)
+        return self.structured_pose(Y)
+
+    def structured_pose(self, Y: torch.Tensor) -> Pose:
+        """The pass by structure (:attr:`structured_pass`), whatever the batch size."""
         return self._pose_of(self.structured_pass.run(Y))
 
     def reference_pose(self, Y: torch.Tensor) -> Pose:
