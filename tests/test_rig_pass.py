@@ -11,6 +11,7 @@ from rigmap.rigs.engine import torch_rig
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.engine.structured import StructuredPass, check_controls
 from rigmap.rigs.engine.torch_rig import TorchRig
+from rigmap.rigs.engine.transforms import Transform
 from rigmap.rigs.features.chain_attributes import chain_attributes
 from rigmap.rigs.features.fk_chain import fk_chain
 
@@ -160,3 +161,27 @@ def test_small_batches_run_by_structure_and_large_ones_and_traces_by_the_referen
     monkeypatch.setattr(torch_rig, "STRUCTURED", False)
     quadruped._pose_torch(Y[:5])
     assert calls == [5]
+
+
+def test_a_name_written_twice_keeps_the_reference_order():
+    """Two steps of one kind that write the same transform must not be folded or swapped."""
+    b = RigBuilder("twice", cog="root")
+    b.transform_control("root", parent=None, group="root", used="tx ty tz")
+    b.joint("root", None)
+    b.joint("marker", "root")
+
+    def carry(offset: float):
+        def step(ctx) -> None:
+            host = ctx.xf["root"]
+            ctx.xf["marker"] = Transform(host.R, host.apply(ctx.const([offset, 0.0, 0.0])))
+
+        return step
+
+    b.step(carry(1.0))
+    b.step(carry(2.0))
+    rig = TorchRig(b)
+    assert max(rig.structured_pass.group_sizes) == 1
+    Y = _controls(rig, 4, 10)
+    got = rig.structured_pose(Y).positions
+    torch.testing.assert_close(got, rig.reference_pose(Y).positions, rtol=0, atol=0)
+    torch.testing.assert_close(got[:, 1, 0], torch.full((4,), 2.0, dtype=torch.float64))

@@ -357,7 +357,7 @@ class _Group:
         return self._functions[key]
 
     def __call__(self, ctx: EvalContext) -> None:
-        if ctx.n == 0:  # nothing to fold (and split(0) is undefined)
+        if ctx.n == 0:  # nothing to fold (and 0 rows cannot say which instance is which)
             for step in self.steps:
                 step(ctx)
             return
@@ -365,20 +365,29 @@ class _Group:
 
 
 def _dependencies(logs: list[list]) -> list[set[int]]:
-    """For each step, the earlier steps that wrote something it reads (directly)."""
+    """For each step, the earlier steps it must follow: those that wrote what it reads, and
+    those that read or wrote what it writes (so a name written twice keeps its order)."""
     writer: dict = {}
+    readers: dict = {}
     deps = []
     for i, log in enumerate(logs):
         mine = set()
         for kind, key in log:
-            space = kind.split("_")[0]
-            if kind.endswith(("_get", "_has")) and (space, key) in writer:
-                mine.add(writer[(space, key)])
+            where = (kind.split("_")[0], key)
+            if kind.endswith(("_get", "_has")):
+                if where in writer:
+                    mine.add(writer[where])
+                readers.setdefault(where, set()).add(i)
+            elif kind.endswith("_set"):
+                mine |= readers.get(where, set())
+                if where in writer:
+                    mine.add(writer[where])
         mine.discard(i)
         deps.append(mine)
         for kind, key in log:
             if kind.endswith("_set"):
                 writer[(kind.split("_")[0], key)] = i
+                readers.pop((kind.split("_")[0], key), None)
     return deps
 
 
