@@ -169,6 +169,7 @@ def test_a_name_written_twice_keeps_the_reference_order():
     b.transform_control("root", parent=None, group="root", used="tx ty tz")
     b.joint("root", None)
     b.joint("marker", "root")
+    b.set_rest("marker", (2.0, 0.0, 0.0))
 
     def carry(offset: float):
         def step(ctx) -> None:
