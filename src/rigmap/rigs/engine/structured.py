@@ -203,11 +203,8 @@ class _FoldedMap(dict):
         self._base, self._keys = base, keys
 
     def __missing__(self, key):
-        gather = getattr(self._base, "gather", None)
-        value = gather(self._keys[key]) if gather is not None else None
-        if value is None:
-            parts = [self._base[k] for k in self._keys[key]]
-            value = Transform(torch.cat([p.R for p in parts]), torch.cat([p.t for p in parts]))
+        parts = [self._base[k] for k in self._keys[key]]
+        value = Transform(torch.cat([p.R for p in parts]), torch.cat([p.t for p in parts]))
         dict.__setitem__(self, key, value)
         return value
 
@@ -225,37 +222,33 @@ class _FoldedMap(dict):
 
 
 class _BlockLocals(dict):
-    """The control objects' locals kept as the blocks they were computed in: one control's
-    transform is a view made when asked for, several of one block one ``index_select``."""
+    """The control objects' locals kept as the blocks they were computed in, each split into
+    its controls' transforms by one ``unbind`` when first asked for (one gradient node for
+    the block, where a view per control would each fill a zero tensor the block's size)."""
 
     def __init__(self, blocks: list[tuple[list[str], torch.Tensor, torch.Tensor]]):
         super().__init__()
         self._blocks = blocks
+        self._rows: dict[int, tuple] = {}
         self._where = {
             name: (b, k) for b, (names, _, _) in enumerate(blocks) for k, name in enumerate(names)
         }
 
+    def _block(self, b: int) -> tuple:
+        if b not in self._rows:
+            _, R, t = self._blocks[b]
+            self._rows[b] = (R.unbind(0), t.unbind(0))
+        return self._rows[b]
+
     def __missing__(self, name):
         b, k = self._where[name]
-        _, R, t = self._blocks[b]
-        value = Transform(R[k], t[k])
+        Rs, ts = self._block(b)
+        value = Transform(Rs[k], ts[k])
         dict.__setitem__(self, name, value)
         return value
 
     def __contains__(self, name):
         return name in self._where or dict.__contains__(self, name)
-
-    def gather(self, names: list[str]) -> Transform | None:
-        """``names``' transforms as ``(len(names)·N, …)`` rows, if they share one block."""
-        where = [self._where.get(n) for n in names]
-        if any(w is None for w in where) or len({b for b, _ in where}) != 1:
-            return None
-        _, R, t = self._blocks[where[0][0]]
-        index = torch.as_tensor([k for _, k in where])
-        return Transform(
-            R.index_select(0, index).reshape(-1, *R.shape[2:]),
-            t.index_select(0, index).reshape(-1, *t.shape[2:]),
-        )
 
 
 class _Locals:
@@ -276,18 +269,35 @@ def _alone(step: Callable) -> Callable:
     return _Locals(step) if hasattr(step, "blocks") else step
 
 
+class _PassContext(EvalContext):
+    """The pass's context: the control columns the steps read, taken from ``Y`` at once.
+
+    One gather for the pass instead of one per column read, whose gradients would each
+    fill a zero tensor the size of ``Y``; the same values.
+    """
+
+    def __init__(self, Y: torch.Tensor, columns: dict[int, int], index: torch.Tensor):
+        super().__init__(Y)
+        self._rows = Y.index_select(1, index).t().unbind(0) if len(index) else ()
+        self._where = columns
+
+    def value(self, column: int) -> torch.Tensor:
+        where = self._where.get(column)
+        return super().value(column) if where is None else self._rows[where]
+
+
 class _FoldedContext:
     """What a group's folded step sees: ``K`` instances of ``n`` poses as ``K·n`` poses."""
 
     def __init__(self, ctx: EvalContext, group: _Group):
         n = ctx.n
         self.n, self.dtype = group.size * n, ctx.dtype
-        self._Y, self._columns = ctx.Y, group.columns
+        self._ctx, self._Y, self._columns = ctx, ctx.Y, group.columns
         self.xf = _FoldedMap(ctx.xf, group.xf_keys)
         self.local = _FoldedMap(ctx.local, group.local_keys)
 
     def value(self, column: int) -> torch.Tensor:
-        return self._Y[:, self._columns[column]].t().reshape(-1)
+        return torch.cat([self._ctx.value(c) for c in self._columns[column]])
 
     def values(self, columns: list[int]) -> torch.Tensor:
         index = np.array([self._columns[c] for c in columns])  # (m, K)
@@ -474,6 +484,9 @@ class StructuredPass:
         with torch.no_grad():
             logs, reference = record(steps, Y)
         deps = _dependencies(logs)
+        read = sorted({key for log in logs for kind, key in log if kind == "value"})
+        self._read = {column: i for i, column in enumerate(read)}
+        self._read_index = torch.as_tensor(read, dtype=torch.long)
         groups, units = [], []
         for candidates in _candidate_groups(steps, logs, _ancestors(deps)):
             for members in _foldable_parts(steps, logs, candidates):
@@ -514,7 +527,7 @@ class StructuredPass:
         return group
 
     def run(self, Y: torch.Tensor) -> EvalContext:
-        ctx = EvalContext(Y)
+        ctx = _PassContext(Y, self._read, self._read_index)
         for unit in self.units:
             unit(ctx)
         return ctx
