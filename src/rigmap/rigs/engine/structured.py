@@ -498,7 +498,7 @@ class StructuredPass:
                 units.extend([unit] if unit is not None else alone)
         level = _levels(deps, groups)
         if level is None:  # levelling failed: every step alone, in the reference order
-            groups, units = [[i] for i in range(len(steps))], list(steps)
+            groups, units = [[i] for i in range(len(steps))], [_alone(s) for s in steps]
             level = _levels(deps, groups)
         order = sorted(range(len(groups)), key=lambda g: (level[groups[g][0]], min(groups[g])))
         self.units = [units[g] for g in order]
