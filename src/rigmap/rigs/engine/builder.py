@@ -101,9 +101,9 @@ def batched_locals(controls: list[TransformControl]):
         offsets = np.stack([c.rest_offset for c in group])
         plans.append((order, [c.name for c in group], cols, offsets))
 
-    def fill(ctx: EvalContext) -> None:
-        if not CONTROL_MAJOR_LOCALS:
-            return _fill_pose_major(ctx)
+    def blocks(ctx: EvalContext) -> list[tuple[list[str], torch.Tensor, torch.Tensor]]:
+        """Per rotation order: the controls' names, ``R`` ``(K, N, 3, 3)``, ``t`` ``(K, N, 3)``."""
+        out = []
         for order, names, cols, offsets in plans:
             # channel by channel, (9, K, N): each control's R and t come out contiguous
             index = torch.as_tensor(cols.T.reshape(-1))
@@ -111,7 +111,13 @@ def batched_locals(controls: list[TransformControl]):
             t = torch.stack([values[0], values[1], values[2]], dim=-1) + ctx.const(offsets)[:, None]
             angles = [(values[3 + "xyz".index(axis)], axis) for axis in order]
             scale = torch.stack([values[6], values[7], values[8]], dim=-1)[..., None, :]
-            R = rotation_product(angles) * scale  # (K, N, 3, 3)
+            out.append((names, rotation_product(angles) * scale, t))
+        return out
+
+    def fill(ctx: EvalContext) -> None:
+        if not CONTROL_MAJOR_LOCALS:
+            return _fill_pose_major(ctx)
+        for names, R, t in blocks(ctx):
             for k, name in enumerate(names):
                 ctx.local[name] = Transform(R[k], t[k])
 
@@ -123,6 +129,7 @@ def batched_locals(controls: list[TransformControl]):
             for k, name in enumerate(names):
                 ctx.local[name] = Transform(R[:, k], t[:, k])
 
+    fill.blocks = blocks  # the structured pass keeps the blocks (rigmap.rigs.engine.structured)
     return fill
 
 

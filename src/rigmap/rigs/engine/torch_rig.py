@@ -11,6 +11,7 @@ import torch
 
 from rigmap.rigs.base import ControlTable, Pose, Rig, _is_torch
 from rigmap.rigs.engine.builder import EvalContext, RigBuilder, batched_locals
+from rigmap.rigs.engine.structured import StructuredPass
 
 # Large batches are evaluated in chunks so memory stays bounded (~100 MB a chunk).
 DEFAULT_CHUNK = 16_384
@@ -35,6 +36,18 @@ GENERIC_TRACE_SIZE = 16
 #: thread: 0.22-0.31 s each, then 6 ms for 16 poses), so they are paid where the trace is
 #: built, not in a timed pass (ours: it is what torch's executor needs)
 JIT_WARMUP_CALLS = 2
+#: batches of up to ``STRUCTURED_MAX_POSES`` poses run the steps by structure
+#: (:class:`~rigmap.rigs.engine.structured.StructuredPass`, equal to the step-by-step
+#: reference to 1e-10 in float64, float32 positions to the bit); off: the reference
+#: (:meth:`TorchRig.reference_pose`) everywhere
+STRUCTURED = True
+#: the largest batch the structured pass runs (ours, ``benchmarks/rig_pass.py``, one thread):
+#: it saves torch's per-operation overhead, which dominates small batches (quadruped forward
+#: and backward: 100 poses 1.6x, 256 1.3x, 512 1.1x faster), but its folded instances turn
+#: products with a shared constant into batched ones, so larger batches ran slower (1 024
+#: poses 0.79x, 4 096 0.86x) and keep the reference; so do TorchScript traces, which have
+#: no Python overhead to save (1 024 poses replayed 0.93x)
+STRUCTURED_MAX_POSES = 512
 
 
 class TorchRig(Rig):
@@ -128,10 +141,31 @@ class TorchRig(Rig):
                 parts.append([o[:n].numpy() for o in out])
         return Pose(*(np.concatenate([p[k] for p in parts]) for k in range(3)))
 
+    @property
+    def structured_pass(self) -> StructuredPass:
+        """The steps grouped by kind and level, built (and checked) on first use."""
+        if "_structured" not in self.__dict__:
+            self._structured = StructuredPass(self._steps, self.controls)
+        return self._structured
+
     def _pose_torch(self, Y: torch.Tensor) -> Pose:
+        if not STRUCTURED or Y.shape[0] > STRUCTURED_MAX_POSES or torch.jit.is_tracing():
+            return self.reference_pose(Y)
+        return self.structured_pose(Y)
+
+    def structured_pose(self, Y: torch.Tensor) -> Pose:
+        """The pass by structure (:attr:`structured_pass`), whatever the batch size."""
+        return self._pose_of(self.structured_pass.run(Y))
+
+    def reference_pose(self, Y: torch.Tensor) -> Pose:
+        """The step-by-step pass (each step once per instance, in the order built): the
+        reference the structured pass is tested against."""
         ctx = EvalContext(Y)
         for step in self._steps:
             step(ctx)
+        return self._pose_of(ctx)
+
+    def _pose_of(self, ctx: EvalContext) -> Pose:
         missing = [j for j in self.joint_names if j not in ctx.xf]
         if missing:
             raise RuntimeError(f"rig {self.name!r}: no step wrote joints {missing[:5]}")

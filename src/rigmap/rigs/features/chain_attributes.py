@@ -72,10 +72,21 @@ class ChainAttributes:
 
     def _rotation_of(self, bend: torch.Tensor, side: torch.Tensor | None) -> torch.Tensor:
         if side is None:
-            return axis_rotation(self.bend_sign * bend, self.bend_axis)
+            return axis_rotation(_signed(self.bend_sign, bend), self.bend_axis)
         return rotation_product(
-            [(self.bend_sign * bend, self.bend_axis), (self.side_sign * side, self.side_axis)]
+            [
+                (_signed(self.bend_sign, bend), self.bend_axis),
+                (_signed(self.side_sign, side), self.side_axis),
+            ]
         )
+
+
+def _signed(sign: float | torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """``sign * angle``; a sign per row (the structured pass folds the left and right chains
+    into one batch, :mod:`rigmap.rigs.engine.structured`) broadcasts over the chain's joints."""
+    if isinstance(sign, torch.Tensor) and sign.ndim < angle.ndim:
+        sign = sign.reshape(sign.shape + (1,) * (angle.ndim - sign.ndim))
+    return sign * angle
 
 
 def chain_attributes(
