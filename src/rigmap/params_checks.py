@@ -75,6 +75,17 @@ def param_problems(
     return problems
 
 
+def range_problems(values: Mapping[str, Any]) -> list[str]:
+    """One line per value of the flattened ``values`` outside its range above (keys not
+    listed are not looked at): the check a command runs on its own composed config."""
+    problems = []
+    for key, value in values.items():
+        problem = _range_problem(key, value)
+        if problem:
+            problems.append(f"{key}={value!r}: {problem}")
+    return problems
+
+
 def _type_problem(value: Any, default: Any) -> str | None:
     for item in value if isinstance(value, list) else [value]:
         if isinstance(item, float) and not math.isfinite(item):
