@@ -96,7 +96,7 @@ TRACK_FILES = [
     pytest.param(
         lambda d: (d / "p.npz").write_bytes(b"\x80\x04pickled bytes") and d / "p.npz",
         [],
-        "p.npz: not an npz archive (not a zip file)",
+        "p.npz: not a readable npz archive (not a zip file",
         id="npz_not_a_zip",
     ),
     pytest.param(

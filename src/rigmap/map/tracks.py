@@ -188,7 +188,8 @@ def _read_npz(
 ) -> JointTracks:
     if not zipfile.is_zipfile(path):
         raise TracksError(
-            f"{path}: not an npz archive (not a zip file); see the .npz layout in rigmap.map.tracks"
+            f"{path}: not a readable npz archive (not a zip file, as every .npz is: a zip of .npy "
+            "arrays)"
         )
     try:
         with zipfile.ZipFile(path) as archive:
