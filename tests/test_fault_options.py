@@ -306,6 +306,28 @@ def test_export_blend_torch_rig_refused(here, capsys):
     assert not (here / "x.blend").exists()
 
 
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        pytest.param(
+            ["--controls", "cdir", "--out", "x.blend"],
+            "--controls cdir is a folder; expected a .parquet file",
+            id="export_blend_controls_folder",
+        ),
+        pytest.param(
+            ["--controls", "c.parquet", "--out", "cdir"],
+            "--out cdir is a folder; expected a file to write, e.g. cdir/mapped.blend",
+            id="export_blend_out_folder",
+        ),
+    ],
+)
+def test_export_blend_folder_refused(here, capsys, flags, message):
+    (here / "cdir").mkdir()
+    pd.DataFrame({"frame": [0], "root.tx": [0.0]}).to_parquet(here / "c.parquet")
+    err = _refused(["export-blend", "--rig", "rigify_human", *flags], here, capsys)
+    assert message in err
+
+
 # --------------------------------------------------------------------------- rigmap fit
 FIT_OVERRIDES = [
     pytest.param(

@@ -530,8 +530,11 @@ def _export_blend(args) -> int:
     from rigmap.rigs import load
     from rigmap.rigs.blender.export import clip_rows, export_blend
 
+    if args.controls.is_dir():
+        raise ValueError(f"--controls {args.controls} is a folder; expected a .parquet file")
     if not args.controls.exists():
         raise FileNotFoundError(f"controls file {args.controls} does not exist")
+    _output_file(args.out, "--out", "mapped.blend")
     controls = clip_rows(pd.read_parquet(args.controls), args.clip)
     with load(args.rig) as rig:
         out = export_blend(rig, controls, args.out)
