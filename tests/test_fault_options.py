@@ -483,7 +483,7 @@ SCRIPTS = [
     pytest.param(
         "commands:\n  - idle: {frames: 4}\n",
         ["latent.max_script_frames=0"],
-        "latent.max_script_frames=0: expected a whole number >= 1",
+        "latent.max_script_frames=0: expected an integer >= 1",
         id="synth_cap_0",
     ),
 ]
@@ -514,3 +514,17 @@ def test_synth_controller_stops_at_the_cap():
         LatentInputError, match=r"go on past 5 frames \(latent\.max_script_frames\)"
     ):
         controller.run([Play(take)], max_frames=5)
+
+
+def test_synth_run_shows_progress(capsys):
+    """The frames played are counted on a progress bar (stderr), as a long run goes."""
+    from latent_face import face_models, face_transitions
+    from rigmap.latent.synthesis import Controller, Idle
+
+    fitted = face_models()
+    controller = Controller(
+        fitted.models, start="happy", takes=fitted.sets, transitions=face_transitions(), seed=0
+    )
+    frames = controller.run([Idle(frames=6)], max_frames=100, progress=True)
+    assert len(frames) >= 6
+    assert "synthesis" in capsys.readouterr().err

@@ -44,6 +44,7 @@ MIN_COUNTS: dict[str, tuple[int, str]] = {
     "regressor.batch_size": (1, "a minibatch size"),
     "regressor.threads": (1, "a number of threads"),
     "regressor.n_points": (1, "a number of GPR points"),
+    "latent.max_script_frames": (1, "the most frames a command script may play"),
 }
 #: key -> (lower bound, whether the bound itself is allowed, what it is)
 FLOAT_RANGES: dict[str, tuple[float, bool, str]] = {
