@@ -180,6 +180,25 @@ def test_map_npz_reads_only_the_frames_mapped(tmp_path):
     assert tracks.fps == 30.0
 
 
+@pytest.mark.parametrize("save", [np.savez, np.savez_compressed], ids=["stored", "compressed"])
+@pytest.mark.parametrize(
+    ("first", "count", "fps"), [(0, None, None), (5, None, 7.0), (3, 100, 40.0), (598, 10, None)]
+)
+def test_map_npz_window_reads_the_same_frames_in_small_blocks(
+    tmp_path, monkeypatch, save, first, count, fps
+):
+    """Cut while reading, block by block, an npz gives the frames slicing the whole would."""
+    import rigmap.map.tracks
+    from rigmap.map.tracks import FrameWindow, read_tracks
+
+    monkeypatch.setattr(rigmap.map.tracks, "NPZ_BLOCK_BYTES", 1000)
+    positions = np.random.default_rng(0).normal(size=(600, 3, 3))
+    save(tmp_path / "t.npz", positions=positions, joint_names=np.array(["a", "b", "c"]), fps=120)
+    window = FrameWindow(first, count, fps)
+    tracks = read_tracks(tmp_path / "t.npz", unit="cm", window=window)
+    np.testing.assert_array_equal(tracks.positions, positions[window.slice(120.0)])
+
+
 def test_map_bvh_5000_deep_hierarchy_parses(here, capsys):
     """A 5 000-deep chain parses (no RecursionError); the map then names what it lacks."""
     from rigmap.animation.bvh import read_bvh

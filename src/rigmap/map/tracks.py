@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from rigmap.memory import check_memory
 AXES = ("x", "y", "z")
 LENGTH_UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54}
 SOURCE_UNIT = "source"  # a file's own unit (CMU BVH): scaled from bone lengths
+NPZ_BLOCK_BYTES = 16 * 2**20  # bytes of an npz read at once while cutting a window (ours)
 
 
 class TracksError(RigmapError, ValueError):
@@ -204,7 +206,7 @@ def _read_npz(
                 else _need_fps(fps, path, fps_option)
             )
             positions = _npz_rows(archive, members["positions"], rate, window, path)
-    except (zipfile.BadZipFile, OSError, EOFError) as error:
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as error:
         raise TracksError(f"{path}: not a readable npz archive ({error})") from None
     if window is not None:
         rate = rate / window.step(rate)
@@ -267,7 +269,7 @@ def _npz_rows(archive, member: str, rate: float, window, path: Path) -> np.ndarr
         row = int(np.prod(shape[1:])) * dtype.itemsize
         offset = stream.tell()
         out = np.empty((len(cut), *shape[1:]), dtype=np.float64)
-        block = max(1, NPZ_BLOCK_BYTES // max(row, 1))
+        block = max(1, NPZ_BLOCK_BYTES // max(row * cut.step, 1))
         for k in range(0, len(cut), block):
             rows = cut[k : k + block]
             stream.seek(offset + rows[0] * row)
@@ -277,10 +279,6 @@ def _npz_rows(archive, member: str, rate: float, window, path: Path) -> np.ndarr
             chunk = np.frombuffer(raw, dtype=dtype).reshape(-1, *shape[1:])
             out[k : k + len(rows)] = chunk[:: cut.step]
         return out
-
-
-#: bytes of an npz read at once while cutting a window (ours: small against any machine)
-NPZ_BLOCK_BYTES = 16 * 2**20
 
 
 def _from_table(table: pd.DataFrame, unit: str, fps: float, source: str) -> JointTracks:
