@@ -126,7 +126,7 @@ TRACK_FILES = [
     pytest.param(
         lambda d: _write_npz(d / "o.npz", fps=30.0, positions=np.zeros((5, 2), dtype=object)),
         [],
-        "o.npz: positions/",
+        "o.npz: positions are object of shape (5, 2); expected numbers of shape (F, J, 3)",
         id="npz_object_positions",
     ),
 ]
@@ -138,7 +138,7 @@ def test_map_tracks_file_refused(here, capsys, make, options, message):
     out = here / "out"
     argv = ["map", f"input={source}", "rig=biped", f"out={out}", *options, *_paths(here)]
     err = _refused([*argv, "--config-dir", CONF], here, capsys)
-    assert message.replace("positions/", "positions") in err
+    assert message in err
     assert not out.exists()
 
 
