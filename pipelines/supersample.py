@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus_files import read_corpus_split
 from rigmap.sampling import SupersampleResult, supersample
-from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE
+from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE, check_supersample_memory
 from rigmap.stage import run_stage
 from rigmap.stage.inputs import layout_of, rig_from_config, sampler_from_config, sampler_seed
 
@@ -30,6 +30,7 @@ from rigmap.stage.inputs import layout_of, rig_from_config, sampler_from_config,
 def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
     rig = rig_from_config(cfg.rig, cfg.get("executor"))
     layout = layout_of(cfg)
+    check_supersample_memory(rig, int(cfg.budget.samples), "budget.samples")  # before any work
     corpus = read_corpus_split(rig, layout, "train")
     started = time.perf_counter()
     sampler = sampler_from_config(cfg.sampler, rig).fit(corpus.values())
@@ -42,6 +43,7 @@ def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:
         seed=sampler_seed(int(cfg.seed), sampler.name),
         chunk_size=int(OmegaConf.select(cfg, "supersample.chunk_size", default=DEFAULT_CHUNK_SIZE)),
         progress=progress,
+        option="budget.samples",
     )
     n_values = result.n_samples * len(rig.used_controls)
     share = f" ({result.n_rows_clamped / result.n_samples:.1%} of samples)" if n_values else ""

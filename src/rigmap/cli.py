@@ -140,7 +140,7 @@ def _add_rigs(commands) -> None:
     source = render.add_mutually_exclusive_group()
     source.add_argument(
         "--random",
-        type=int,
+        type=_seed,
         metavar="SEED",
         help="a random pose: used controls (but the placement) drawn 40%% into their soft range",
     )
@@ -449,7 +449,27 @@ def compose_config(
         raise ValueError(
             f"config {folder}/{config_name}.yaml with overrides {overrides}: {error}"
         ) from None
+    _check_ranges(cfg)
     return cfg
+
+
+def _check_ranges(cfg) -> None:
+    """The counts, seeds and rates ``rigmap.params_checks`` knows, checked as composed (so a
+    bad override is refused naming its key before any work)."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    from rigmap.params_checks import FLOAT_RANGES, MIN_COUNTS, range_problems
+
+    values = {}
+    for key in (*MIN_COUNTS, *FLOAT_RANGES):
+        try:
+            values[key] = OmegaConf.select(cfg, key, default=None)
+        except OmegaConfBaseException:
+            continue  # an interpolation this command does not resolve: not its value
+    problems = range_problems(values)
+    if problems:
+        raise ValueError("; ".join(problems))
 
 
 def _fit(args) -> int:
@@ -510,8 +530,11 @@ def _export_blend(args) -> int:
     from rigmap.rigs import load
     from rigmap.rigs.blender.export import clip_rows, export_blend
 
+    if args.controls.is_dir():
+        raise ValueError(f"--controls {args.controls} is a folder; expected a .parquet file")
     if not args.controls.exists():
         raise FileNotFoundError(f"controls file {args.controls} does not exist")
+    _output_file(args.out, "--out", "mapped.blend")
     controls = clip_rows(pd.read_parquet(args.controls), args.clip)
     with load(args.rig) as rig:
         out = export_blend(rig, controls, args.out)
@@ -537,6 +560,7 @@ def _corpus_show(args) -> int:
     from rigmap.animation.contact_sheet import show_clip
 
     chosen = _key_values(args.selection, ("rig", "clip"))
+    _output_file(args.out, "--out", "clip.png")
     written = show_clip(
         chosen["rig"],
         chosen["clip"],
@@ -619,21 +643,53 @@ def pose_controls(rig, *, seed: int | None = None, controls_file: Path | None = 
         lo, hi = rig.controls.lower[used], rig.controls.upper[used]
         Y[used] += 0.4 * (rng.uniform(lo, hi) - Y[used])
     if controls_file is not None:
-        values = json.loads(Path(controls_file).read_text())
-        if not isinstance(values, dict):
-            raise ValueError(f"{controls_file}: expected a JSON object {{control: value}}")
-        for name, value in values.items():
+        for name, value in _controls_json(controls_file).items():
             try:
                 column = rig.controls.index(name)
             except KeyError as error:
                 raise KeyError(f"{controls_file}: rig {rig.name!r}: {error.args[0]}") from None
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(
+                    f"{controls_file}: control {name!r} is {value!r}; expected a number"
+                )
             Y[column] = float(value)
     return Y
+
+
+def _controls_json(path: Path) -> dict:
+    """``--controls``: a JSON object ``{control name: value}``; errors name the file."""
+    from rigmap.store import read_data_file
+
+    values = read_data_file(path, "--controls file", ValueError)
+    if not isinstance(values, dict):
+        raise ValueError(f"{path}: expected a JSON object {{control: value}}")
+    return values
+
+
+def _output_file(path: Path, flag: str, example: str) -> Path:
+    """An output file option that names an existing folder is refused before any work."""
+    if path.is_dir():
+        raise ValueError(
+            f"{flag} {path} is a folder; expected a file to write, e.g. {path / example}"
+        )
+    return path
+
+
+def _seed(text: str) -> int:
+    """``--random``: a seed for numpy, an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0 (a random seed), got {text!r}")
+    return value
 
 
 def _rigs_render(args) -> int:
     from rigmap.rigs import load
 
+    _output_file(args.out, "--out", "pose.png")
     rig = load(args.name)
     Y = pose_controls(rig, seed=args.random, controls_file=args.controls)
     if rig.faces is not None:

@@ -44,6 +44,7 @@ MIN_COUNTS: dict[str, tuple[int, str]] = {
     "regressor.batch_size": (1, "a minibatch size"),
     "regressor.threads": (1, "a number of threads"),
     "regressor.n_points": (1, "a number of GPR points"),
+    "latent.max_script_frames": (1, "the most frames a command script may play"),
 }
 #: key -> (lower bound, whether the bound itself is allowed, what it is)
 FLOAT_RANGES: dict[str, tuple[float, bool, str]] = {
@@ -72,6 +73,17 @@ def param_problems(
         problem = problem or _shell_problem(value, reached)
         if problem:
             problems.append(f"{key} = {value!r}: {problem}")
+    return problems
+
+
+def range_problems(values: Mapping[str, Any]) -> list[str]:
+    """One line per value of the flattened ``values`` outside its range above (keys not
+    listed are not looked at): the check a command runs on its own composed config."""
+    problems = []
+    for key, value in values.items():
+        problem = _range_problem(key, value)
+        if problem:
+            problems.append(f"{key}={value!r}: {problem}")
     return problems
 
 

@@ -168,7 +168,7 @@ def parse_bvh(text: str, source: str = "<string>") -> BVHMotion:
 
 
 class _HierarchyParser:
-    """Recursive descent over the HIERARCHY section's words, keeping line numbers."""
+    """A parser over the HIERARCHY section's words, keeping line numbers."""
 
     def __init__(self, lines: list[str], source: str):
         self.source = source
@@ -178,6 +178,7 @@ class _HierarchyParser:
         self.position = 0
         self.last_line = len(lines)
         self.names: list[str] = []
+        self.seen: set[str] = set()
         self.parents: list[int] = []
         self.offsets: list[list[float]] = []
         self.channels: list[tuple[str, ...]] = []
@@ -205,11 +206,36 @@ class _HierarchyParser:
         }
 
     def _joint(self, parent: int) -> None:
+        """A joint and everything under it, with a stack of open joints rather than
+        recursion (a hierarchy of any depth, as deep as its file is long)."""
+        open_joints = [self._joint_header(parent)]
+        while open_joints:
+            index, name = open_joints[-1]
+            word, line = self._next("'JOINT', 'End Site' or '}'")
+            if word == "}":
+                open_joints.pop()
+            elif word == "JOINT":
+                open_joints.append(self._joint_header(index))
+            elif word == "End":
+                self._expect("Site")
+                self._expect("{")
+                self._expect("OFFSET")
+                self.end_offsets.append(self._numbers(3, "End Site OFFSET"))
+                self.end_parents.append(index)
+                self._expect("}")
+            else:
+                raise self._error(
+                    line, f"expected 'JOINT', 'End Site' or '}}' in joint {name!r}, got {word!r}"
+                )
+
+    def _joint_header(self, parent: int) -> tuple[int, str]:
+        """A joint's name, offset and channels; its index and name."""
         name = self._rest_of_line("a joint name")
-        if name in self.names:
+        if name in self.seen:
             raise self._error(self._line(), f"joint name {name!r} appears twice")
         index = len(self.names)
         self.names.append(name)
+        self.seen.add(name)
         self.parents.append(parent)
         self._expect("{")
         self._expect("OFFSET")
@@ -231,23 +257,7 @@ class _HierarchyParser:
         if len(set(names)) != len(names):
             raise self._error(count_line, f"joint {name!r} lists a channel twice: {names}")
         self.channels.append(tuple(names))
-        while True:
-            word, line = self._next("'JOINT', 'End Site' or '}'")
-            if word == "}":
-                return
-            if word == "JOINT":
-                self._joint(parent=index)
-            elif word == "End":
-                self._expect("Site")
-                self._expect("{")
-                self._expect("OFFSET")
-                self.end_offsets.append(self._numbers(3, "End Site OFFSET"))
-                self.end_parents.append(index)
-                self._expect("}")
-            else:
-                raise self._error(
-                    line, f"expected 'JOINT', 'End Site' or '}}' in joint {name!r}, got {word!r}"
-                )
+        return index, name
 
     def _numbers(self, count: int, what: str) -> list[float]:
         numbers = []

@@ -30,7 +30,14 @@ from rigmap.edits.incremental import compare_choices
 from rigmap.edits.mirror import subject_mirror
 from rigmap.edits.propagation import load_model, save_model
 from rigmap.edits.representation import TargetError
-from rigmap.edits.study import apply_edit, edits_for, fit_edit, load_study, model_from
+from rigmap.edits.study import (
+    apply_edit,
+    edits_for,
+    fit_edit,
+    load_study,
+    model_from,
+    weights_from,
+)
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
 
 EDITS = "edits"
@@ -50,14 +57,30 @@ ABLATION_COLUMNS = ("edit_error_std", "transfer", "jerk_ratio", "drift_std", "le
 
 
 def _subjects(config: dict) -> list[str]:
-    """The subjects a run covers (``edits.run``), checked before any work."""
-    names = list(config["run"])
+    """The subjects a run covers (``edits.run``), checked before any work with the other
+    settings every stage reads (``edits.names``, ``edits.weights``, ``edits.ablation``)."""
+    names = _name_list(config, "run")
+    _name_list(config, "names")
+    weights_from(config.get("weights") or {}, "edits.weights")
+    for solve, weights in dict(config.get("ablation") or {}).items():
+        weights_from(weights, f"edits.ablation.{solve}")
     unknown = [name for name in names if name not in config["subjects"]]
     if unknown or not names:
         raise TargetError(
             f"edits.run {names} must name subjects among {sorted(config['subjects'])}"
         )
     return names
+
+
+def _name_list(config: dict, key: str) -> list[str]:
+    """``edits.<key>``: a list of names (a bare string would be read letter by letter)."""
+    value = config.get(key)
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise TargetError(
+            f"edits.{key}={value!r}: expected a list of names, e.g. "
+            f"'edits.{key}=[{value if isinstance(value, str) else '...'}]'"
+        )
+    return list(value)
 
 
 def _setup(config: dict, subject: str):
@@ -90,6 +113,8 @@ def run_add(config: dict, layout: Layout) -> list[Path]:
 # add "variance_clips", rigmap.edits.incremental)
 REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0, "random_seeds": 5,
                    "choices": ["variance"]}  # fmt: skip
+#: the smallest value of each count (ours: one round, segment, seed at least)
+REFINE_MINIMA = {"rounds": 1, "per_round": 1, "segment": 1, "seed": 0, "random_seeds": 1}
 
 
 def refine_settings(config: dict) -> dict:
@@ -102,8 +127,12 @@ def refine_settings(config: dict) -> dict:
                           f"{sorted(REFINE_DEFAULTS)}")  # fmt: skip
     settings = {**REFINE_DEFAULTS, **given}
     for key, value in settings.items():
-        if key != "choices" and (isinstance(value, bool) or not isinstance(value, int)):
-            raise TargetError(f"edits.refine.{key} must be an integer, got {value!r}")
+        if key != "choices" and (
+            isinstance(value, bool) or not isinstance(value, int) or value < REFINE_MINIMA[key]
+        ):
+            raise TargetError(
+                f"edits.refine.{key} must be an integer >= {REFINE_MINIMA[key]}, got {value!r}"
+            )
     if isinstance(settings["choices"], str):
         raise TargetError(f"edits.refine.choices must be a list, e.g. [variance,variance_clips]; "
                           f"got {settings['choices']!r}")  # fmt: skip

@@ -12,8 +12,10 @@ from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+
+import numpy as np
 
 import rigmap.rigs
 from rigmap.animation.library import motion_library
@@ -148,11 +150,27 @@ def fit_edit(data: StudyData, edit: Edit, settings: dict) -> tuple[EditModel, di
     return model, info
 
 
-def weights_from(values) -> Weights:
-    """Weights from a mapping (Weights' field names) or a list of four."""
+def weights_from(values, option: str = "edits.weights") -> Weights:
+    """Weights from a mapping (Weights' field names) or a list of four, each a finite
+    number >= 0; ``TargetError`` naming ``option`` and the weight otherwise."""
+    names = [f.name for f in fields(Weights)]
     if isinstance(values, dict):
-        return Weights(**{k: float(v) for k, v in values.items()})
-    return Weights(*(float(v) for v in values))
+        unknown = sorted(set(values) - set(names))
+        if unknown:
+            raise TargetError(f"{option}: unknown weight(s) {unknown}; the weights are {names}")
+        given = dict(values)
+    elif isinstance(values, list | tuple) and len(values) == len(names):
+        given = dict(zip(names, values, strict=True))
+    else:
+        raise TargetError(
+            f"{option}={values!r}: expected {{{', '.join(names)}}} or a list of "
+            f"{len(names)} numbers"
+        )
+    for name, value in given.items():
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not (number and np.isfinite(value) and value >= 0):
+            raise TargetError(f"{option}.{name}={value!r}: expected a finite number >= 0")
+    return Weights(**{k: float(v) for k, v in given.items()})
 
 
 def apply_edit(data: StudyData, model: EditModel) -> list[TargetTrack]:

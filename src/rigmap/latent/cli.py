@@ -107,7 +107,9 @@ def _stage(verb: str, args, compose_config) -> int:
     return 0
 
 
-def _loaded(args, compose_config):
+def _loaded(args, compose_config, script: str | None = None):
+    """The rig, the latent config and the fitted models; ``script`` is read (and checked)
+    before the models load."""
     from rigmap.latent import runs
     from rigmap.latent.stage import latent_config
     from rigmap.stage.inputs import layout_of, rig_from_config
@@ -119,18 +121,21 @@ def _loaded(args, compose_config):
     own = user_paths(args.overrides, keys=("models",))
     if own and (USER_OUTPUTS / "models" / str(cfg.rig.name) / "latent" / "fit").is_dir():
         cfg = compose_config([*own, *args.overrides], args.config_dir)
-    rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
     config = latent_config(cfg)
+    if script is not None:
+        runs.read_script(runs.script_path(script), max_frames=runs.max_script_frames(config))
+    rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
     return rig, config, runs.load_fitted(layout, rig.name), runs.load_table(layout, rig.name)
 
 
 def _run(args, compose_config) -> int:
     from rigmap.latent import runs
 
-    rig, config, fitted, table = _loaded(args, compose_config)
+    rig, config, fitted, table = _loaded(args, compose_config, script=args.script)
     P, controller = runs.play_script(
         fitted, table, runs.script_path(args.script), seed=args.seed,
-        blend_frames=int(config["blend_frames"]),
+        blend_frames=int(config["blend_frames"]), max_frames=runs.max_script_frames(config),
+        progress=True,
     )  # fmt: skip
     meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": config["fps"]}
     runs.write_controls(args.out, rig, P, meta)

@@ -29,7 +29,7 @@ from rigmap.latent import files
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVMSettings
 from rigmap.latent.library import FittedModels, fit_models, rig_sets
-from rigmap.latent.scripts import read_script
+from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
 from rigmap.store import Layout, json_ready, write_json_atomic, write_text_atomic
@@ -153,15 +153,33 @@ def script_path(name: str) -> Path:
     return path
 
 
-def play_script(fitted, table, path, *, seed: int, blend_frames: int = 12):
-    """``(controls (F, C), controller)`` of one command script played to its end."""
-    start, commands = read_script(path)
+def play_script(
+    fitted,
+    table,
+    path,
+    *,
+    seed: int,
+    blend_frames: int = 12,
+    max_frames: int = MAX_SCRIPT_FRAMES,
+    progress: bool = False,
+):
+    """``(controls (F, C), controller)`` of one command script played to its end (at
+    most ``max_frames`` frames, ``latent.max_script_frames``)."""
+    start, commands = read_script(path, max_frames=max_frames)
     start = start or next(iter(fitted.models))
     controller = Controller(
         fitted.models, start=start, takes=fitted.sets, transitions=table, seed=seed,
         settings=SynthesisSettings(blend_frames=blend_frames),
     )  # fmt: skip
-    return controller.run(commands), controller
+    return controller.run(commands, max_frames=max_frames, progress=progress), controller
+
+
+def max_script_frames(config: dict) -> int:
+    """``latent.max_script_frames``: a whole number >= 1 (default :data:`MAX_SCRIPT_FRAMES`)."""
+    value = config.get("max_script_frames", MAX_SCRIPT_FRAMES)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise LatentInputError(f"latent.max_script_frames={value!r}: expected a whole number >= 1")
+    return value
 
 
 def write_controls(path: Path, rig, P: np.ndarray, metadata: dict) -> Path:
@@ -190,6 +208,9 @@ def log_rows(controller) -> list[dict]:
 
 
 def run_synthesize(config: dict, rig, layout: Layout) -> Path:
+    cap = max_script_frames(config)
+    for name in script_names(config, rig):  # every script checked before the models load
+        read_script(script_path(name), max_frames=cap)
     fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
     folder = layout.rig_data(rig.name) / LATENT
     log = {}
@@ -197,7 +218,7 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
         for seed in config["seeds"]:
             P, controller = play_script(
                 fitted, table, script_path(name), seed=int(seed),
-                blend_frames=int(config["blend_frames"]),
+                blend_frames=int(config["blend_frames"]), max_frames=cap,
             )  # fmt: skip
             meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": config["fps"]}
             write_controls(folder / f"{Path(name).stem}-seed{seed}.parquet", rig, P, meta)

@@ -13,6 +13,8 @@ one key naming the command::
 
 Errors name the script and the command's position; names of models and takes are
 checked when the commands are submitted to a :class:`~rigmap.latent.synthesis.Controller`.
+The frames a script asks for (``idle`` frames, a transition's ``idle_frames``) are whole
+numbers, together at most ``latent.max_script_frames`` (a cap the controller also keeps).
 """
 
 from __future__ import annotations
@@ -27,10 +29,17 @@ from rigmap.latent.errors import LatentInputError
 from rigmap.latent.synthesis import Idle, Move, Play, Transition
 
 COMMANDS = {"move": Move, "idle": Idle, "transition": Transition, "play": Play}
+#: ours: the most frames one script may play (about 70 minutes at 24 fps), the default of
+#: ``latent.max_script_frames``
+MAX_SCRIPT_FRAMES = 100_000
+FRAME_COUNTS = ("frames", "idle_frames")  # the arguments that ask for a number of frames
 
 
-def parse_script(data, *, source: str = "script") -> tuple[str | None, list]:
-    """``(start model or None, commands)`` from a parsed YAML mapping."""
+def parse_script(
+    data, *, source: str = "script", max_frames: int = MAX_SCRIPT_FRAMES
+) -> tuple[str | None, list]:
+    """``(start model or None, commands)`` from a parsed YAML mapping; the frames the
+    commands ask for are checked against ``max_frames``."""
     if not isinstance(data, dict) or "commands" not in data:
         raise LatentInputError(f"{source}: expected a mapping with a 'commands' list")
     unknown = set(data) - {"start", "commands"}
@@ -55,20 +64,32 @@ def parse_script(data, *, source: str = "script") -> tuple[str | None, list]:
         bad = set(args) - allowed
         if bad:
             raise LatentInputError(f"{where}: {name} takes {sorted(allowed)}, got {sorted(bad)}")
+        for key in FRAME_COUNTS:
+            value = args.get(key)
+            if key in args and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
+                raise LatentInputError(f"{where}: {key} must be a whole number >= 0, got {value!r}")
         if "point" in args and args["point"] is not None:
             args = {**args, "point": tuple(float(v) for v in args["point"])}
         try:
             commands.append(kind(**args))
         except TypeError as error:
             raise LatentInputError(f"{where}: {error}") from None
+    asked = sum(getattr(c, key, 0) for c in commands for key in FRAME_COUNTS)
+    if asked > max_frames:
+        raise LatentInputError(
+            f"{source}: the commands ask for {asked} frames, more than "
+            f"latent.max_script_frames={max_frames}; shorten the script or raise the cap"
+        )
     start = data.get("start")
     return (None if start is None else str(start)), commands
 
 
-def read_script(path: str | os.PathLike) -> tuple[str | None, list]:
+def read_script(
+    path: str | os.PathLike, *, max_frames: int = MAX_SCRIPT_FRAMES
+) -> tuple[str | None, list]:
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as error:
         raise LatentInputError(f"cannot read command script {path}: {error}") from None
-    return parse_script(data, source=str(path))
+    return parse_script(data, source=str(path), max_frames=max_frames)

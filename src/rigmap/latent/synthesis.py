@@ -209,16 +209,28 @@ class Controller:
             raise LatentInputError(f"not a command: {command!r}")
         self.queue.append(command)
 
-    def run(self, commands, *, tail: int = 0) -> np.ndarray:
+    def run(
+        self, commands, *, tail: int = 0, max_frames: int | None = None, progress: bool = False
+    ) -> np.ndarray:
         """Submit ``commands`` and step until all are done, then ``tail`` more frames;
         the controls of every frame ``(F, C)``. A command is found finished on the step
         after its last frame, so the run ends with one idle frame past the last
-        command (it is the controller's next frame, kept so runs join up)."""
+        command (it is the controller's next frame, kept so runs join up). More than
+        ``max_frames`` frames stop the run (``LatentInputError``); ``progress`` shows a bar."""
+        from tqdm.auto import tqdm
+
         for command in commands:
             self.submit(command)
         frames = []
-        while self.queue or self._active is not None:
-            frames.append(self.step())
+        with tqdm(desc="synthesis", unit="frame", disable=not progress, leave=False) as bar:
+            while self.queue or self._active is not None:
+                if max_frames is not None and len(frames) >= max_frames:
+                    raise LatentInputError(
+                        f"the commands go on past {max_frames} frames "
+                        f"(latent.max_script_frames); stopped at frame {len(frames)}"
+                    )
+                frames.append(self.step())
+                bar.update()
         frames.extend(self.step() for _ in range(tail))
         return np.array(frames)
 

@@ -47,7 +47,7 @@ from rigmap.map.skeleton_match import (
     match_skeleton,
 )
 from rigmap.map.subset_model import SubsetModel, obtain_subset_model
-from rigmap.map.tracks import read_tracks, tracks_from_motion
+from rigmap.map.tracks import FrameWindow, read_tracks, tracks_from_motion
 from rigmap.store import (
     Layout,
     json_ready,
@@ -82,9 +82,10 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
 
     options = config["map"]
     sources = input_files(config.get("input"))
+    window = frame_window(options)
     with load(_rig_options(config)) as rig:
         out = Path(config.get("out") or Path("outputs") / "map" / rig.name)
-        clips, retarget = read_clips(sources, rig, options, config_dir, out, log)
+        clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
         subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
         model = _model(config, rig, subset, log)
         settings = map_settings(options, rig.name)
@@ -203,7 +204,13 @@ def map_settings(options: Mapping, rig_name: str) -> MapSettings:
 
 
 def read_clips(
-    sources: list[Path], rig, options: Mapping, config_dir, out: Path, log: Log
+    sources: list[Path],
+    rig,
+    options: Mapping,
+    config_dir,
+    out: Path,
+    log: Log,
+    window: FrameWindow | None = None,
 ) -> tuple[list[MappedTargets], RetargetMap]:
     """Every input as the rig's mapped joints, and the retarget map whose joints they are.
 
@@ -211,7 +218,9 @@ def read_clips(
     file that has its source joints, and for a BVH without them (or with
     ``map.retarget=auto``) its skeleton matched to ``map.rigs.<rig>.roles``; the matched
     map is saved as ``<out>/<clip>.retarget.yaml`` (once per skeleton) and its path logged.
+    ``window``: the frames mapped (default: ``map``'s, checked).
     """
+    window = window or frame_window(options)
     chosen = options.get("retarget")
     fixed = retarget_map(options, rig.name, config_dir) if chosen and chosen != MATCH else None
     default = None
@@ -219,7 +228,7 @@ def read_clips(
         default = retarget_map(options, rig.name, config_dir)
     clips, maps, matched = [], [], {}
     for path in sources:
-        tracks, motion = _read_source(path, options)
+        tracks, motion = _read_source(path, options, window)
         retarget = fixed or (default if default and _fits(default, tracks) else None)
         if retarget is None and motion is None:  # joint tracks: the default map says what lacks
             retarget = default or retarget_map(options, rig.name, config_dir)
@@ -229,7 +238,7 @@ def read_clips(
         if motion is not None:
             tracks = _clean_frames(tracks, motion, log)
         maps.append(retarget)
-        clips.append(_read_clip(path, tracks, retarget, rig, options))
+        clips.append(_read_clip(path, tracks, retarget, rig, window))
         if was_matched:
             height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
             log(
@@ -246,11 +255,12 @@ def read_clips(
     return clips, _subset_map(maps[0], default)
 
 
-def _read_source(path: Path, options: Mapping):
-    """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching)."""
+def _read_source(path: Path, options: Mapping, window: FrameWindow):
+    """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching); an
+    npz is read for the ``window``'s frames only."""
     if path.suffix.lower() != ".bvh":
-        unit = options.get("unit", "cm")
-        return read_tracks(path, unit=unit, fps=options.get("source_fps")), None
+        unit, fps = options.get("unit", "cm"), options.get("source_fps")
+        return read_tracks(path, unit=unit, fps=fps, window=window), None
     motion = read_bvh(path)
     return tracks_from_motion(motion, str(path)), motion
 
@@ -305,22 +315,49 @@ def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetM
     return retarget
 
 
-def _read_clip(path: Path, tracks, retarget: RetargetMap, rig, options: Mapping) -> MappedTargets:
-    """One input's tracks as the rig's mapped joints, resampled and cut as ``map`` says."""
+def frame_window(options: Mapping) -> FrameWindow:
+    """``map.first_frame``, ``map.frames`` and ``map.fps``, checked (and ``map.source_fps``)."""
+    first = _option(options, "first_frame", 0, "an integer >= 0 (a source frame)")
+    count = _option(options, "frames", 1, "an integer >= 1 (frames to map) or null (all)")
+    fps = _option(options, "fps", 0.0, "a number > 0 (frames per second) or null (the source's)")
+    _option(options, "source_fps", 0.0, "a number > 0 (the tracks' frames per second) or null")
+    return FrameWindow(0 if first is None else first, count, fps)
+
+
+def _option(options: Mapping, key: str, bound, expected: str):
+    """``map.<key>``: ``None``, or an int ``>= bound`` (int bound) or a finite number
+    ``> bound`` (float bound); ``MapConfigError`` naming it otherwise."""
+    value = options.get(key)
+    if value is None:
+        return None
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if isinstance(bound, int):
+        good = number and float(value).is_integer() and value >= bound
+    else:
+        good = number and np.isfinite(value) and value > bound
+    if not good:
+        raise MapConfigError(f"map.{key}={value!r}: expected {expected}")
+    return int(value) if isinstance(bound, int) else float(value)
+
+
+def _read_clip(
+    path: Path, tracks, retarget: RetargetMap, rig, window: FrameWindow
+) -> MappedTargets:
+    """One input's tracks as the rig's mapped joints, resampled and cut as ``map`` says (an
+    npz was cut as it was read, so its retargeting saw the window only)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unused source joints: summarised below instead
         targets = retarget.apply(rig, tracks)
-    step = 1
-    if options.get("fps"):
-        step = max(1, round(targets.fps / float(options["fps"])))
-    first = int(options.get("first_frame") or 0)
-    count = options.get("frames")
-    stop = None if count is None else first + int(count) * step
-    positions = targets.positions[first:stop:step]
+    if path.suffix.lower() == ".npz":
+        return targets
+    cut = window.slice(targets.fps)
+    positions = targets.positions[cut]
     if len(positions) == 0:
-        raise MapConfigError(f"{path}: no frames left to map (the clip has {len(targets.positions)}"
-                             f" frames; map.first_frame={first}, map.frames={count})")  # fmt: skip
-    return dataclasses.replace(targets, positions=positions, fps=targets.fps / step)
+        raise MapConfigError(
+            f"{path}: no frames left to map (the clip has {len(targets.positions)} frames; "
+            f"{window.describe()})"
+        )
+    return dataclasses.replace(targets, positions=positions, fps=targets.fps / cut.step)
 
 
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:

@@ -173,6 +173,7 @@ class _Tree:
             if p >= 0 and node[j] == j:
                 self.children[int(node[p])].append(j)
         self.root = int(node[int(np.flatnonzero(parents < 0)[0])])
+        self._heights: dict[int, int] | None = None
 
     def name(self, j: int) -> str:
         return self.skeleton.names[j]
@@ -181,8 +182,16 @@ class _Tree:
         return self.skeleton.rest[b] - self.skeleton.rest[a]
 
     def leaves(self, j: int) -> list[int]:
-        kids = self.children[j]
-        return [j] if not kids else [leaf for k in kids for leaf in self.leaves(k)]
+        """The leaves under ``j``, children in order (a stack: a chain of any depth)."""
+        out, stack = [], [j]
+        while stack:
+            k = stack.pop()
+            kids = self.children[k]
+            if kids:
+                stack.extend(reversed(kids))
+            else:
+                out.append(k)
+        return out
 
     def reach(self, origin: int, j: int) -> np.ndarray:
         """From ``origin`` to the farthest rest-pose leaf under ``j``."""
@@ -190,8 +199,22 @@ class _Tree:
         return max(vectors, key=lambda v: float(np.linalg.norm(v)))
 
     def height(self, j: int) -> int:
-        kids = self.children[j]
-        return 0 if not kids else 1 + max(self.height(k) for k in kids)
+        """Joints on the longest way from ``j`` down to a leaf (found once for every joint)."""
+        if self._heights is None:
+            self._heights = {}
+            for k in reversed(self._order()):  # children before their parents
+                kids = self.children[k]
+                self._heights[k] = 0 if not kids else 1 + max(self._heights[c] for c in kids)
+        return self._heights[j]
+
+    def _order(self) -> list[int]:
+        """Every folded joint, each parent before its children."""
+        out, stack = [], [self.root]
+        while stack:
+            k = stack.pop()
+            out.append(k)
+            stack.extend(self.children[k])
+        return out
 
     def path(self, j: int, *, stop_at_branch: bool) -> list[int]:
         """From ``j`` down the deepest child, to a leaf (or to the first branching joint)."""
@@ -490,6 +513,8 @@ def unit_guess(height: float) -> str:
     for unit, cm in UNITS_CM.items():
         if HUMAN_HEIGHT_CM[0] <= height * cm <= HUMAN_HEIGHT_CM[1]:
             return unit
+    if not height > 0:
+        return "unknown: the skeleton has no height along its up axis"
     low, high = (h / height for h in HUMAN_HEIGHT_CM)
     return (
         f"unknown: {low:.3g}-{high:.3g} cm per unit for a {HUMAN_HEIGHT_CM[0]:.0f}-"

@@ -9,13 +9,16 @@ Files (one clip each):
 - ``.bvh``: forward kinematics of the file's channels; end sites become ``<parent>_end``;
 - ``.parquet`` / ``.csv``: a ``frame`` column and ``<joint>.x``, ``<joint>.y``, ``<joint>.z``
   per joint (the column layout of rigmap's poses files);
-- ``.npz``: ``positions`` ``(F, J, 3)`` and ``joint_names``; optional ``fps``.
+- ``.npz``: ``positions`` ``(F, J, 3)`` and ``joint_names``; optional ``fps``. Given a
+  :class:`FrameWindow`, only the window's frames are read from the archive (a long clip
+  costs the memory of the frames mapped, not of the file).
 """
 
 from __future__ import annotations
 
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,14 +27,40 @@ import pandas as pd
 
 from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
+from rigmap.memory import check_memory
 
 AXES = ("x", "y", "z")
 LENGTH_UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54}
 SOURCE_UNIT = "source"  # a file's own unit (CMU BVH): scaled from bone lengths
+NPZ_BLOCK_BYTES = 16 * 2**20  # bytes of an npz read at once while cutting a window (ours)
 
 
 class TracksError(RigmapError, ValueError):
     """Joint tracks that cannot be used; the message names the file and what is wrong."""
+
+
+@dataclass(frozen=True)
+class FrameWindow:
+    """The source frames a run maps: from ``first``, every ``step``-th frame (the step that
+    brings the source rate nearest ``fps``; ``None``: every frame), at most ``count`` of them.
+    ``options`` names the settings in messages (``rigmap map``'s ``map.*``)."""
+
+    first: int = 0
+    count: int | None = None
+    fps: float | None = None
+    options: str = "map.first_frame, map.frames, map.fps"
+
+    def step(self, source_fps: float) -> int:
+        return 1 if self.fps is None else max(1, round(source_fps / self.fps))
+
+    def slice(self, source_fps: float) -> slice:
+        step = self.step(source_fps)
+        stop = None if self.count is None else self.first + self.count * step
+        return slice(self.first, stop, step)
+
+    def describe(self) -> str:
+        first, count, fps = self.options.split(", ")
+        return f"{first}={self.first}, {count}={self.count}, {fps}={self.fps}"
 
 
 @dataclass(frozen=True)
@@ -112,48 +141,144 @@ def tracks_from_motion(motion, source: str) -> JointTracks:
     )
 
 
-def read_tracks(path: str | os.PathLike, *, unit: str, fps: float | None = None) -> JointTracks:
+def read_tracks(
+    path: str | os.PathLike,
+    *,
+    unit: str,
+    fps: float | None = None,
+    window: FrameWindow | None = None,
+    fps_option: str = "map.source_fps",
+) -> JointTracks:
     """Joint tracks from a ``.bvh``, ``.parquet``, ``.csv`` or ``.npz`` file.
 
     ``unit`` is the file's length unit (``cm``, ``m``, ``mm``, ``in`` or ``source``); a BVH
-    is always ``source``. ``fps`` is required unless the file carries it (BVH, npz).
+    is always ``source``. ``fps`` is required unless the file carries it (BVH, npz);
+    ``fps_option`` is the setting that gives it, named when it is missing. ``window``: an
+    npz is read for those frames only (the tracks' fps is then the window's rate); other
+    formats ignore it (the caller cuts them).
     """
     path = Path(path)
+    if path.is_dir():
+        raise TracksError(f"{path} is a folder, not a joint tracks file")
     if not path.is_file():
         raise FileNotFoundError(f"joint tracks file {path} does not exist")
     suffix = path.suffix.lower()
     if suffix == ".bvh":
         return tracks_from_bvh(path)
     if suffix == ".npz":
-        return _read_npz(path, unit, fps)
+        return _read_npz(path, unit, fps, window, fps_option)
     if suffix in (".parquet", ".csv"):
         try:
             table = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
         except Exception as error:  # pyarrow and pandas raise many kinds
             raise TracksError(f"{path}: not a readable {suffix[1:]} table ({error})") from None
-        return _from_table(table, unit, _need_fps(fps, path), str(path))
+        return _from_table(table, unit, _need_fps(fps, path, fps_option), str(path))
     raise TracksError(f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, "
                       ".csv or .npz")  # fmt: skip
 
 
-def _need_fps(fps: float | None, path: Path) -> float:
+def _need_fps(fps: float | None, path: Path, option: str) -> float:
     if fps is None:
-        raise TracksError(f"{path}: the file does not say its frame rate; pass fps")
+        raise TracksError(
+            f"{path}: the file does not say its frame rate; pass {option}=<frames per second>"
+        )
     return float(fps)
 
 
-def _read_npz(path: Path, unit: str, fps: float | None) -> JointTracks:
+def _read_npz(
+    path: Path, unit: str, fps: float | None, window: FrameWindow | None, fps_option: str
+) -> JointTracks:
+    if not zipfile.is_zipfile(path):
+        raise TracksError(
+            f"{path}: not a readable npz archive (not a zip file, as every .npz is: a zip of .npy "
+            "arrays)"
+        )
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
-    except (zipfile.BadZipFile, OSError, ValueError) as error:
+        with zipfile.ZipFile(path) as archive:
+            members = {Path(n).stem: n for n in archive.namelist() if n.endswith(".npy")}
+            missing = [k for k in ("positions", "joint_names") if k not in members]
+            if missing:
+                raise TracksError(f"{path}: npz lacks {missing}; it holds {sorted(members)}")
+            names = _small_array(archive, members["joint_names"])
+            rate = (
+                _npz_fps(path, _small_array(archive, members["fps"]))
+                if "fps" in members
+                else _need_fps(fps, path, fps_option)
+            )
+            positions = _npz_rows(archive, members["positions"], rate, window, path)
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as error:
         raise TracksError(f"{path}: not a readable npz archive ({error})") from None
-    missing = [k for k in ("positions", "joint_names") if k not in arrays]
-    if missing:
-        raise TracksError(f"{path}: npz lacks {missing}; it holds {sorted(arrays)}")
-    rate = float(arrays["fps"]) if "fps" in arrays else _need_fps(fps, path)
-    names = tuple(str(n) for n in arrays["joint_names"])
-    return JointTracks(names, arrays["positions"], rate, unit, str(path))
+    if window is not None:
+        rate = rate / window.step(rate)
+    return JointTracks(tuple(str(n) for n in names), positions, rate, unit, str(path))
+
+
+def _npz_fps(path: Path, value: np.ndarray) -> float:
+    if value.shape != () or value.dtype.kind not in "iuf":
+        raise TracksError(
+            f"{path}: 'fps' is {value.dtype} of shape {value.shape}, expected "
+            "one number (frames per second)"
+        )
+    return float(value)
+
+
+def _small_array(archive: zipfile.ZipFile, member: str) -> np.ndarray:
+    """One array of the archive, read whole (no pickled objects)."""
+    with archive.open(member) as stream:
+        try:
+            return np.lib.format.read_array(stream, allow_pickle=False)
+        except ValueError as error:
+            raise TracksError(f"{archive.filename}: {member}: {error}") from None
+
+
+def _npz_rows(archive, member: str, rate: float, window, path: Path) -> np.ndarray:
+    """``positions`` (float64), only the rows ``window`` selects when it is given: read by
+    seeking past the rows before it, in blocks, so memory holds the kept rows only."""
+    with archive.open(member) as stream:
+        version = np.lib.format.read_magic(stream)
+        read_header = (
+            np.lib.format.read_array_header_1_0
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0
+        )
+        try:
+            shape, fortran, dtype = read_header(stream)
+        except ValueError as error:
+            raise TracksError(f"{path}: {member}: {error}") from None
+        if dtype.hasobject or dtype.kind not in "iuf" or len(shape) != 3:
+            raise TracksError(
+                f"{path}: positions are {dtype} of shape {shape}; expected "
+                "numbers of shape (F, J, 3)"
+            )
+        cut = range(shape[0])[window.slice(rate)] if window is not None else range(shape[0])
+        if window is not None and len(cut) == 0:
+            raise TracksError(
+                f"{path}: no frames left to map (the clip has {shape[0]} frames; "
+                f"{window.describe()})"
+            )
+        if window is not None:
+            check_memory(
+                len(cut) * int(np.prod(shape[1:])) * 8,
+                window.options.split(", ")[1],
+                window.count,
+                f"{len(cut)} frames of {shape[1]} joints",
+            )
+        if fortran:  # rows are not contiguous: read whole (rare: numpy writes C order)
+            whole = np.frombuffer(stream.read(), dtype=dtype).reshape(shape[::-1]).T
+            return np.asarray(whole[cut.start : cut.stop : cut.step], dtype=np.float64)
+        row = int(np.prod(shape[1:])) * dtype.itemsize
+        offset = stream.tell()
+        out = np.empty((len(cut), *shape[1:]), dtype=np.float64)
+        block = max(1, NPZ_BLOCK_BYTES // max(row * cut.step, 1))
+        for k in range(0, len(cut), block):
+            rows = cut[k : k + block]
+            stream.seek(offset + rows[0] * row)
+            raw = stream.read((rows[-1] - rows[0] + 1) * row)
+            if len(raw) < (rows[-1] - rows[0] + 1) * row:
+                raise TracksError(f"{path}: {member} is truncated")
+            chunk = np.frombuffer(raw, dtype=dtype).reshape(-1, *shape[1:])
+            out[k : k + len(rows)] = chunk[:: cut.step]
+        return out
 
 
 def _from_table(table: pd.DataFrame, unit: str, fps: float, source: str) -> JointTracks:

@@ -32,6 +32,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from rigmap.errors import RigmapError
+from rigmap.memory import check_memory
 from rigmap.sampling.base import Sampler, SamplerInputError, SamplerNotFittedError, check_count
 from rigmap.sampling.clamping import clamp_to_limits
 from rigmap.sampling.reproducible_npz import (
@@ -76,13 +77,14 @@ def supersample(
     lower=None,
     upper=None,
     progress: bool = True,
+    option: str = "n",
 ) -> SupersampleResult:
     """Draw ``n`` vectors with a fitted ``sampler``, clamp, pose with ``rig``, save to ``path``.
 
     ``lower``/``upper`` (one value per used control) default to the rig's
     range for those controls (``rig.controls.lower/upper``) — the protocol has
     no separate hard limits. ``chunk_size`` only changes how work is split,
-    never the file's content.
+    never the file's content. ``option`` names ``n`` in errors (the stage's ``budget.samples``).
     """
     path = Path(path)
     if path.suffix != ".npz":
@@ -90,6 +92,7 @@ def supersample(
     used = np.asarray(rig.controls.used_indices)
     _check_sampler(sampler, rig, used.size)
     n = check_count(n, "supersample")
+    check_supersample_memory(rig, n, option)
     chunk_size = _check_positive_int(chunk_size, "chunk_size")
     seed = _check_seed(seed)
     limits_given = lower is not None or upper is not None
@@ -154,6 +157,20 @@ def _samples_meta(rig, sampler, seed, n, n_samples, limits_given, clamped) -> di
         "n_clamped": clamped.n_values,
         "n_rows_clamped": clamped.n_rows,
     }
+
+
+def supersample_bytes(rig, n: int) -> int:
+    """Bytes a run of ``n`` samples holds at its peak (ours, an estimate): the drawn and the
+    clamped controls, and the posed arrays (positions, COG, its rotation) twice, as chunks
+    and in the file's concatenation."""
+    controls = len(rig.controls.used_indices)
+    posed = 3 * rig.n_joints + 3 + 9
+    return 8 * int(n) * (2 * controls + 2 * posed)
+
+
+def check_supersample_memory(rig, n: int, option: str = "n") -> None:
+    """Refuse ``n`` samples that would not fit in the available memory, before drawing."""
+    check_memory(supersample_bytes(rig, n), option, n, f"{n} samples of rig {rig.name!r}")
 
 
 def _pose_in_chunks(

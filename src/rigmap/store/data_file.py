@@ -18,9 +18,16 @@ def read_data_file(path: str | os.PathLike, what: str, error: type[Exception]) -
     naming the file and the parser's complaint.
     """
     path = Path(path)
+    if path.is_dir():
+        raise error(f"{what} {path} is a folder, not a file")
     if not path.is_file():
         raise FileNotFoundError(f"{what} {path} does not exist")
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as problem:
+        raise error(
+            f"{path}: not a text {what} (not UTF-8: {problem.reason} at byte {problem.start})"
+        ) from None
     if path.suffix.lower() == ".json":
         try:
             return json.loads(text)

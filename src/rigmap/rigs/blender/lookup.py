@@ -7,16 +7,22 @@ The modules below it (:mod:`.rig`, :mod:`.retarget`) work on a built
 
 from __future__ import annotations
 
+from rigmap.errors import RigmapError
 from rigmap.rigs.base import Rig
 from rigmap.rigs.blender.rig import BlenderRig
 from rigmap.rigs.registry import load
+
+
+class NotBlenderRigError(RigmapError, TypeError, ValueError):
+    """A rig that is not a Blender rig where one is needed (a user's choice of rig: a
+    ``ValueError`` too, so entry points report it as bad input)."""
 
 
 def blender_rig(rig_config_or_rig) -> BlenderRig:
     """The :class:`BlenderRig` named by a rig, a rig name or a rig config."""
     rig = rig_config_or_rig if isinstance(rig_config_or_rig, Rig) else load(rig_config_or_rig)
     if not isinstance(rig, BlenderRig):
-        raise TypeError(
+        raise NotBlenderRigError(
             f"rig {rig.name!r} is a {type(rig).__name__}, not a Blender rig; "
             "only Blender rigs (rigify_human, rigify_wolf, blend_file) can be written to .blend"
         )
