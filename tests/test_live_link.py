@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from rigmap.latent.live_link import (
     VALUE_COLUMNS,
     LiveLinkError,
     arkit_name,
+    live_link_columns,
     read_take,
     take_text,
     timecode_seconds,
@@ -255,3 +257,43 @@ def test_export_refuses_bad_curves_and_leaves_nothing(tmp_path):
         write_take(out, good, ("JawOpen", "TongueOut"), fps=29.97)
     assert list(tmp_path.iterdir()) == []
     assert take_text(good, ("JawOpen", "TongueOut"), fps=24.0).count("\n") == 5
+
+
+def test_live_link_columns_of_a_rigs_controls():
+    assert live_link_columns(["jawOpen", "EyeBlinkLeft", "leftEyeYaw"]) == (
+        "JawOpen",
+        "EyeBlinkLeft",
+        "LeftEyeYaw",
+    )
+    with pytest.raises(LiveLinkError, match="control 'jaw_open' is not an ARKit blendshape"):
+        live_link_columns(["jaw_open"])
+    with pytest.raises(LiveLinkError, match="name one Live Link Face column twice"):
+        live_link_columns(["jawOpen", "JawOpen"])
+
+
+def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch):
+    from rigmap.latent import cli, runs
+
+    rig = SimpleNamespace(name="arkit", used_controls=("jawOpen", "mouthSmileLeft"))
+    P = np.random.default_rng(3).uniform(0, 1, (48, 2))
+    config = {"fps": 24, "blend_frames": 12}
+    monkeypatch.setattr(cli, "_loaded", lambda args, compose: (rig, config, None, None))
+    monkeypatch.setattr(runs, "play_script", lambda *a, **k: (P, SimpleNamespace(log=[])))
+    args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
+    assert cli._run(args, None) == 0
+    take = read_take(tmp_path / "shot.csv")
+    np.testing.assert_allclose(take.curves(["JawOpen", "MouthSmileLeft"]), P, atol=1e-6)
+    assert take.report()["sample_rate_hz"] == pytest.approx(24.0)
+
+
+def test_synth_run_refuses_a_csv_for_a_rig_without_arkit_controls(tmp_path, monkeypatch):
+    from rigmap.latent import cli, runs
+    from rigmap.rigs import load
+
+    rig = load("face")
+    monkeypatch.setattr(cli, "_loaded", lambda args, compose: (rig, {"fps": 24}, None, None))
+    monkeypatch.setattr(runs, "play_script", lambda *a, **k: pytest.fail("played"))
+    args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
+    with pytest.raises(LiveLinkError, match="is not an ARKit blendshape"):
+        cli._run(args, None)
+    assert not (tmp_path / "shot.csv").exists()

@@ -111,6 +111,24 @@ def arkit_name(column: str) -> str:
     return column[:1].lower() + column[1:]
 
 
+def live_link_columns(controls) -> tuple[str, ...]:
+    """The Live Link Face column of each control of a rig whose controls are ARKit's
+    (named as the columns or as ARKit names them); any other control is an error."""
+    by_name = {name: name for name in VALUE_COLUMNS}
+    by_name.update({arkit_name(name): name for name in VALUE_COLUMNS})
+    columns = []
+    for control in controls:
+        if control not in by_name:
+            raise LiveLinkError(
+                f"control {control!r} is not an ARKit blendshape or eye/head rotation "
+                f"(e.g. jawOpen or JawOpen); a Live Link Face CSV holds only those"
+            )
+        columns.append(by_name[control])
+    if len(set(columns)) != len(columns):
+        raise LiveLinkError(f"controls {list(controls)} name one Live Link Face column twice")
+    return tuple(columns)
+
+
 @dataclass(frozen=True)
 class Segment:
     """A stretch of a take resampled to ``fps``: ``values`` ``(F, C)`` from ``start_s``."""
