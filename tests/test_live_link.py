@@ -239,6 +239,9 @@ def test_bad_files_and_headers(tmp_path):
         read_take(small_csv(tmp_path, [], header=("Time", *HEADER[1:])))
     with pytest.raises(LiveLinkError, match="a header and no rows"):
         read_take(small_csv(tmp_path, []))
+    (tmp_path / "binary.csv").write_bytes(b"Timecode,\xff\xfe\n")
+    with pytest.raises(LiveLinkError, match=r"binary\.csv: not a UTF-8 text file \(byte 9\)"):
+        read_take(tmp_path / "binary.csv")
     assert issubclass(LiveLinkError, LatentInputError)
 
 

@@ -312,7 +312,10 @@ def read_take(path, *, timecode_fps: float = TIMECODE_FPS) -> LiveLinkTake:
     path = Path(path)
     if not path.is_file():
         raise LiveLinkError(f"{path}: no such Live Link Face CSV")
-    text = path.read_text(encoding="utf-8-sig", errors="strict")
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="strict")
+    except UnicodeDecodeError as error:
+        raise LiveLinkError(f"{path}: not a UTF-8 text file (byte {error.start})") from None
     reader = csv.reader(io.StringIO(text))
     header = next(reader, None)
     if not header:
