@@ -60,12 +60,19 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         ".yaml: `start: <model>` and a list of commands such as `- move: {take: happy 1, "
         "frame: 20}`, `- idle: {frames: 48}`, `- transition: {model: roar}`, `- play: {take: "
         "roar 0}`) with the models of `rigmap synth fit` and `match`, 24 frames a second, "
-        "and writes one row per frame (frame, one column per used control). Unknown models "
+        "and writes one row per frame (frame, one column per used control); an --out ending in "
+        ".csv is a Live Link Face CSV instead (a rig whose controls are ARKit blendshapes). "
+        "Unknown models "
         "or takes are errors naming them. Example: rigmap synth run roar_after_idle rig=face "
         "--out shot.parquet (overrides right after the script, options after them).",
     )  # fmt: skip
     run.add_argument("script", help="a script name (conf/latent/scripts/) or a .yaml path")
-    run.add_argument("--out", type=Path, required=True, help="controls parquet to write")
+    run.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="controls parquet to write, or a Live Link Face .csv (ARKit-named controls)",
+    )
     run.add_argument("--seed", type=int, default=0, help="seed of the particle's random force")
     _overrides(run)
     run.set_defaults(run=lambda args: _run(args, compose_config))
@@ -130,15 +137,21 @@ def _loaded(args, compose_config, script: str | None = None):
 
 def _run(args, compose_config) -> int:
     from rigmap.latent import runs
+    from rigmap.latent.live_link import live_link_columns, write_take
 
     rig, config, fitted, table = _loaded(args, compose_config, script=args.script)
+    as_csv = args.out.suffix.lower() == ".csv"
+    columns = live_link_columns(rig.used_controls) if as_csv else None  # before playing
     P, controller = runs.play_script(
         fitted, table, runs.script_path(args.script), seed=args.seed,
         blend_frames=int(config["blend_frames"]), max_frames=runs.max_script_frames(config),
         progress=True,
     )  # fmt: skip
     meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": config["fps"]}
-    runs.write_controls(args.out, rig, P, meta)
+    if as_csv:  # a Live Link Face CSV: plays on any ARKit-driven face
+        write_take(args.out, P, columns, fps=float(config["fps"]))
+    else:
+        runs.write_controls(args.out, rig, P, meta)
     for row in runs.log_rows(controller):
         state = "ok" if row["success"] else "not met"
         print(f"  {row['command']:<10} {row['model']:<10} {row['frames']:>4} frames  {state}")
