@@ -280,7 +280,9 @@ def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch
     rig = SimpleNamespace(name="arkit", used_controls=("jawOpen", "mouthSmileLeft"))
     P = np.random.default_rng(3).uniform(0, 1, (48, 2))
     config = {"fps": 24, "blend_frames": 12}
-    monkeypatch.setattr(cli, "_loaded", lambda args, compose: (rig, config, None, None))
+    monkeypatch.setattr(
+        cli, "_loaded", lambda args, compose, script=None: (rig, config, None, None)
+    )
     monkeypatch.setattr(runs, "play_script", lambda *a, **k: (P, SimpleNamespace(log=[])))
     args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
     assert cli._run(args, None) == 0
@@ -294,7 +296,9 @@ def test_synth_run_refuses_a_csv_for_a_rig_without_arkit_controls(tmp_path, monk
     from rigmap.rigs import load
 
     rig = load("face")
-    monkeypatch.setattr(cli, "_loaded", lambda args, compose: (rig, {"fps": 24}, None, None))
+    monkeypatch.setattr(
+        cli, "_loaded", lambda args, compose, script=None: (rig, {"fps": 24}, None, None)
+    )
     monkeypatch.setattr(runs, "play_script", lambda *a, **k: pytest.fail("played"))
     args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
     with pytest.raises(LiveLinkError, match="is not an ARKit blendshape"):
