@@ -1,0 +1,154 @@
+"""``rigmap edits learn`` and ``rigmap edits apply --model``: an artist's pairs to files.
+
+:func:`learn_folder` reads and checks every pair before it fits or writes anything, then
+writes the model as arrays + JSON (``edit.npz`` and ``edit.json``,
+:func:`rigmap.edits.propagation.save_model`: nothing pickled) and ``learned.json`` (the
+pairs, their frames, what was repaired, the fit) into the folder. :func:`apply_folder`
+reads and checks every input clip and propagates the edit to each before it writes any
+file, then writes per clip ``<name>.bvh`` (the source's hierarchy, a fixed frame rate)
+and ``<name>.npz`` (the edited track's values, as the stages' output), and
+``applied.json`` (per clip: frames in and out, frame rate, resampling, repairs).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rigmap.animation.bvh_write import bvh_text
+from rigmap.edits.pairs import (
+    PairError,
+    apply_clip,
+    bvh_files,
+    clip_motion,
+    feature_joints,
+    learn_pairs,
+    read_clip,
+    read_pair,
+)
+from rigmap.edits.propagation import EditModel, load_model, save_model
+from rigmap.edits.study import weights_from
+from rigmap.store import atomic_file, json_ready, write_json_atomic, write_text_atomic
+
+MODEL_STEM = "edit"
+
+
+def parse_frames(text: str | None) -> tuple[int, int] | None:
+    """``START:STOP`` (frames from 0, STOP excluded) or ``all``/None for the whole clip."""
+    if text is None or text == "all":
+        return None
+    start, sep, stop = text.partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        return int(start), int(stop)
+    except ValueError:
+        raise PairError(f"--frames {text!r}: expected START:STOP (frames from 0) or all") from None
+
+
+def pair_specs(sources, edited, frames) -> list[tuple]:
+    """``(source, edited, frames)`` per pair from the repeated options, checked."""
+    sources, edited, frames = list(sources or []), list(edited or []), list(frames or [])
+    if not sources or len(sources) != len(edited):
+        raise PairError(
+            f"give --source and --edited once per pair: {len(sources)} --source, "
+            f"{len(edited)} --edited"
+        )
+    if frames and len(frames) != len(sources):
+        raise PairError(
+            f"--frames: give it once per pair or not at all ({len(frames)} for "
+            f"{len(sources)} pairs)"
+        )
+    ranges = [parse_frames(f) for f in frames] or [None] * len(sources)
+    return list(zip(sources, edited, ranges, strict=True))
+
+
+def learn_folder(specs: list[tuple], out, settings: dict, glitch: str = "repair") -> Path:
+    """Read and check every pair, fit, then write the model and ``learned.json``."""
+    pairs = [read_pair(s, e, f, glitch) for s, e, f in specs]
+    model = EditModel(
+        feature_joints(pairs[0].source.motion),
+        weights_from(settings["weights"]),
+        residual=bool(settings["residual"]),
+        max_iterations=int(settings["max_iterations"]),
+        input_scale=str(settings.get("input_scale", "global")),
+    )
+    started = time.perf_counter()
+    learn_pairs(pairs, model)
+    seconds = time.perf_counter() - started
+    out = Path(out)
+    save_model(model, out / f"{MODEL_STEM}.npz")
+    summary = {
+        "pairs": [
+            {
+                "source": str(s),
+                "edited": str(e),
+                "frames": [p.source.start, p.source.start + p.source.track.n_frames],
+                "example_frames": int(p.examples.sum()),
+                "notes": [*p.source.notes, *p.edited.notes],
+            }
+            for (s, e, _), p in zip(specs, pairs, strict=True)
+        ],
+        "joints": list(pairs[0].source.motion.joint_names),
+        "fps": pairs[0].source.track.fps,
+        "fit_s": seconds,
+        "kinematic_length_scale": model.kinematic_gp_.length_scale_,
+        "acceleration_length_scale": model.acceleration_gp_.length_scale_,
+    }
+    write_json_atomic(out / "learned.json", json_ready(summary))
+    return out
+
+
+def apply_folder(model_dir, inputs, out, fps: float | None = None, glitch: str = "repair"):
+    """Propagate the learned edit to a BVH file or a folder's; returns the files written."""
+    model_dir = Path(model_dir)
+    model = load_model(model_dir / f"{MODEL_STEM}.npz")
+    files = bvh_files(inputs)
+    stems = [f.stem for f in files]
+    if len(set(stems)) != len(stems):
+        raise PairError(f"{inputs}: two inputs share a name; their outputs would collide")
+    results = []
+    for path in files:  # everything computed and checked before anything is written
+        clip = read_clip(path, None, glitch)
+        track = apply_clip(model, clip, fps)
+        results.append((path, clip, track, bvh_text(clip_motion(track, clip))))
+    out, written, rows = Path(out), [], []
+    for path, clip, track, text in results:
+        written.append(write_text_atomic(out / f"{path.stem}.bvh", text))
+        with atomic_file(out / f"{path.stem}.npz", suffix=".npz") as temporary:
+            np.savez(
+                temporary,
+                values=track.values,
+                channels=np.array(track.channels),
+                fps=np.array(track.fps),
+                start=np.array(track.start),
+            )
+        written.append(out / f"{path.stem}.npz")
+        rows.append(
+            {
+                "input": str(path),
+                "bvh": str(out / f"{path.stem}.bvh"),
+                "frames_in": clip.track.n_frames,
+                "frames_out": track.n_frames,
+                "fps_in": clip.track.fps,
+                "fps_out": track.fps,
+                "resampled": track.n_frames != clip.track.n_frames
+                or abs(track.fps - clip.track.fps) > 1e-9,
+                "notes": list(clip.notes),
+            }
+        )
+    summary = {"model": str(model_dir), "clips": rows}
+    written.append(write_json_atomic(out / "applied.json", json_ready(summary)))
+    return written, summary
+
+
+def load_settings(config_dir=None) -> dict:
+    """``conf/edits/default.yaml``'s model settings (residual, weights, iterations)."""
+    from omegaconf import OmegaConf
+
+    from rigmap.cli import compose_config
+
+    cfg = compose_config(["+edits=default"], config_dir)
+    return OmegaConf.to_container(cfg.edits, resolve=True)
