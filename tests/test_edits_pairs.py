@@ -260,3 +260,76 @@ def test_apply_checks_every_clip_before_writing_any(learned, tmp_path, capsys):
     _fails(
         ["edits", "apply", "--model", str(tmp_path / "none"), "--input", str(clips)], capsys, "none"
     )
+
+
+def _frames_file(motion, start: int, stop: int, path: Path) -> Path:
+    write_bvh(replace(motion, values=motion.values[start:stop].copy()), path)
+    return path
+
+
+def test_a_fix_handed_in_as_a_file_is_learned_and_the_next_frames_suggested(
+    learned, tmp_path, capsys
+):
+    import shutil
+
+    model = tmp_path / "model"
+    shutil.copytree(learned[1], model)
+    clip = MOCAP / "cmu_07_06.bvh"
+    truth = arms_raised(read_bvh(clip))
+    fixed = _frames_file(truth, 100, 160, tmp_path / "fixed.bvh")
+
+    def error_on_fixed_frames(out: Path) -> float:
+        assert (
+            main(["edits", "apply", "--model", str(model), "--input", str(clip), "--out", str(out)])
+            == 0
+        )
+        got = relative_positions(read_bvh(out / clip.name))[99:159]  # file frames 100:160
+        return float(np.mean(np.sum((got - relative_positions(truth)[100:160]) ** 2, axis=2)))
+
+    before = error_on_fixed_frames(tmp_path / "before")
+    capsys.readouterr()
+    argv = [
+        "edits",
+        "fix",
+        "--model",
+        str(model),
+        "--source",
+        str(clip),
+        "--fixed",
+        str(fixed),
+        "--frames",
+        "100:160",
+        "--suggest",
+        "2",
+    ]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    suggested = [line for line in printed.splitlines() if line.startswith("fix next: frames")]
+    assert len(suggested) == 2, printed
+    for line in suggested:
+        start, stop = (int(v) for v in line.split()[3].split(":"))
+        assert 1 <= start < stop <= 418 and (stop <= 100 or start >= 160), line
+    assert (model / "fixes" / "fix_0.bvh").is_file()
+    after = error_on_fixed_frames(tmp_path / "after")
+    with capsys.disabled():
+        print("error on the fixed frames, cm²: before", before, "after", after)
+    assert after < 0.5 * before
+    # a fix outside the clip, or of the wrong length: one line, the model folder unchanged
+    stored = {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()}
+    bad = [("400:460", fixed, "outside"), ("100:150", fixed, "60 frames")]
+    for frames, path, word in bad:
+        argv = [
+            "edits",
+            "fix",
+            "--model",
+            str(model),
+            "--source",
+            str(clip),
+            "--fixed",
+            str(path),
+            "--frames",
+            frames,
+        ]
+        _fails(argv, capsys, word)
+        assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
+        assert sorted(p.name for p in (model / "fixes").iterdir()) == ["fix_0.bvh"]

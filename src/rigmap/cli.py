@@ -280,6 +280,7 @@ def _add_edits(commands) -> None:
         if verb == "apply":
             artist_cli.add_apply_options(command)
     artist_cli.add_learn_command(verbs)
+    artist_cli.add_fix_command(verbs)
 
 
 def _edits(verb: str, args) -> int:

@@ -67,38 +67,55 @@ def pair_specs(sources, edited, frames) -> list[tuple]:
 
 def learn_folder(specs: list[tuple], out, settings: dict, glitch: str = "repair") -> Path:
     """Read and check every pair, fit, then write the model and ``learned.json``."""
+    specs = [(Path(s).resolve(), Path(e).resolve(), f) for s, e, f in specs]
     pairs = [read_pair(s, e, f, glitch) for s, e, f in specs]
-    model = EditModel(
-        feature_joints(pairs[0].source.motion),
+    rows = [
+        {
+            "source": str(s),
+            "edited": str(e),
+            "frames": [p.source.start, p.source.start + p.source.track.n_frames],
+            "example_frames": int(p.examples.sum()),
+            "notes": [*p.source.notes, *p.edited.notes],
+        }
+        for (s, e, _), p in zip(specs, pairs, strict=True)
+    ]
+    summary = {"pairs": rows, "glitch": glitch, "fixes": []}
+    fit_and_write(pairs, [], Path(out), settings, summary)
+    return Path(out)
+
+
+def new_model(motion, settings: dict) -> EditModel:
+    """An unfitted model for a skeleton, as ``conf/edits/default.yaml`` sets it up."""
+    return EditModel(
+        feature_joints(motion),
         weights_from(settings["weights"]),
         residual=bool(settings["residual"]),
         max_iterations=int(settings["max_iterations"]),
         input_scale=str(settings.get("input_scale", "global")),
     )
+
+
+def fit_and_write(
+    pairs, extra: list[tuple], out: Path, settings: dict, summary: dict, files: dict | None = None
+):
+    """Fit on the pairs (and ``extra`` examples), then write ``files`` (path → text), the
+    model and ``learned.json`` (``summary`` plus what the fit found); returns the model."""
+    model = new_model(pairs[0].source.motion, settings)
     started = time.perf_counter()
-    learn_pairs(pairs, model)
-    seconds = time.perf_counter() - started
-    out = Path(out)
-    save_model(model, out / f"{MODEL_STEM}.npz")
+    learn_pairs(pairs, model, extra)
     summary = {
-        "pairs": [
-            {
-                "source": str(s),
-                "edited": str(e),
-                "frames": [p.source.start, p.source.start + p.source.track.n_frames],
-                "example_frames": int(p.examples.sum()),
-                "notes": [*p.source.notes, *p.edited.notes],
-            }
-            for (s, e, _), p in zip(specs, pairs, strict=True)
-        ],
+        **summary,
         "joints": list(pairs[0].source.motion.joint_names),
         "fps": pairs[0].source.track.fps,
-        "fit_s": seconds,
+        "fit_s": time.perf_counter() - started,
         "kinematic_length_scale": model.kinematic_gp_.length_scale_,
         "acceleration_length_scale": model.acceleration_gp_.length_scale_,
     }
+    for path, text in (files or {}).items():
+        write_text_atomic(path, text)
+    save_model(model, out / f"{MODEL_STEM}.npz")
     write_json_atomic(out / "learned.json", json_ready(summary))
-    return out
+    return model
 
 
 def apply_folder(model_dir, inputs, out, fps: float | None = None, glitch: str = "repair"):

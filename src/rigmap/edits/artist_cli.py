@@ -60,6 +60,62 @@ def add_learn_command(verbs) -> None:
     learn.set_defaults(run=run_learn)
 
 
+def add_fix_command(verbs) -> None:
+    fix = verbs.add_parser(
+        "fix",
+        help="hand in corrected frames of a clip: refit the learned edit, suggest what to fix next",
+        description="The incremental loop of §3 (Fig 2): --fixed is a BVH of your corrected "
+        "frames (the clip's skeleton, one frame per frame of --frames START:STOP of the "
+        "--source file, from 0, STOP excluded). The fix joins the examples of the --model "
+        "folder (a copy kept in its fixes/), the edit is refitted on the pairs and every fix "
+        "so far, and the frames of highest variance on --source not fixed yet are printed "
+        "as the ones to fix next. Then rigmap edits apply --model again.",
+    )
+    fix.add_argument("--model", type=Path, required=True, help="a folder of rigmap edits learn")
+    fix.add_argument("--source", type=Path, required=True, help="the clip you corrected")
+    fix.add_argument("--fixed", type=Path, required=True, help="a BVH of the corrected frames")
+    fix.add_argument(
+        "--frames",
+        required=True,
+        metavar="START:STOP",
+        help="the frames of --source the corrected frames replace",
+    )
+    fix.add_argument("--suggest", type=int, default=3, help="how many segments to suggest")
+    fix.add_argument("--segment", type=int, default=12, help="frames per suggested segment")
+    fix.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
+    )
+    fix.set_defaults(run=run_fix)
+
+
+def run_fix(args) -> int:
+    from rigmap.edits.artist import load_settings, parse_frames
+    from rigmap.edits.fixes import fix_folder
+    from rigmap.edits.pairs import PairError
+
+    frames = parse_frames(args.frames)
+    if frames is None:
+        raise PairError("--frames must be START:STOP (the corrected frames), not all")
+    if args.suggest < 1 or args.segment < 1:
+        raise PairError(f"--suggest and --segment must be >= 1, got {args.suggest}, {args.segment}")
+    settings = load_settings(args.config_dir)
+    picks = fix_folder(
+        args.model, args.source, args.fixed, frames, settings, args.suggest, args.segment
+    )
+    print(
+        f"refitted {args.model / 'edit.npz'} with frames {frames[0]}:{frames[1]} of {args.source}"
+    )
+    for pick in picks:
+        print(
+            f"fix next: frames {pick.start}:{pick.stop} of {args.source} "
+            f"(variance {pick.variance:.3g})"
+        )
+    return 0
+
+
 def add_apply_options(command) -> None:
     """``rigmap edits apply --model DIR --input BVH|FOLDER``: a learned edit on clips."""
     command.description += (

@@ -193,9 +193,11 @@ def feature_joints(motion: BVHMotion) -> FeatureJoints:
     return FeatureJoints(tuple(moving), root, left, right)
 
 
-def learn_pairs(pairs: list[Pair], model: EditModel) -> EditModel:
+def learn_pairs(pairs: list[Pair], model: EditModel, extra: list[tuple] = ()) -> EditModel:
     """Fit ``model`` (made with :func:`feature_joints`) on the pairs, the channel scale
-    from their source clips; repaired frames are not examples."""
+    from their source clips; repaired frames are not examples. ``extra``: more
+    ``(source, edited track, frame mask)`` examples (the artist's fixes,
+    :mod:`rigmap.edits.fixes`)."""
     if not pairs:
         raise PairError("give at least one example pair (--source and --edited)")
     first = Skeleton.of(pairs[0].source.motion)
@@ -203,7 +205,7 @@ def learn_pairs(pairs: list[Pair], model: EditModel) -> EditModel:
         first.check_same(Skeleton.of(pair.source.motion), pair.source.motion.source)
     scale = pair_scale([p.source.track for p in pairs])
     examples = [(p.source.source(), p.edited.track, p.examples) for p in pairs]
-    return model.fit(examples, scale)
+    return model.fit([*examples, *extra], scale)
 
 
 def pair_scale(tracks: list[TargetTrack]) -> ChannelScale:
