@@ -257,6 +257,7 @@ def test_apply_checks_every_clip_before_writing_any(learned, tmp_path, capsys):
     argv = ["edits", "apply", "--model", str(model), "--input", str(clips), "--out", str(out)]
     _fails(argv, capsys, "b_other_skeleton.bvh")
     assert not out.exists()
+    _fails(["edits", "apply", "--input", str(clips)], capsys, "--model")
     _fails(
         ["edits", "apply", "--model", str(tmp_path / "none"), "--input", str(clips)], capsys, "none"
     )

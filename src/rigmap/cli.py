@@ -247,7 +247,11 @@ def _add_edits(commands) -> None:
     verbs = edits.add_subparsers(title="edit commands", metavar="EDIT_COMMAND")
     for verb, what in (
         ("fit", "fit each edit's GPs into outputs/models/<subject>/edits/"),
-        ("apply", "propagate each edit to the held-out clips into outputs/data/<subject>/edits/"),
+        (
+            "apply",
+            "propagate each edit to the held-out clips into outputs/data/<subject>/edits/; "
+            "with --model DIR --input BVH|FOLDER: your learned edit, written as BVH",
+        ),
         ("evaluate", "score the propagated edits into outputs/metrics/<subject>/edits/"),
         (
             "add",
@@ -293,6 +297,8 @@ def _edits(verb: str, args) -> int:
         from rigmap.edits.artist_cli import run_apply
 
         return run_apply(args)
+    if verb == "apply" and (args.input, args.out, args.fps) != (None, None, None):
+        raise ValueError("--input, --out and --fps go with --model (a rigmap edits learn folder)")
     overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
     cfg = compose_config(["+edits=default", *overrides], args.config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
