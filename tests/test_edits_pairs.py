@@ -85,14 +85,15 @@ def test_learned_edit_beats_copying_the_source_on_other_takes(learned, tmp_path,
     _, model = learned
     clips = tmp_path / "clips"
     clips.mkdir()
-    for name in ("cmu_07_06.bvh", "cmu_07_12.bvh"):  # a walk, and a brisk walk with a glitch
+    takes = ("cmu_07_06.bvh", "cmu_07_12.bvh", "cmu_08_04.bvh")  # 07_12: brisk, a glitch
+    for name in takes:
         (clips / name).symlink_to(MOCAP / name)
     out = tmp_path / "out"
     argv = ["edits", "apply", "--model", str(model), "--input", str(clips), "--out", str(out)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "cmu_07_12.bvh: glitch frames [1]" in printed and "repaired" in printed
-    for name in ("cmu_07_06.bvh", "cmu_07_12.bvh"):
+    for name in takes:
         source = read_bvh(MOCAP / name)
         result = read_bvh(out / name)
         assert result.n_frames == source.n_frames - 1  # the added T-pose at frame 0 cut
@@ -334,3 +335,24 @@ def test_a_fix_handed_in_as_a_file_is_learned_and_the_next_frames_suggested(
         _fails(argv, capsys, word)
         assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
         assert sorted(p.name for p in (model / "fixes").iterdir()) == ["fix_0.bvh"]
+    # a second fix, at the first suggestion: the refit re-reads the first from the folder
+    start, stop = (int(v) for v in suggested[0].split()[3].split(":"))
+    second = _frames_file(truth, start, stop, tmp_path / "second.bvh")
+    argv = [
+        "edits",
+        "fix",
+        "--model",
+        str(model),
+        "--source",
+        str(clip),
+        "--fixed",
+        str(second),
+        "--frames",
+        f"{start}:{stop}",
+    ]
+    assert main(argv) == 0
+    import json
+
+    fixes = json.loads((model / "learned.json").read_text())["fixes"]
+    assert [f["file"] for f in fixes] == ["fixes/fix_0.bvh", "fixes/fix_1.bvh"]
+    assert read_bvh(model / "fixes" / "fix_1.bvh").n_frames == stop - start

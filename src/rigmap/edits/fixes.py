@@ -28,9 +28,10 @@ from rigmap.edits.pairs import PairError, read_clip, read_pair
 from rigmap.edits.skeleton_mode import Skeleton, skeleton_targets
 
 
-def fix_examples(fixes: list[dict], glitch: str) -> list[tuple]:
+def fix_examples(fixes: list[dict], glitch: str, folder: Path) -> list[tuple]:
     """``(source, edited track, mask)`` per fixed source clip, every fix of it put in (in
-    order: a later fix of the same frames wins)."""
+    order: a later fix of the same frames wins); a fix's file is relative to ``folder``
+    (the model's) unless absolute."""
     by_source: dict[str, list[dict]] = {}
     for fix in fixes:
         by_source.setdefault(fix["source"], []).append(fix)
@@ -41,7 +42,7 @@ def fix_examples(fixes: list[dict], glitch: str) -> list[tuple]:
         mask = np.zeros(clip.track.n_frames, dtype=bool)
         for fix in items:
             start, stop = (int(v) - clip.start for v in fix["frames"])
-            values[start:stop] = read_bvh(fix["file"]).values
+            values[start:stop] = read_bvh(Path(folder) / fix["file"]).values
             mask[start:stop] = True
         edited = skeleton_targets(replace(clip.motion, values=values))
         examples.append((clip.source(), edited, mask & ~clip.bad))
@@ -86,13 +87,14 @@ def fix_folder(
         read_pair(p["source"], p["edited"], tuple(p["frames"]), glitch) for p in learned["pairs"]
     ]
     fixes = list(learned.get("fixes") or [])
-    name = model_dir / "fixes" / f"fix_{len(fixes)}.bvh"
-    entry = {"source": str(source), "frames": [int(v) for v in frames], "file": str(name)}
-    examples = fix_examples([*fixes, {**entry, "file": str(fixed)}], glitch)
+    name = f"fixes/fix_{len(fixes)}.bvh"  # in the model folder, which may move
+    entry = {"source": str(source), "frames": [int(v) for v in frames], "file": name}
+    given = {**entry, "file": str(Path(fixed).resolve())}
+    examples = fix_examples([*fixes, given], glitch, model_dir)
     summary = {k: v for k, v in learned.items() if k in ("pairs", "glitch")}
     summary["fixes"] = [*fixes, entry]
     # the fix's copy is written with the model, after the fit: a failed fit writes nothing
-    files = {name: bvh_text(motion)}
+    files = {model_dir / name: bvh_text(motion)}
     model = fit_and_write(pairs, examples, model_dir, settings, summary, files)
     variance = model.predict(clip.source())[0].variance
     mask = next(m for s, _, m in examples if s.track.source == clip.track.source)
