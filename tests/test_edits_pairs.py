@@ -193,7 +193,7 @@ def test_a_learned_timing_edit_yields_a_longer_clip_at_the_same_rate(tmp_path):
     assert abs(result.frame_time - given.frame_time) < 1e-9
 
 
-def test_a_glitch_frame_is_named_and_repaired_or_refused(tmp_path):
+def test_a_glitch_frame_is_named_and_repaired_or_refused(tmp_path, capsys):
     edited = edited_copy("cmu_07_12.bvh", tmp_path)
     pair = read_pair(MOCAP / "cmu_07_12.bvh", edited, (0, 200))
     notes = " ".join(pair.source.notes)
@@ -204,6 +204,20 @@ def test_a_glitch_frame_is_named_and_repaired_or_refused(tmp_path):
     assert np.abs(repaired).max() > 0
     with pytest.raises(ValueError, match=r"cmu_07_12\.bvh: frames \[1\] .* glitches"):
         read_clip(MOCAP / "cmu_07_12.bvh", glitch="refuse")
+    # learned by the command: the output says what was repaired and left out
+    argv = [
+        "edits",
+        "learn",
+        "--source",
+        str(MOCAP / "cmu_07_12.bvh"),
+        "--edited",
+        str(edited),
+        "--out",
+        str(tmp_path / "model"),
+    ]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "glitch frames [1]" in printed and "frames [1, 2] (from 0) left out" in printed
 
 
 def _fails(argv, capsys, *words) -> str:

@@ -75,13 +75,24 @@ def learn_folder(specs: list[tuple], out, settings: dict, glitch: str = "repair"
             "edited": str(e),
             "frames": [p.source.start, p.source.start + p.source.track.n_frames],
             "example_frames": int(p.examples.sum()),
-            "notes": [*p.source.notes, *p.edited.notes],
+            "notes": [*p.source.notes, *p.edited.notes, *_left_out(p)],
         }
         for (s, e, _), p in zip(specs, pairs, strict=True)
     ]
     summary = {"pairs": rows, "glitch": glitch, "fixes": []}
     fit_and_write(pairs, [], Path(out), settings, summary)
     return Path(out)
+
+
+def _left_out(pair) -> list[str]:
+    """A line saying which frames of the pair are not examples (repaired glitches)."""
+    frames = np.flatnonzero(~pair.examples) + pair.source.start
+    if not len(frames):
+        return []
+    return [
+        f"frames {frames.tolist()} (from 0) left out of the examples: repaired, or "
+        "right after a repaired frame"
+    ]
 
 
 def new_model(motion, settings: dict) -> EditModel:
