@@ -140,6 +140,29 @@ def test_a_written_clip_reads_back_to_the_same_joints(learned, tmp_path):
     assert np.abs(written.global_positions() * CM_PER_UNIT - expected).max() < 1e-4
     assert written.joint_names == read_bvh(MOCAP / "cmu_07_01.bvh").joint_names
     assert abs(written.frame_time - read_bvh(MOCAP / "cmu_07_01.bvh").frame_time) < 1e-9
+    # another --fps: the same edited motion resampled, every other frame at 60 fps
+    slow = tmp_path / "slow"
+    assert (
+        main(
+            [
+                "edits",
+                "apply",
+                "--model",
+                str(model),
+                "--input",
+                str(MOCAP / "cmu_07_01.bvh"),
+                "--out",
+                str(slow),
+                "--fps",
+                "60",
+            ]
+        )
+        == 0
+    )
+    half = read_bvh(slow / "cmu_07_01.bvh")
+    assert abs(half.frame_time - 1 / 60) < 1e-9 and half.n_frames == (written.n_frames + 1) // 2
+    at = written.global_positions()[::2][: half.n_frames] * CM_PER_UNIT
+    assert np.abs(half.global_positions() * CM_PER_UNIT - at).max() < 0.5
 
 
 def test_a_timing_track_is_resampled_to_a_fixed_rate():
