@@ -234,14 +234,24 @@ def _add_evaluate(commands) -> None:
 
 def _add_edits(commands) -> None:
     """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
-    ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth."""
+    ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
+    ``rigmap edits learn`` and ``apply --model``: an artist's own BVH pairs
+    (:mod:`rigmap.edits.artist_cli`)."""
+    from rigmap.edits import artist_cli
+
     edits = commands.add_parser(
-        "edits", help="learn procedural artist edits and propagate them to held-out motion"
+        "edits",
+        help="learn an artist's edits (example BVH pairs, or the procedural ones) and "
+        "propagate them to other motion",
     )
     verbs = edits.add_subparsers(title="edit commands", metavar="EDIT_COMMAND")
     for verb, what in (
         ("fit", "fit each edit's GPs into outputs/models/<subject>/edits/"),
-        ("apply", "propagate each edit to the held-out clips into outputs/data/<subject>/edits/"),
+        (
+            "apply",
+            "propagate each edit to the held-out clips into outputs/data/<subject>/edits/; "
+            "with --model DIR --input BVH|FOLDER: your learned edit, written as BVH",
+        ),
         ("evaluate", "score the propagated edits into outputs/metrics/<subject>/edits/"),
         (
             "add",
@@ -249,7 +259,7 @@ def _add_edits(commands) -> None:
             "outputs/metrics/<subject>/edits/refinement/",
         ),
     ):
-        _add_stage_command(
+        command = _add_stage_command(
             verbs,
             verb,
             help=what,
@@ -271,6 +281,10 @@ def _add_edits(commands) -> None:
             "paths.*=",
             run=lambda args, verb=verb: _edits(verb, args),
         )
+        if verb == "apply":
+            artist_cli.add_apply_options(command)
+    artist_cli.add_learn_command(verbs)
+    artist_cli.add_fix_command(verbs)
 
 
 def _edits(verb: str, args) -> int:
@@ -279,6 +293,12 @@ def _edits(verb: str, args) -> int:
     from rigmap.edits import runs
     from rigmap.store import Layout
 
+    if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
+        from rigmap.edits.artist_cli import run_apply
+
+        return run_apply(args)
+    if verb == "apply" and (args.input, args.out, args.fps) != (None, None, None):
+        raise ValueError("--input, --out and --fps go with --model (a rigmap edits learn folder)")
     overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
     cfg = compose_config(["+edits=default", *overrides], args.config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
@@ -333,9 +353,15 @@ def _add_map(commands) -> None:
 
 def _add_stage_command(
     commands, name, *, help, description, overrides, run, config_name="config"
-) -> None:
+) -> argparse.ArgumentParser:
     """A verb that runs a pipeline stage in this process with Hydra overrides."""
     command = commands.add_parser(name, help=help, description=description)
+    _stage_arguments(command, config_name, overrides)
+    command.set_defaults(run=run)
+    return command
+
+
+def _stage_arguments(command, config_name: str, overrides: str) -> None:
     command.add_argument(
         "overrides",
         nargs="*",
@@ -346,7 +372,6 @@ def _add_stage_command(
         command, "--config-dir",
         "the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
     )  # fmt: skip
-    command.set_defaults(run=run)
 
 
 def _add_reproduce(commands) -> None:

@@ -98,6 +98,12 @@ class Refinement:
         return _pick(variances, self.fixed, count, segment)
 
 
+def suggest_segments(variances, masks: dict, count: int, segment: int) -> list[Suggestion]:
+    """The ``count`` highest-variance segments not fixed yet (``masks``: clip index → its
+    fixed frames), as :meth:`Refinement.suggest` picks them (``rigmap edits fix``)."""
+    return _pick(variances, {k: (None, None, m) for k, m in masks.items()}, count, segment)
+
+
 def _pick(variances, fixed, count: int, segment: int, rng=None,
           per_clip: bool = False) -> list[Suggestion]:  # fmt: skip
     """Segments around the highest (or, with ``rng``, random) unfixed frames; ``per_clip``

@@ -16,12 +16,12 @@ skeleton (offsets from the BVH), in the BVH's length unit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from rigmap.animation.bvh import POSITION_CHANNELS, BVHMotion
+from rigmap.animation.bvh import POSITION_CHANNELS, ROTATION_CHANNELS, BVHMotion
 from rigmap.edits.representation import (
     ROOT_CHANNELS,
     TargetError,
@@ -135,3 +135,43 @@ def skeleton_positions(track: TargetTrack, skeleton: Skeleton) -> np.ndarray:
         world_r[:, j] = world_r[:, p] @ local[:, j]
         world_p[:, j] = world_p[:, p] + world_r[:, p] @ skeleton.offsets[j]
     return world_p
+
+
+def track_motion(track: TargetTrack, template: BVHMotion) -> BVHMotion:
+    """The inverse of :func:`skeleton_targets`: ``track`` as BVH channel values of
+    ``template``'s hierarchy (its joints, offsets and per-joint channel orders), at the
+    track's frame rate, so :mod:`rigmap.animation.bvh_write` can write it. Euler angles are
+    unwrapped over time (a whole turn added to one angle changes no rotation); position
+    channels of non-root joints are written 0, as skeleton mode reads none."""
+    skeleton = Skeleton.of(template)
+    if track.channels != skeleton.channels():
+        raise TargetError(f"{track.source}: its channels are not {template.source}'s skeleton's")
+    n, k = track.n_frames, len(skeleton.joint_names)
+    root = track.root()
+    vectors = track.values[:, 5:].reshape(n, k, 3)
+    local = Rotation.from_rotvec(vectors.reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
+    local[:, 0] = turn_matrix(root.heading) @ local[:, 0]
+    position = np.column_stack([root.x, track.values[:, 4], root.z]) - template.offsets[0]
+    values = np.zeros((n, template.channel_count))
+    for j, columns in enumerate(template.channel_slices()):
+        names = template.channels[j]
+        rotation = [c for c in names if c in ROTATION_CHANNELS]
+        if len(rotation) not in (0, 3):
+            raise TargetError(
+                f"{template.source}: joint {template.joint_names[j]!r} has "
+                f"{len(rotation)} rotation channels; writing needs 0 or 3"
+            )
+        angles = None
+        if rotation:
+            order = "".join(c[0] for c in rotation).upper()
+            angles = Rotation.from_matrix(local[:, j]).as_euler(order, degrees=True)
+            angles = np.unwrap(angles, period=360.0, axis=0)
+        for offset, name in enumerate(names):
+            column = columns.start + offset
+            if name in POSITION_CHANNELS:
+                if j == 0:
+                    values[:, column] = position[:, POSITION_CHANNELS.index(name)]
+            else:
+                values[:, column] = angles[:, rotation.index(name)]
+    source = f"{track.source} (BVH)"
+    return replace(template, values=values, frame_time=1.0 / track.fps, source=source)

@@ -1,0 +1,190 @@
+"""The command-line side of :mod:`rigmap.edits.artist`: ``rigmap edits learn`` and the
+``--model`` options of ``rigmap edits apply``. Imports stay light here (the parser is
+built on every ``rigmap`` call); the work is imported when a command runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rigmap.user_outputs import USER_OUTPUTS
+
+GLITCH_HELP = (
+    "a capture glitch (a frame whose every channel is zero): repair (default: rebuilt from "
+    "its neighbours, left out of the examples, said so in the summary) or refuse (an error)"
+)
+
+
+def add_learn_command(verbs) -> None:
+    learn = verbs.add_parser(
+        "learn",
+        help="learn an edit from your example pairs (a source BVH and your edited version)",
+        description="Fits the edit-propagation model (Ikemoto et al. 2009: two GPs and the "
+        "combined solve; settings of conf/edits/default.yaml) on example pairs: --source "
+        "a.bvh --edited a_edited.bvh, repeated for more pairs, each with an optional "
+        "--frames START:STOP (from 0, STOP excluded; the same frames of both files). A pair "
+        "must have the same skeleton, frame count and frame time (§3), every channel a "
+        "number. Writes edit.npz + edit.json (the model: arrays and JSON) and learned.json "
+        f"into --out (default {USER_OUTPUTS}/edits/<first edited file's name>/). Example: "
+        "rigmap edits learn --source walk.bvh --edited walk_arms_up.bvh --frames 40:475",
+    )
+    learn.add_argument(
+        "--source",
+        action="append",
+        type=Path,
+        metavar="BVH",
+        required=True,
+        help="a source clip (repeat once per pair)",
+    )
+    learn.add_argument(
+        "--edited",
+        action="append",
+        type=Path,
+        metavar="BVH",
+        required=True,
+        help="the edited version of the --source at the same place",
+    )
+    learn.add_argument(
+        "--frames",
+        action="append",
+        metavar="START:STOP",
+        help="the pair's frames (once per pair, or never: whole clips)",
+    )
+    learn.add_argument("--out", type=Path, default=None, help="the folder to write the model to")
+    learn.add_argument("--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP)
+    learn.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
+    )
+    learn.set_defaults(run=run_learn)
+
+
+def add_fix_command(verbs) -> None:
+    fix = verbs.add_parser(
+        "fix",
+        help="hand in corrected frames of a clip: refit the learned edit, suggest what to fix next",
+        description="The incremental loop of §3 (Fig 2): --fixed is a BVH of your corrected "
+        "frames (the clip's skeleton, one frame per frame of --frames START:STOP of the "
+        "--source file, from 0, STOP excluded). The fix joins the examples of the --model "
+        "folder (a copy kept in its fixes/), the edit is refitted on the pairs and every fix "
+        "so far, and the frames of highest variance on --source not fixed yet are printed "
+        "as the ones to fix next. Then rigmap edits apply --model again.",
+    )
+    fix.add_argument("--model", type=Path, required=True, help="a folder of rigmap edits learn")
+    fix.add_argument("--source", type=Path, required=True, help="the clip you corrected")
+    fix.add_argument("--fixed", type=Path, required=True, help="a BVH of the corrected frames")
+    fix.add_argument(
+        "--frames",
+        required=True,
+        metavar="START:STOP",
+        help="the frames of --source the corrected frames replace",
+    )
+    fix.add_argument("--suggest", type=int, default=3, help="how many segments to suggest")
+    fix.add_argument("--segment", type=int, default=12, help="frames per suggested segment")
+    fix.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
+    )
+    fix.set_defaults(run=run_fix)
+
+
+def run_fix(args) -> int:
+    from rigmap.edits.artist import load_settings, parse_frames
+    from rigmap.edits.fixes import fix_folder
+    from rigmap.edits.pairs import PairError
+
+    frames = parse_frames(args.frames)
+    if frames is None:
+        raise PairError("--frames must be START:STOP (the corrected frames), not all")
+    if args.suggest < 1 or args.segment < 1:
+        raise PairError(f"--suggest and --segment must be >= 1, got {args.suggest}, {args.segment}")
+    settings = load_settings(args.config_dir)
+    picks = fix_folder(
+        args.model, args.source, args.fixed, frames, settings, args.suggest, args.segment
+    )
+    print(
+        f"refitted {args.model / 'edit.npz'} with frames {frames[0]}:{frames[1]} of {args.source}"
+    )
+    for pick in picks:
+        print(
+            f"fix next: frames {pick.start}:{pick.stop} of {args.source} "
+            f"(variance {pick.variance:.3g})"
+        )
+    return 0
+
+
+def add_apply_options(command) -> None:
+    """``rigmap edits apply --model DIR --input BVH|FOLDER``: a learned edit on clips."""
+    command.description += (
+        " With --model DIR (a folder `rigmap edits learn` wrote) it instead applies that "
+        "edit to --input (a BVH file or a folder of them) and writes, per clip, <name>.bvh "
+        "(the clip's own hierarchy, at --fps or the clip's rate; a timing edit is resampled "
+        f"to it) and <name>.npz, and applied.json, into --out (default {USER_OUTPUTS}/edits/"
+        "<model folder's name>/applied/)."
+    )
+    command.add_argument(
+        "--model", type=Path, default=None, help="a folder written by rigmap edits learn"
+    )
+    command.add_argument(
+        "--input",
+        type=Path,
+        default=None,
+        metavar="BVH_OR_FOLDER",
+        help="with --model: the clip(s) to edit",
+    )
+    command.add_argument("--out", type=Path, default=None, help="with --model: output folder")
+    command.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="with --model: the output frame rate (default: the clip's)",
+    )
+    command.add_argument(
+        "--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP
+    )
+
+
+def run_learn(args) -> int:
+    from rigmap.edits.artist import learn_folder, load_settings, pair_specs
+
+    specs = pair_specs(args.source, args.edited, args.frames)
+    out = args.out or USER_OUTPUTS / "edits" / Path(specs[0][1]).stem
+    settings = load_settings(args.config_dir)
+    folder = learn_folder(specs, out, settings, args.glitch)
+    import json
+
+    summary = json.loads((folder / "learned.json").read_text())
+    for pair in summary["pairs"]:
+        start, stop = pair["frames"]
+        print(
+            f"pair {pair['source']} -> {pair['edited']}: frames {start}:{stop}, "
+            f"{pair['example_frames']} example frames"
+        )
+        for note in pair["notes"]:
+            print(f"  {note}")
+    print(f"model: {folder / 'edit.npz'} (fit {summary['fit_s']:.1f} s)")
+    return 0
+
+
+def run_apply(args) -> int:
+    from rigmap.edits.artist import apply_folder
+    from rigmap.edits.pairs import PairError
+
+    if args.overrides:
+        raise PairError(f"--model takes no KEY=VALUE overrides, got {args.overrides}")
+    if args.input is None:
+        raise PairError("--model needs --input (a BVH file or a folder of them)")
+    out = args.out or USER_OUTPUTS / "edits" / args.model.resolve().name / "applied"
+    _, summary = apply_folder(args.model, args.input, out, args.fps, args.glitch)
+    for row in summary["clips"]:
+        timing = " (resampled)" if row["resampled"] else ""
+        print(
+            f"{row['input']} -> {row['bvh']}: {row['frames_in']} -> {row['frames_out']} "
+            f"frames at {row['fps_out']:g} fps{timing}"
+        )
+        for note in row["notes"]:
+            print(f"  {note}")
+    return 0

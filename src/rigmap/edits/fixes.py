@@ -1,0 +1,102 @@
+"""``rigmap edits fix``: the artist's correction of a frame range joins the examples (§3).
+
+"If the artist does not like any part of the animation, (s)he can fix the estimate. The
+system incorporates these fixes into the training data and produces a new estimate" (§3,
+Fig 2). A fix is a BVH of the corrected frames (the source clip's skeleton, one frame per
+corrected frame) and the range ``START:STOP`` of the source file they replace. The model
+folder keeps a copy of every fix (``fixes/fix_<k>.bvh``) and lists them in
+``learned.json``, so a refit re-reads the original pairs and every fix so far: the source
+clip with the fixed frames put in is an example on those frames only (the features see
+the whole clip; :meth:`EditModel.fit`'s frame masks). After the refit the frames of
+highest configuration variance on that clip, not fixed yet, are suggested next, as
+segments (:func:`rigmap.edits.incremental.suggest_segments`, the study's rule).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from rigmap.animation import read_bvh
+from rigmap.animation.bvh_write import bvh_text
+from rigmap.edits.artist import fit_and_write
+from rigmap.edits.incremental import Suggestion, suggest_segments
+from rigmap.edits.pairs import PairError, read_clip, read_pair
+from rigmap.edits.skeleton_mode import Skeleton, skeleton_targets
+
+
+def fix_examples(fixes: list[dict], glitch: str, folder: Path) -> list[tuple]:
+    """``(source, edited track, mask)`` per fixed source clip, every fix of it put in (in
+    order: a later fix of the same frames wins); a fix's file is relative to ``folder``
+    (the model's) unless absolute."""
+    by_source: dict[str, list[dict]] = {}
+    for fix in fixes:
+        by_source.setdefault(fix["source"], []).append(fix)
+    examples = []
+    for source, items in by_source.items():
+        clip = read_clip(source, None, glitch)
+        values = clip.motion.values.copy()
+        mask = np.zeros(clip.track.n_frames, dtype=bool)
+        for fix in items:
+            start, stop = (int(v) - clip.start for v in fix["frames"])
+            values[start:stop] = read_bvh(Path(folder) / fix["file"]).values
+            mask[start:stop] = True
+        edited = skeleton_targets(replace(clip.motion, values=values))
+        examples.append((clip.source(), edited, mask & ~clip.bad))
+    return examples
+
+
+def check_fix(source, fixed, frames: tuple[int, int], glitch: str):
+    """The source clip and the fixed frames' motion, checked: the same skeleton, the range
+    inside the clip's motion, one fixed frame per frame of the range."""
+    clip = read_clip(source, None, glitch)
+    motion = read_bvh(fixed)
+    Skeleton.of(clip.motion).check_same(Skeleton.of(motion), str(fixed))
+    start, stop = frames
+    first, last = clip.start, clip.start + clip.track.n_frames
+    if not first <= start < stop <= last:
+        raise PairError(
+            f"--frames {start}:{stop} is outside the motion of {source} (frames {first}:{last})"
+        )
+    if motion.n_frames != stop - start:
+        raise PairError(
+            f"{fixed}: {motion.n_frames} frames for the {stop - start} frames of --frames "
+            f"{start}:{stop}"
+        )
+    if abs(motion.frame_time - clip.motion.frame_time) > 1e-9:
+        raise PairError(
+            f"{fixed}: frame time {motion.frame_time:g} s, {source}'s is "
+            f"{clip.motion.frame_time:g} s"
+        )
+    return clip, motion
+
+
+def fix_folder(
+    model_dir, source, fixed, frames, settings: dict, count: int = 3, segment: int = 12
+) -> list[Suggestion]:
+    """Add the fix, refit on the pairs and every fix, write the model; the suggestions."""
+    model_dir = Path(model_dir)
+    learned = json.loads((model_dir / "learned.json").read_text())
+    glitch = learned.get("glitch", "repair")
+    source = Path(source).resolve()
+    clip, motion = check_fix(source, fixed, frames, glitch)
+    pairs = [
+        read_pair(p["source"], p["edited"], tuple(p["frames"]), glitch) for p in learned["pairs"]
+    ]
+    fixes = list(learned.get("fixes") or [])
+    name = f"fixes/fix_{len(fixes)}.bvh"  # in the model folder, which may move
+    entry = {"source": str(source), "frames": [int(v) for v in frames], "file": name}
+    given = {**entry, "file": str(Path(fixed).resolve())}
+    examples = fix_examples([*fixes, given], glitch, model_dir)
+    summary = {k: v for k, v in learned.items() if k in ("pairs", "glitch")}
+    summary["fixes"] = [*fixes, entry]
+    # the fix's copy is written with the model, after the fit: a failed fit writes nothing
+    files = {model_dir / name: bvh_text(motion)}
+    model = fit_and_write(pairs, examples, model_dir, settings, summary, files)
+    variance = model.predict(clip.source())[0].variance
+    mask = next(m for s, _, m in examples if s.track.source == clip.track.source)
+    picks = suggest_segments([variance], {0: mask}, count, segment)
+    return [replace(p, start=p.start + clip.start, stop=p.stop + clip.start) for p in picks]
