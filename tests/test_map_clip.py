@@ -11,7 +11,7 @@ import pytest
 
 from rigmap.animation.library import build_corpus
 from rigmap.map import RetargetMap, tracks_from_bvh
-from rigmap.map.clip import MapError, MapSettings, map_clip
+from rigmap.map.clip import MapError, MapSettings, held_controls, map_clip
 from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.regression import GaussianProcessRegressor
 from rigmap.regression.features import inverse_features
@@ -99,3 +99,83 @@ def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
     order = [motion.joint_names.index(n) for n in biped.joint_names]
     np.testing.assert_allclose(motion.global_positions()[:, order], world, atol=1e-5)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk"]
+
+
+@pytest.fixture(scope="module")
+def walk_2s(biped):
+    """Two seconds of the walk at 30 fps (about two steps per foot)."""
+    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    targets = retarget.apply(biped, tracks_from_bvh(WALK))
+    return dataclasses.replace(targets, positions=targets.positions[240:480:4], fps=30.0)
+
+
+FEET = ("foot_l", "foot_r", "ball_l", "ball_r")
+
+
+def test_planted_heels_and_toes_hold_to_a_tenth_of_a_mm_in_the_keys(biped, trained, walk_2s):
+    from rigmap.map.world_subset_rig import WorldSubsetRig
+
+    mapping, _, std, median = trained
+    settings = MapSettings(refine_iterations=1, feet=FEET, key_tolerance_cm=0.5)
+    result = map_clip(biped, walk_2s, mapping, settings, control_std=std, hold_values=median)
+    planted = result.contacts.planted
+    assert planted.any(axis=0).all() and planted.mean() < 0.9  # every joint plants and lifts
+    # the output (the keys' values on every frame) holds each plant where it was pinned
+    world = WorldSubsetRig(biped, result.joint_names).evaluate(result.controls)
+    for k, foot in enumerate(result.contacts.feet):
+        j = result.joint_names.index(foot)
+        for first, last in result.contacts.intervals(k):
+            ground = world[first : last + 1, j][:, [0, 2]]
+            pin = result.targets[first : last + 1, j][:, [0, 2]]
+            assert np.linalg.norm(ground - pin, axis=1).max() <= 0.1
+            assert np.ptp(result.targets[first : last + 1, j][:, [0, 2]], axis=0).max() == 0
+    assert result.contact_slip_cm <= 0.1
+    assert result.skate_result_cm <= result.skate_source_cm
+    assert result.keys.max_joint_error_cm <= 0.5
+    unpinned = map_clip(biped, walk_2s, mapping, dataclasses.replace(settings, pin_feet=False),
+                        control_std=std, hold_values=median)  # fmt: skip
+    assert unpinned.skate_result_cm > 5 * result.skate_result_cm  # the hold is what pins
+
+
+def test_the_hold_moves_only_the_legs_controls(biped, trained, walk_2s):
+    """Root motion, the COG and the body stay as mapped: the foot controls found by
+    probing the rig are the legs' IK and foot-roll controls, none held."""
+    from rigmap.map.contact_hold import foot_controls
+    from rigmap.map.contacts import detect_contacts
+
+    _, _, std, median = trained
+    joints = list(walk_2s.joint_names)
+    contacts = detect_contacts(walk_2s.positions, FEET, joints, walk_2s.fps)
+    scale = std.copy()
+    scale[held_controls(biped, MapSettings().hold)] = 0.0
+    row = biped.expand_used(median[None])[0]
+    flags, moves = foot_controls(biped, row, contacts, "pelvis", scale)
+    names = [biped.used_controls[k] for k in np.flatnonzero(flags)]
+    assert {"leg_l_ik.tx", "leg_l_ik.tz", "leg_r_ik.tx", "leg_r_ik.tz"} <= set(names)
+    assert all(n.startswith(("leg_l", "leg_r")) and not n.endswith(".ik_fk") for n in names)
+    left = [k for k, n in enumerate(names) if n.startswith("leg_l")]
+    assert not moves[np.flatnonzero(flags)[left]][:, [1, 3]].any()  # left controls: left foot
+
+
+def test_no_euler_flip_on_a_walk_that_turns_through_180_degrees(biped, trained, walk_2s):
+    from rigmap.map.curves import count_flips
+
+    mapping, _, std, median = trained
+    turned = walk_2s.positions.copy()
+    angle = np.linspace(np.radians(170), np.radians(190), len(turned))  # heading crosses ±π
+    c, s = np.cos(angle), np.sin(angle)
+    x, z = turned[:, :, 0].copy(), turned[:, :, 2].copy()
+    turned[:, :, 0] = c[:, None] * x + s[:, None] * z
+    turned[:, :, 2] = -s[:, None] * x + c[:, None] * z
+    targets = dataclasses.replace(walk_2s, positions=turned)
+    kinds = [biped.controls.kinds[i] for i in biped.controls.used_indices]
+    guess = mapping.predict(
+        turned[:, [targets.joint_names.index(j) for j in mapping.subset.joints]]
+    )
+    assert count_flips(guess, kinds) > 0  # predicted frame by frame, the heading wraps
+    settings = MapSettings(refine_iterations=1, feet=FEET)
+    result = map_clip(biped, targets, mapping, settings, control_std=std, hold_values=median)
+    used = result.controls[:, biped.controls.used_indices]
+    assert result.flips == 0 == count_flips(used, kinds)
+    rotate = np.array([k == "rotate" for k in kinds])
+    assert np.abs(np.diff(used[:, rotate], axis=0)).max() < 1.0
