@@ -175,3 +175,17 @@ def test_ground_penetration_slip_and_flips_of_a_synthetic_step():
     assert count_flips(wrapped[:, None], ["rotate"]) == 1
     assert count_flips(angles[:, None], ["rotate"]) == 0
     assert count_flips(wrapped[:, None] * 100, ["translate"]) == 0
+
+
+def test_the_reducers_hermite_values_are_its_bezier_curves():
+    from rigmap.map.key_reduction import _hermite_curve, data_slopes, hermite_values
+
+    rng = np.random.default_rng(4)
+    values = np.cumsum(rng.normal(size=60))
+    slopes = data_slopes(values)
+    for keys in ([0, 59], [0, 7, 8, 30, 59], list(range(60))):
+        curve = _hermite_curve(values, slopes, keys, "c")
+        np.testing.assert_allclose(
+            hermite_values(values, slopes, keys), curve.evaluate(np.arange(60.0)), atol=1e-9
+        )
+    np.testing.assert_allclose(hermite_values(values, slopes, keys)[keys], values[keys])

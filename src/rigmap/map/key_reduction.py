@@ -53,25 +53,40 @@ def reduce_curve(
         raise KeyReductionError(f"{control or 'curve'}: values are not all finite")
     if not tolerance > 0:
         raise KeyReductionError(f"{control or 'curve'}: tolerance {tolerance} must be > 0")
-    frames = np.arange(len(values), dtype=np.float64)
     slopes = data_slopes(values)
     keys = sorted({0, len(values) - 1} | {int(k) for k in keys})
     while True:
-        curve = _hermite_curve(values, slopes, keys, control)
-        error = np.abs(curve.evaluate(frames) - values)
+        error = np.abs(hermite_values(values, slopes, keys) - values)
         added = []
         for first, last in itertools.pairwise(keys):
             inside = error[first + 1 : last]
             if inside.size and inside.max() > tolerance:
                 added.append(first + 1 + int(np.argmax(inside)))
         if not added:
-            return curve
+            return _hermite_curve(values, slopes, keys, control)
         keys = sorted(set(keys) | set(added))
 
 
 def data_slopes(values: np.ndarray) -> np.ndarray:
     """The per-frame curve's own slope (central differences), the keys' handle slopes."""
     return np.gradient(values) if len(values) > 1 else np.zeros(1)
+
+
+def hermite_values(values: np.ndarray, slopes: np.ndarray, keys) -> np.ndarray:
+    """On every frame, the value of :func:`_hermite_curve`'s Bézier (handles a third of the
+    way along the slope make it the cubic Hermite of the keys' values and slopes), without
+    building the curve: what the reduction evaluates thousands of times."""
+    keys = np.asarray(sorted(keys), dtype=np.int64)
+    frames = np.arange(len(values))
+    if len(keys) == 1:
+        return np.full(len(values), float(values[keys[0]]))
+    segment = np.clip(np.searchsorted(keys, frames, side="right") - 1, 0, len(keys) - 2)
+    a, b = keys[segment], keys[segment + 1]
+    width = (b - a).astype(np.float64)
+    t = np.clip((frames - a) / width, 0.0, 1.0)
+    h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
+    h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
+    return h00 * values[a] + h10 * width * slopes[a] + h01 * values[b] + h11 * width * slopes[b]
 
 
 def _hermite_curve(values, slopes, keys: list[int], control: str | None) -> FCurve:
@@ -151,22 +166,23 @@ def reduce_within_joint_tolerance(
         set(reduce_curve(values[:, k], start_tolerance_std * std[k]).frames.astype(int))
         for k in range(len(used))
     ]
-    curves = [
-        _hermite_curve(values[:, k], slopes[:, k], sorted(keys[k]), names[k])
-        for k in range(len(used))
-    ]
-    frames = np.arange(len(controls), dtype=np.float64)
-    replay = np.stack([c.evaluate(frames) for c in curves], axis=1)
+    replay = np.stack(
+        [hermite_values(values[:, k], slopes[:, k], keys[k]) for k in range(len(used))], axis=1
+    )
     target = _world(rig, controls)
     sensitivity = _sensitivity(rig, controls, std)
+    rows = controls.copy()
+    rows[:, used] = replay
+    error = np.linalg.norm(_world(rig, rows) - target, axis=2)
     while True:
-        rows = controls.copy()
-        rows[:, used] = replay
-        error = np.linalg.norm(_world(rig, rows) - target, axis=2)
         over = error > limit
         if not over.any():
+            curves = tuple(
+                _hermite_curve(values[:, k], slopes[:, k], sorted(keys[k]), names[k])
+                for k in range(len(used))
+            )
             return ReducedKeys(
-                names, tuple(curves), len(controls), start_tolerance_std, float(error.max())
+                names, curves, len(controls), start_tolerance_std, float(error.max())
             )
         changed = set()
         for f in _worst_frames(error / limit, over):
@@ -177,9 +193,13 @@ def reduce_within_joint_tolerance(
                 f"key reduction on rig {rig.name!r}: a joint is off by "
                 f"{error.max():.3g} cm on a frame keyed on every control"
             )
+        dirty = np.zeros(len(controls), dtype=bool)  # frames whose replay changed
         for k in changed:
-            curves[k] = _hermite_curve(values[:, k], slopes[:, k], sorted(keys[k]), names[k])
-            replay[:, k] = curves[k].evaluate(frames)
+            new = hermite_values(values[:, k], slopes[:, k], keys[k])
+            dirty |= new != replay[:, k]
+            replay[:, k] = new
+        rows[:, used] = replay
+        error[dirty] = np.linalg.norm(_world(rig, rows[dirty]) - target[dirty], axis=2)
 
 
 def _limit_table(rig, n_frames: int, tolerance_cm: float, limits) -> np.ndarray:
