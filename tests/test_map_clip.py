@@ -16,6 +16,7 @@ from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.regression import GaussianProcessRegressor
 from rigmap.regression.features import inverse_features
 from rigmap.regression.kernels import MultiquadricKernel
+from rigmap.rigs.base import Pose, Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT.parent / "shared" / "mocap" / "cmu_131_02_walk.bvh"
@@ -207,3 +208,35 @@ def test_round_trip_bvh_map_bvh_of_the_rig(biped, trained, walk_2s, tmp_path):
     assert np.sqrt((distance**2).mean()) < 2.5  # cm on the 24 joints: the map's own error
     assert np.sqrt((first.frame_error_cm**2).mean()) > 2.0  # the real mocap was harder
     assert second.flips == 0 and second.skate_result_cm <= first.skate_result_cm + 0.01
+
+
+class Float32Biped(Rig):
+    """The biped with its positions rounded to float32, as Blender's rigs compute them."""
+
+    def __init__(self, rig):
+        self.inner, self.name, self.controls = rig, rig.name, rig.controls
+        self.joint_names, self.parents = rig.joint_names, rig.parents
+        self.differentiable, self.computes_in_float32 = False, True
+        self.length_unit, self.description = rig.length_unit, "float32 biped"
+
+    def _pose(self, Y) -> Pose:
+        pose = self.inner.pose(np.asarray(Y, dtype=np.float64))
+        rounded = (np.asarray(p, dtype=np.float32).astype(np.float64) for p in pose)
+        return Pose(*rounded)
+
+
+def test_foot_controls_of_a_float32_rig_are_found_through_its_rounding(biped, trained, walk_2s):
+    from rigmap.map.contact_hold import foot_controls
+    from rigmap.map.contacts import detect_contacts
+
+    _, _, std, median = trained
+    contacts = detect_contacts(walk_2s.positions, FEET, list(walk_2s.joint_names), walk_2s.fps)
+    scale = std.copy()
+    scale[held_controls(biped, MapSettings().hold)] = 0.0
+    row = biped.expand_used(median[None])[0]
+    exact, _ = foot_controls(biped, row, contacts, "pelvis", scale)
+    rounded, _ = foot_controls(Float32Biped(biped), row, contacts, "pelvis", scale)
+    assert not (rounded & ~exact).any()  # rounding adds no control (no root, no spine)
+    names = {biped.used_controls[k] for k in np.flatnonzero(rounded)}
+    for side in "lr":  # and loses none that moves a planted foot more than a rounding
+        assert {f"leg_{side}_ik.tx", f"leg_{side}_ik.tz", f"leg_{side}.roll"} <= names

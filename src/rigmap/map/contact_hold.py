@@ -28,6 +28,18 @@ TOLERANCE_CM = 1e-3  # a planted joint this close to its pin is held (ours)
 BLEND_S = 0.1  # the hold's change fades over this long before and after a plant (ours)
 PROBE_STD = 1e-3  # finite-difference step, training stds (ours)
 MOVES_CM = 1e-6  # a probe moving a joint less than this (per probe) does not move it
+# a rig computing in float32 (Blender's) rounds positions to ~1e-5 of their size: a larger
+# step and threshold keep its rounding out of the Jacobian and the foot controls (ours)
+FLOAT32_PROBE_STD, FLOAT32_MOVES_CM = 0.05, 1e-2
+
+
+def _probe(rig) -> tuple[float, float]:
+    """The finite-difference step (std) and the "does not move" threshold (cm) for ``rig``."""
+    if getattr(rig, "computes_in_float32", False):
+        return FLOAT32_PROBE_STD, FLOAT32_MOVES_CM
+    return PROBE_STD, MOVES_CM
+
+
 RIDGE = 0.01  # cm² per std²: damping where the leg is straight and the foot cannot reach
 MAX_STEP_STD = 1.0  # largest change of a foot control in one step, training stds (ours)
 GROUND = [0, 2]  # rig axes: X and Z span the ground
@@ -48,17 +60,18 @@ def foot_controls(rig, row: np.ndarray, contacts: Contacts, origin: str, scale):
     ``origin`` nor the root of a contact joint's leg, probed at the full control ``row``:
     ``(U,)`` flags, and ``(U, P)`` flags of the contact joints each one moves."""
     used = rig.controls.used_indices
+    step, still = _probe(rig)
     scale = np.asarray(scale, dtype=np.float64)
     fixed = sorted({origin, *(_leg_root(rig, f, origin) for f in contacts.feet)})
     view = WorldSubsetRig(rig, [*contacts.feet, *fixed])
     probes = np.repeat(np.asarray(row, dtype=np.float64)[None], len(used) + 1, axis=0)
     for k, c in enumerate(used):
-        probes[k + 1, c] += PROBE_STD * max(scale[k], 0.0)
+        probes[k + 1, c] += step * max(scale[k], 0.0)
     world = np.asarray(view.evaluate(probes), dtype=np.float64)
     shift = world[1:] - world[0]
     feet = len(contacts.feet)
-    moves = np.linalg.norm(shift[:, :feet][:, :, GROUND], axis=2) > MOVES_CM  # (U, P)
-    body = (np.linalg.norm(shift[:, feet:], axis=2) > MOVES_CM).any(axis=1)
+    moves = np.linalg.norm(shift[:, :feet][:, :, GROUND], axis=2) > still  # (U, P)
+    body = (np.linalg.norm(shift[:, feet:], axis=2) > still).any(axis=1)
     flags = moves.any(axis=1) & ~body & (scale > 0)
     return flags, moves & flags[:, None]
 
@@ -169,6 +182,7 @@ class _Solve:
         self.rig, self.Y, self.columns, self.scale = rig, Y, columns, scale
         self.mask = np.repeat(planted, 2, axis=1).astype(np.float64)  # (N, 2P) rows x, z
         self.pins, self.view, self.evaluations = pins.reshape(len(Y), -1), view, 0
+        self.step = _probe(rig)[0]
 
     def ground(self, change: np.ndarray, frames: np.ndarray, probes: bool = True) -> np.ndarray:
         """``(n, 1 + m, 2P)`` joints' x, z of ``frames`` at ``change`` (and each probe)."""
@@ -176,7 +190,7 @@ class _Solve:
         rows = np.repeat(self.Y[frames, None], 1 + m, axis=1)
         rows[:, :, self.columns] += (change[frames] * self.scale)[:, None]
         for k in range(m):
-            rows[:, k + 1, self.columns[k]] += PROBE_STD * self.scale[k]
+            rows[:, k + 1, self.columns[k]] += self.step * self.scale[k]
         flat = self.rig.expand_used(rows.reshape(-1, rows.shape[2]))
         world = np.asarray(self.view.evaluate(flat))
         self.evaluations += len(world)
@@ -200,7 +214,7 @@ class _Solve:
             step[back] /= 2
             best[active[~worse]] = size[~worse]
             go = ~worse & (size > TOLERANCE_CM)
-            J = (ground[go, 1:] - ground[go, :1]) / PROBE_STD * self.mask[active[go], None]
+            J = (ground[go, 1:] - ground[go, :1]) / self.step * self.mask[active[go], None]
             new = _least_change(J, error[go])
             new /= np.maximum(1.0, np.abs(new).max(axis=1, keepdims=True) / MAX_STEP_STD)
             step[active[go]] = new
