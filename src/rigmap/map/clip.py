@@ -40,6 +40,7 @@ from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_gues
 from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
+from rigmap.torch_threads import blas_threads, torch_threads
 
 
 class MapError(RigmapError, ValueError):
@@ -152,18 +153,10 @@ def map_clip(
     Y = solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds)
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
-    limits = []
-    if contacts is not None and settings.pin_feet:
-        Y = _hold(rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds)
-        limits = [
-            JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
-            for k, f in enumerate(contacts.feet)
-        ]
-    started = time.perf_counter()
-    keys = reduce_within_joint_tolerance(
-        rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
-    )
-    seconds["keys_s"] = time.perf_counter() - started
+    with torch_threads(1), blas_threads(1):  # as the refinement: many small rig batches
+        keys = _hold_and_reduce(
+            rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds
+        )
     controls = rig.expand_used(keys.values())
     achieved = np.asarray(WorldSubsetRig(rig, joints).evaluate(controls), dtype=np.float64)
     result = MapResult(
@@ -188,6 +181,24 @@ def map_clip(
 
 
 CONTACT_TOLERANCE_CM = 0.05  # key reduction keeps planted joints this close (ours)
+
+
+def _hold_and_reduce(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds):
+    """With pinning, the planted joints held (:func:`_hold`); then the keys, the planted
+    joints within :data:`CONTACT_TOLERANCE_CM` of the held pose."""
+    limits = []
+    if contacts is not None and settings.pin_feet:
+        Y = _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds)
+        limits = [
+            JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
+            for k, f in enumerate(contacts.feet)
+        ]
+    started = time.perf_counter()
+    keys = reduce_within_joint_tolerance(
+        rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
+    )
+    seconds["keys_s"] = time.perf_counter() - started
+    return keys
 
 
 def _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds) -> np.ndarray:
