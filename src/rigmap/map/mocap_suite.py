@@ -11,7 +11,7 @@ row per clip with joint RMS (cm, % height), skate against the source's, ground
 penetration, the largest control jump (training std), keys per frame and control, Euler
 flips and frames per second, then the bars of the issue, met or not.
 
-It maps about 4 000 frames (30 fps), 10-15 min on the shared 2 cores: too long for the
+It maps about 4 000 frames (30 fps), 5-6 min on the shared 2 cores: too long for the
 quick replication, so it is ``make mocap-suite``, not a DVC stage of ``rigmap reproduce``.
 """
 
