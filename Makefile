@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender postgres tracking-server reproduce paper-table1 push pull demo test lint format benchmark clean
+.PHONY: setup blender postgres tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
 
 setup: $(STAMP)
 
@@ -47,6 +47,13 @@ reproduce: setup blender
 # all of it the two minibatch-8 networks) into paper-run/ and reports/paper/
 paper-table1: setup
 	BIN=$(BIN) scripts/paper_table1.sh
+
+# Issue #37's real-mocap suite: every clip of ../shared/mocap/ mapped whole onto the biped
+# (about 4 000 frames, 5-6 min on 2 cores: not part of the quick replication). Needs the
+# biped's corpus and poses (dvc repro animate@biped pose@biped);
+# reports/tables/map_suite_biped.md and metrics/biped/map_suite/
+mocap-suite: setup
+	$(BIN)/python pipelines/map_suite.py rig=biped
 
 # Share outputs through the default DVC remote (.dvc/config: <clone>/../rigmap-dvc-remote):
 # `make push` after a run, `make pull` in another clone instead of recomputing.

@@ -11,11 +11,12 @@ import pytest
 
 from rigmap.animation.library import build_corpus
 from rigmap.map import RetargetMap, tracks_from_bvh
-from rigmap.map.clip import MapError, MapSettings, map_clip
+from rigmap.map.clip import MapError, MapSettings, held_controls, map_clip
 from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.regression import GaussianProcessRegressor
 from rigmap.regression.features import inverse_features
 from rigmap.regression.kernels import MultiquadricKernel
+from rigmap.rigs.base import Pose, Rig
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT.parent / "shared" / "mocap" / "cmu_131_02_walk.bvh"
@@ -99,3 +100,143 @@ def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
     order = [motion.joint_names.index(n) for n in biped.joint_names]
     np.testing.assert_allclose(motion.global_positions()[:, order], world, atol=1e-5)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk"]
+
+
+@pytest.fixture(scope="module")
+def walk_2s(biped):
+    """Two seconds of the walk at 30 fps (about two steps per foot)."""
+    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    targets = retarget.apply(biped, tracks_from_bvh(WALK))
+    return dataclasses.replace(targets, positions=targets.positions[240:480:4], fps=30.0)
+
+
+FEET = ("foot_l", "foot_r", "ball_l", "ball_r")
+
+
+def test_planted_heels_and_toes_hold_to_a_tenth_of_a_mm_in_the_keys(biped, trained, walk_2s):
+    from rigmap.map.world_subset_rig import WorldSubsetRig
+
+    mapping, _, std, median = trained
+    settings = MapSettings(refine_iterations=1, feet=FEET, key_tolerance_cm=0.5)
+    result = map_clip(biped, walk_2s, mapping, settings, control_std=std, hold_values=median)
+    planted = result.contacts.planted
+    assert planted.any(axis=0).all() and planted.mean() < 0.9  # every joint plants and lifts
+    # the output (the keys' values on every frame) holds each plant where it was pinned
+    world = WorldSubsetRig(biped, result.joint_names).evaluate(result.controls)
+    for k, foot in enumerate(result.contacts.feet):
+        j = result.joint_names.index(foot)
+        for first, last in result.contacts.intervals(k):
+            ground = world[first : last + 1, j][:, [0, 2]]
+            pin = result.targets[first : last + 1, j][:, [0, 2]]
+            assert np.linalg.norm(ground - pin, axis=1).max() <= 0.1
+            assert np.ptp(result.targets[first : last + 1, j][:, [0, 2]], axis=0).max() == 0
+    assert result.contact_slip_cm <= 0.1
+    assert result.skate_result_cm <= result.skate_source_cm
+    assert result.keys.max_joint_error_cm <= 0.5
+    unpinned = map_clip(biped, walk_2s, mapping, dataclasses.replace(settings, pin_feet=False),
+                        control_std=std, hold_values=median)  # fmt: skip
+    assert unpinned.skate_result_cm > 5 * result.skate_result_cm  # the hold is what pins
+
+
+def test_the_hold_moves_only_the_legs_controls(biped, trained, walk_2s):
+    """Root motion, the COG and the body stay as mapped: the foot controls found by
+    probing the rig are the legs' IK and foot-roll controls, none held."""
+    from rigmap.map.contact_hold import foot_controls
+    from rigmap.map.contacts import detect_contacts
+
+    _, _, std, median = trained
+    joints = list(walk_2s.joint_names)
+    contacts = detect_contacts(walk_2s.positions, FEET, joints, walk_2s.fps)
+    scale = std.copy()
+    scale[held_controls(biped, MapSettings().hold)] = 0.0
+    row = biped.expand_used(median[None])[0]
+    flags, moves = foot_controls(biped, row, contacts, "pelvis", scale)
+    names = [biped.used_controls[k] for k in np.flatnonzero(flags)]
+    assert {"leg_l_ik.tx", "leg_l_ik.tz", "leg_r_ik.tx", "leg_r_ik.tz"} <= set(names)
+    assert all(n.startswith(("leg_l", "leg_r")) and not n.endswith(".ik_fk") for n in names)
+    left = [k for k, n in enumerate(names) if n.startswith("leg_l")]
+    assert not moves[np.flatnonzero(flags)[left]][:, [1, 3]].any()  # left controls: left foot
+
+
+def test_no_euler_flip_on_a_walk_that_turns_through_180_degrees(biped, trained, walk_2s):
+    from rigmap.map.curves import count_flips
+
+    mapping, _, std, median = trained
+    turned = walk_2s.positions.copy()
+    angle = np.linspace(np.radians(170), np.radians(190), len(turned))  # heading crosses ±π
+    c, s = np.cos(angle), np.sin(angle)
+    x, z = turned[:, :, 0].copy(), turned[:, :, 2].copy()
+    turned[:, :, 0] = c[:, None] * x + s[:, None] * z
+    turned[:, :, 2] = -s[:, None] * x + c[:, None] * z
+    targets = dataclasses.replace(walk_2s, positions=turned)
+    kinds = [biped.controls.kinds[i] for i in biped.controls.used_indices]
+    guess = mapping.predict(
+        turned[:, [targets.joint_names.index(j) for j in mapping.subset.joints]]
+    )
+    assert count_flips(guess, kinds) > 0  # predicted frame by frame, the heading wraps
+    settings = MapSettings(refine_iterations=1, feet=FEET)
+    result = map_clip(biped, targets, mapping, settings, control_std=std, hold_values=median)
+    used = result.controls[:, biped.controls.used_indices]
+    assert result.flips == 0 == count_flips(used, kinds)
+    rotate = np.array([k == "rotate" for k in kinds])
+    assert np.abs(np.diff(used[:, rotate], axis=0)).max() < 1.0
+
+
+def test_round_trip_bvh_map_bvh_of_the_rig(biped, trained, walk_2s, tmp_path):
+    """CMU BVH -> map -> the rig's BVH (``result.bvh``) -> map again: the rig's own motion
+    reads back exactly (up to the floor alignment) through an identity retarget map and
+    maps back onto itself within the mapping's own error (GPR of 150 points, 2 iterations),
+    with no flip and no more skate."""
+    from rigmap.map.outputs import write_map_outputs
+
+    mapping, _, std, median = trained
+    settings = MapSettings(refine_iterations=2, feet=FEET)
+    first = map_clip(biped, walk_2s, mapping, settings, control_std=std, hold_values=median)
+    folder = write_map_outputs(tmp_path / "first", first, biped)
+    joints = {j: j for j in mapping.subset.joints}
+    identity = RetargetMap.from_mapping({"rig": "biped", "joints": joints}, source_file="identity")
+    with pytest.warns(UserWarning, match="drive no rig joint"):  # fingers: not in the subset
+        again = identity.apply(biped, tracks_from_bvh(folder / "result.bvh"))
+    assert again.scale == pytest.approx(1.0, rel=0.01)  # the rig's own bone lengths
+    second = map_clip(biped, again, mapping, settings, control_std=std, hold_values=median)
+    # read back: bones rebuilt at rest lengths, the lowest joint set on the floor (a shift)
+    read = again.positions[:, [again.joint_names.index(j) for j in first.joint_names]]
+    shift = (read - first.achieved).mean(axis=(0, 1))
+    moved = np.linalg.norm(read - first.achieved - shift, axis=2)  # bones at rest lengths
+    assert np.sqrt((moved**2).mean()) < 0.5 and abs(shift[1]) > 10 * max(abs(shift[[0, 2]]))
+    distance = np.linalg.norm(second.achieved - (first.achieved + shift), axis=2)
+    assert np.sqrt((distance**2).mean()) < 2.5  # cm on the 24 joints: the map's own error
+    assert np.sqrt((first.frame_error_cm**2).mean()) > 2.0  # the real mocap was harder
+    assert second.flips == 0 and second.skate_result_cm <= first.skate_result_cm + 0.01
+
+
+class Float32Biped(Rig):
+    """The biped with its positions rounded to float32, as Blender's rigs compute them."""
+
+    def __init__(self, rig):
+        self.inner, self.name, self.controls = rig, rig.name, rig.controls
+        self.joint_names, self.parents = rig.joint_names, rig.parents
+        self.differentiable, self.computes_in_float32 = False, True
+        self.length_unit, self.description = rig.length_unit, "float32 biped"
+
+    def _pose(self, Y) -> Pose:
+        pose = self.inner.pose(np.asarray(Y, dtype=np.float64))
+        rounded = (np.asarray(p, dtype=np.float32).astype(np.float64) for p in pose)
+        return Pose(*rounded)
+
+
+def test_foot_controls_of_a_float32_rig_are_found_through_its_rounding(biped, trained, walk_2s):
+    from rigmap.map.contact_hold import foot_controls
+    from rigmap.map.contacts import detect_contacts
+
+    _, _, std, median = trained
+    contacts = detect_contacts(walk_2s.positions, FEET, list(walk_2s.joint_names), walk_2s.fps)
+    scale = std.copy()
+    scale[held_controls(biped, MapSettings().hold)] = 0.0
+    row = biped.expand_used(median[None])[0]
+    exact, _ = foot_controls(biped, row, contacts, "pelvis", scale)
+    rounded, _ = foot_controls(Float32Biped(biped), row, contacts, "pelvis", scale)
+    assert not (rounded & ~exact).any()  # rounding adds no control (no root, no spine)
+    names = {biped.used_controls[k] for k in np.flatnonzero(rounded)}
+    for side in "lr":  # and loses none that moves a planted foot more than a rounding
+        assert {f"leg_{side}_ik.tx", f"leg_{side}_ik.tz", f"leg_{side}.roll"} <= names

@@ -114,3 +114,78 @@ def test_joint_tolerance_holds_on_the_biped(biped):
     world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None]
     want = np.asarray(target.positions) + np.asarray(target.cog)[:, None]
     assert np.linalg.norm(world - want, axis=2).max() <= 0.5
+
+
+def test_key_reduction_keeps_every_joint_and_a_planted_foot_within_its_tolerance(biped):
+    from rigmap.map.key_reduction import JointLimit
+
+    rows = smooth_motion(biped, controls=10, seed=3)
+    time = np.arange(len(rows)) / 24.0
+    for name in ("leg_l_ik.tx", "leg_l_ik.tz", "cog.ty"):
+        rows[:, biped.control_names.index(name)] += 4.0 * np.sin(2 * np.pi * 0.7 * time)
+    std = np.full(len(biped.controls.used_indices), 0.2)
+    planted = np.zeros(len(rows), dtype=bool)
+    planted[20:50] = True
+    foot = biped.joint_names.index("foot_l")
+
+    def replay_error(reduced):
+        replay = rows.copy()
+        replay[:, biped.controls.used_indices] = reduced.values()
+        moved = biped.pose(replay)
+        target = biped.pose(rows)
+        world = np.asarray(moved.positions) + np.asarray(moved.cog)[:, None]
+        want = np.asarray(target.positions) + np.asarray(target.cog)[:, None]
+        return np.linalg.norm(world - want, axis=2)
+
+    loose = reduce_within_joint_tolerance(biped, rows, std, tolerance_cm=0.5)
+    assert replay_error(loose)[planted, foot].max() > 0.02  # the limit below has work to do
+    limits = [JointLimit("foot_l", planted, 0.02)]
+    held = reduce_within_joint_tolerance(biped, rows, std, tolerance_cm=0.5, limits=limits)
+    error = replay_error(held)
+    assert error.max() <= 0.5 and held.max_joint_error_cm == pytest.approx(error.max())
+    assert error[planted, foot].max() <= 0.02
+    assert held.key_count < 0.2 * held.frames * len(held.curves)
+    with pytest.raises(KeyReductionError, match="no such joint"):
+        reduce_within_joint_tolerance(biped, rows, std, 0.5, limits=[JointLimit("x", planted, 1)])
+    with pytest.raises(KeyReductionError, match="frame flags"):
+        short = [JointLimit("foot_l", planted[:5], 0.1)]
+        reduce_within_joint_tolerance(biped, rows, std, 0.5, limits=short)
+
+
+def test_ground_penetration_slip_and_flips_of_a_synthetic_step():
+    from rigmap.map.contacts import contact_floors, contact_slip, ground_penetration
+    from rigmap.map.curves import count_flips
+
+    frames = np.arange(30)
+    foot = np.zeros((30, 1, 3))
+    foot[:, 0, 2] = np.where(frames < 10, frames * 5.0, 45.0 + 0.01 * (frames - 10))
+    foot[:, 0, 1] = np.where(frames < 10, 5.0, 0.0)
+    contacts = detect_contacts(foot, ["toe"], ["toe"], 30.0)
+    floors = contact_floors(foot, contacts, ["toe"])
+    assert floors.tolist() == [0.0]  # its median height while planted
+    assert ground_penetration(foot, contacts, ["toe"], floors) == 0.0
+    sunk = foot.copy()
+    sunk[15, 0, 1] = -1.5
+    assert ground_penetration(sunk, contacts, ["toe"], floors) == pytest.approx(1.5)
+    pinned = pin_contacts(foot, contacts, ["toe"])
+    assert contact_slip(pinned, pinned, contacts, ["toe"]) == 0.0
+    assert contact_slip(foot, pinned, contacts, ["toe"]) == pytest.approx(0.095, abs=1e-9)
+    angles = np.linspace(3.0, 3.3, 10)
+    wrapped = (angles + np.pi) % (2 * np.pi) - np.pi
+    assert count_flips(wrapped[:, None], ["rotate"]) == 1
+    assert count_flips(angles[:, None], ["rotate"]) == 0
+    assert count_flips(wrapped[:, None] * 100, ["translate"]) == 0
+
+
+def test_the_reducers_hermite_values_are_its_bezier_curves():
+    from rigmap.map.key_reduction import _hermite_curve, data_slopes, hermite_values
+
+    rng = np.random.default_rng(4)
+    values = np.cumsum(rng.normal(size=60))
+    slopes = data_slopes(values)
+    for keys in ([0, 59], [0, 7, 8, 30, 59], list(range(60))):
+        curve = _hermite_curve(values, slopes, keys, "c")
+        np.testing.assert_allclose(
+            hermite_values(values, slopes, keys), curve.evaluate(np.arange(60.0)), atol=1e-9
+        )
+    np.testing.assert_allclose(hermite_values(values, slopes, keys)[keys], values[keys])

@@ -23,14 +23,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rigmap.errors import RigmapError
-from rigmap.map.contacts import Contacts, detect_contacts, foot_skate, pin_contacts
-from rigmap.map.curves import largest_jumps, smooth, unwrap_rotations
-from rigmap.map.key_reduction import ReducedKeys, reduce_within_joint_tolerance
+from rigmap.map.contact_hold import hold_contacts, reachable_pins
+from rigmap.map.contacts import (
+    Contacts,
+    contact_floors,
+    contact_slip,
+    detect_contacts,
+    foot_skate,
+    ground_penetration,
+    pin_contacts,
+)
+from rigmap.map.curves import count_flips, largest_jumps, smooth, unwrap_rotations
+from rigmap.map.key_reduction import JointLimit, ReducedKeys, reduce_within_joint_tolerance
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
 from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
+from rigmap.torch_threads import blas_threads, torch_threads
 
 
 class MapError(RigmapError, ValueError):
@@ -94,6 +104,10 @@ class MapResult:
     skate_result_cm: float
     largest_jump_std: float
     seconds: dict[str, float] = field(default_factory=dict)
+    penetration_source_cm: float = 0.0  # deepest a contact joint goes below its floor
+    penetration_result_cm: float = 0.0
+    contact_slip_cm: float = 0.0  # farthest a planted joint is from its pin (output)
+    flips: int = 0  # frame-to-frame changes over π of a rotate control (output)
 
     @property
     def frame_error_cm(self) -> np.ndarray:
@@ -131,26 +145,85 @@ def map_clip(
         )
     world = targets.positions[:, [targets.joint_names.index(j) for j in joints]]
     seconds: dict[str, float] = {}
-    contacts, skate_source = None, 0.0
-    if settings.feet:
-        contacts = detect_contacts(world, settings.feet, joints, targets.fps)
-        skate_source = foot_skate(world, contacts, joints)
-        if settings.pin_feet:
-            world = pin_contacts(world, contacts, joints)
+    feet = [f for f in settings.feet if f in joints]  # contact joints the targets drive
+    contacts = detect_contacts(world, feet, joints, targets.fps) if feet else None
+    source = world
+    if contacts is not None and settings.pin_feet:
+        world = reachable_pins(rig, pin_contacts(world, contacts, joints), source, contacts, joints)
     Y = solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds)
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
-    started = time.perf_counter()
-    keys = reduce_within_joint_tolerance(rig, rig.expand_used(Y), control_std,
-                                         settings.key_tolerance_cm)  # fmt: skip
-    seconds["keys_s"] = time.perf_counter() - started
-    view = WorldSubsetRig(rig, joints)
+    with torch_threads(1), blas_threads(1):  # as the refinement: many small rig batches
+        keys = _hold_and_reduce(
+            rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds
+        )
     controls = rig.expand_used(keys.values())
-    achieved = np.asarray(view.evaluate(controls), dtype=np.float64)
-    skate_result = foot_skate(achieved, contacts, joints) if contacts is not None else 0.0
-    return MapResult(rig.name, targets.source, targets.fps, tuple(joints), controls, world,
-                     achieved, keys, contacts, skate_source, skate_result,
-                     float(largest_jumps(keys.values(), control_std).max()), seconds)  # fmt: skip
+    achieved = np.asarray(WorldSubsetRig(rig, joints).evaluate(controls), dtype=np.float64)
+    result = MapResult(
+        rig.name,
+        targets.source,
+        targets.fps,
+        tuple(joints),
+        controls,
+        world,
+        achieved,
+        keys,
+        contacts,
+        0.0,
+        0.0,
+        float(largest_jumps(keys.values(), control_std).max()),
+        seconds,
+        flips=count_flips(keys.values(), kinds),
+    )
+    if contacts is not None:
+        _score_contacts(result, source, settings.pin_feet)
+    return result
+
+
+CONTACT_TOLERANCE_CM = 0.05  # key reduction keeps planted joints this close (ours)
+
+
+def _hold_and_reduce(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds):
+    """With pinning, the planted joints held (:func:`_hold`); then the keys, the planted
+    joints within :data:`CONTACT_TOLERANCE_CM` of the held pose."""
+    limits = []
+    if contacts is not None and settings.pin_feet:
+        Y = _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds)
+        limits = [
+            JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
+            for k, f in enumerate(contacts.feet)
+        ]
+    started = time.perf_counter()
+    keys = reduce_within_joint_tolerance(
+        rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
+    )
+    seconds["keys_s"] = time.perf_counter() - started
+    return keys
+
+
+def _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds) -> np.ndarray:
+    """Planted joints held on their pins by the rig's foot controls (held controls stay)."""
+    started = time.perf_counter()
+    scale = np.asarray(control_std, dtype=np.float64).copy()
+    scale[held_controls(rig, settings.hold)] = 0.0
+    held = hold_contacts(
+        rig, Y, pinned, contacts, mapping.subset.joints, mapping.subset.origin, scale, fps
+    )
+    seconds["hold_s"] = time.perf_counter() - started
+    seconds["hold_rig_evaluations"] = float(held.rig_evaluations)
+    return held.controls
+
+
+def _score_contacts(result: MapResult, source: np.ndarray, pinned: bool) -> None:
+    """Skate, penetration (and with pinning the slip from the pins) of source and result."""
+    contacts, joints = result.contacts, result.joint_names
+    floors = contact_floors(source, contacts, joints)
+    result.skate_source_cm = foot_skate(source, contacts, joints)
+    result.skate_result_cm = foot_skate(result.achieved, contacts, joints)
+    result.penetration_source_cm = ground_penetration(source, contacts, joints, floors)
+    result.penetration_result_cm = ground_penetration(result.achieved, contacts, joints, floors)
+    if pinned:
+        result.contact_slip_cm = contact_slip(result.achieved, result.targets, contacts, joints)
 
 
 def solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds) -> np.ndarray:

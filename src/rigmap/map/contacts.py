@@ -116,3 +116,34 @@ def pin_contacts(positions: np.ndarray, contacts: Contacts, joint_names) -> np.n
             pinned[first : last + 1, j, 0] = pinned[first : last + 1, j, 0].mean()
             pinned[first : last + 1, j, 2] = pinned[first : last + 1, j, 2].mean()
     return pinned
+
+
+def contact_floors(positions: np.ndarray, contacts: Contacts, joint_names) -> np.ndarray:
+    """Per contact joint, its median height on its planted frames (cm): the height it
+    stands at on the floor (its clip's 5th-percentile height if it is never planted)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    height = positions[:, [list(joint_names).index(f) for f in contacts.feet], UP]
+    floors = np.percentile(height, FLOOR_PERCENTILE, axis=0)
+    for k in range(len(contacts.feet)):
+        if contacts.planted[:, k].any():
+            floors[k] = np.median(height[contacts.planted[:, k], k])
+    return floors
+
+
+def ground_penetration(positions: np.ndarray, contacts: Contacts, joint_names, floors) -> float:
+    """The deepest any contact joint goes below its floor height (``floors``, cm) on any
+    frame, in cm; 0 when none does. Ours: the source's own is the bar to meet."""
+    positions = np.asarray(positions, dtype=np.float64)
+    height = positions[:, [list(joint_names).index(f) for f in contacts.feet], UP]
+    return float(np.maximum(np.asarray(floors)[None] - height, 0.0).max(initial=0.0))
+
+
+def contact_slip(positions: np.ndarray, pinned: np.ndarray, contacts: Contacts, joint_names):
+    """The largest horizontal distance (cm) of a planted joint from its pin in ``pinned``."""
+    columns = [list(joint_names).index(f) for f in contacts.feet]
+    gap = (
+        np.asarray(positions)[:, columns][:, :, [0, 2]]
+        - np.asarray(pinned)[:, columns][:, :, [0, 2]]
+    )
+    distance = np.linalg.norm(gap, axis=2)
+    return float(distance[contacts.planted].max(initial=0.0))

@@ -47,3 +47,13 @@ def largest_jumps(values: np.ndarray, scale: np.ndarray) -> np.ndarray:
         return np.zeros(values.shape[1])
     scale = np.where(np.asarray(scale, dtype=np.float64) > 0, scale, 1.0)
     return np.abs(np.diff(values, axis=0)).max(axis=0) / scale
+
+
+def count_flips(values: np.ndarray, kinds) -> int:
+    """Frame-to-frame changes of more than π on ``rotate`` columns: Euler flips an
+    animator would see as a spin (0 on unwrapped curves)."""
+    values = np.asarray(values, dtype=np.float64)
+    rotate = np.array([k == "rotate" for k in kinds])
+    if len(values) < 2 or not rotate.any():
+        return 0
+    return int((np.abs(np.diff(values[:, rotate], axis=0)) > np.pi).sum())
