@@ -370,7 +370,7 @@ def _stage_arguments(command, config_name: str, overrides: str) -> None:
     )
     _folder_option(
         command, "--config-dir",
-        "the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
+        "the Hydra conf/ folder (default: ./conf, else the one shipped inside the package)",
     )  # fmt: skip
 
 
@@ -431,14 +431,11 @@ def _add_reproduce(commands) -> None:
 
 
 def find_config_dir(explicit: Path | None = None) -> Path:
-    """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the source checkout's."""
-    if explicit is not None:
-        candidates = [Path(explicit)]
-    else:
-        import rigmap
+    """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the copy inside the
+    package (``rigmap/conf``), so an installed rigmap runs from any folder."""
+    from rigmap.store import PACKAGED_CONF
 
-        checkout = Path(rigmap.__file__).resolve().parents[2]  # src/rigmap/__init__.py
-        candidates = [Path.cwd() / "conf", checkout / "conf"]
+    candidates = [Path(explicit)] if explicit is not None else [Path.cwd() / "conf", PACKAGED_CONF]
     for candidate in candidates:
         if (candidate / "config.yaml").is_file():
             return candidate.resolve()

@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-USER_OUTPUTS = Path("outputs")  # ignored by .gitignore's /outputs/ (ours)
+from rigmap.store.layout import USER_OUTPUTS
+
 PATH_KEYS = ("data", "models", "metrics", "reports")
 
 

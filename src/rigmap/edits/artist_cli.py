@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rigmap.store import Layout
 from rigmap.user_outputs import USER_OUTPUTS
 
 GLITCH_HELP = (
@@ -151,7 +152,7 @@ def run_learn(args) -> int:
     from rigmap.edits.artist import learn_folder, load_settings, pair_specs
 
     specs = pair_specs(args.source, args.edited, args.frames)
-    out = args.out or USER_OUTPUTS / "edits" / Path(specs[0][1]).stem
+    out = args.out or Layout.user_output("edits", Path(specs[0][1]).stem)
     settings = load_settings(args.config_dir)
     folder = learn_folder(specs, out, settings, args.glitch)
     import json
@@ -177,7 +178,7 @@ def run_apply(args) -> int:
         raise PairError(f"--model takes no KEY=VALUE overrides, got {args.overrides}")
     if args.input is None:
         raise PairError("--model needs --input (a BVH file or a folder of them)")
-    out = args.out or USER_OUTPUTS / "edits" / args.model.resolve().name / "applied"
+    out = args.out or Layout.user_output("edits", args.model.resolve().name, "applied")
     _, summary = apply_folder(args.model, args.input, out, args.fps, args.glitch)
     for row in summary["clips"]:
         timing = " (resampled)" if row["resampled"] else ""

@@ -40,7 +40,6 @@ from rigmap.edits.study import (
 )
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
 
-EDITS = "edits"
 TABLE_COLUMNS = (
     "edit_error_std",
     "source_error_std",
@@ -142,7 +141,7 @@ def refine_settings(config: dict) -> dict:
 
 def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
     subject, data, edits = _setup(config, subject)
-    folder = layout.metrics_folder(subject, EDITS) / "refinement"
+    folder = layout.edits_metrics(subject) / "refinement"
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
 
@@ -168,7 +167,7 @@ def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
 
 def _fit(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    folder = layout.rig_models(subject) / EDITS
+    folder = layout.edits_models(subject)
     infos = {}
     for name, edit in edits.items():
         model, infos[name] = fit_edit(data, edit, config)
@@ -178,8 +177,8 @@ def _fit(config: dict, subject: str, layout: Layout) -> Path:
 
 def _apply(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    models = layout.rig_models(subject) / EDITS
-    out = layout.rig_data(subject) / EDITS
+    models = layout.edits_models(subject)
+    out = layout.edits_data(subject)
     for name in edits:
         model = load_model(models / f"{name}.npz")
         start = time.perf_counter()
@@ -195,9 +194,9 @@ def _apply(config: dict, subject: str, layout: Layout) -> Path:
 
 def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    models = layout.rig_models(subject) / EDITS
-    applied = layout.rig_data(subject) / EDITS
-    folder = layout.metrics_folder(subject, EDITS)
+    models = layout.edits_models(subject)
+    applied = layout.edits_data(subject)
+    folder = layout.edits_metrics(subject)
     summary = {}
     for name, edit in edits.items():
         model = load_model(models / f"{name}.npz")

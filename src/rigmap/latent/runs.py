@@ -32,11 +32,10 @@ from rigmap.latent.library import FittedModels, fit_models, rig_sets
 from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
-from rigmap.store import Layout, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store import PACKAGED_CONF, Layout, json_ready, write_json_atomic, write_text_atomic
 from rigmap.store.table_file import write_table_file
 
-LATENT = "latent"
-SCRIPTS_DIR = Path(__file__).resolve().parents[3] / "conf" / "latent" / "scripts"
+SCRIPTS_DIR = PACKAGED_CONF / "latent" / "scripts"
 CONTROLS_KEY = b"rigmap.latent_controls"
 
 
@@ -56,11 +55,11 @@ def n_pca_of(config: dict) -> int | None:
 
 
 def fit_folder(layout: Layout, rig: str) -> Path:
-    return layout.rig_models(rig) / LATENT / "fit"
+    return layout.latent_models(rig) / "fit"
 
 
 def match_folder(layout: Layout, rig: str) -> Path:
-    return layout.rig_models(rig) / LATENT / "match"
+    return layout.latent_models(rig) / "match"
 
 
 def _written(path: Path, stage: str) -> Path:
@@ -192,7 +191,7 @@ def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
     """Used-control values ``(F, C)`` of one script's run by ``latent_synthesize``."""
     from rigmap.store.table_file import read_table_file
 
-    path = layout.rig_data(rig.name) / LATENT / f"{Path(script).stem}-seed{seed}.parquet"
+    path = layout.latent_data(rig.name) / f"{Path(script).stem}-seed{seed}.parquet"
     if not path.is_file():
         raise FileNotFoundError(f"{path} does not exist; run the latent_synthesize stage first")
     table, _ = read_table_file(path, CONTROLS_KEY, what="controls")
@@ -212,7 +211,7 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
     for name in script_names(config, rig):  # every script checked before the models load
         read_script(script_path(name), max_frames=cap)
     fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
-    folder = layout.rig_data(rig.name) / LATENT
+    folder = layout.latent_data(rig.name)
     log = {}
     for name in script_names(config, rig):
         for seed in config["seeds"]:
@@ -339,7 +338,7 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
     for name in script_names(config, rig):  # the synthesize stage's runs of each script
         played = [read_controls(layout, rig, name, int(seed)) for seed in config["seeds"]]
         summary.setdefault("seed_repeats", {})[Path(name).stem] = seed_spread(rig, played)
-    folder = layout.metrics_folder(rig.name, LATENT)
+    folder = layout.latent_metrics(rig.name)
     write_tables(folder, tables)
     from rigmap.latent.figures import draw_latent_spaces
 

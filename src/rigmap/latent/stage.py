@@ -85,7 +85,7 @@ def earlier_records(config: dict, rig: str, step: str, layout) -> dict[str, Path
     paths = {
         "fit": runs.fit_folder(layout, rig) / "fit.json",
         "match": runs.match_folder(layout, rig) / "match.json",
-        "synthesize": layout.rig_data(rig) / runs.LATENT / "log.json",
+        "synthesize": layout.latent_data(rig) / "log.json",
     }
     before = STEPS[: STEPS.index(step)]
     return {s: paths[s] for s in before if s not in own and paths[s].is_file()}

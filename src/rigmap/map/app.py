@@ -84,7 +84,7 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
     sources = input_files(config.get("input"))
     window = frame_window(options)
     with load(_rig_options(config)) as rig:
-        out = Path(config.get("out") or Path("outputs") / "map" / rig.name)
+        out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
         subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
         model = _model(config, rig, subset, log)
@@ -422,7 +422,7 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         else:
             raise MapConfigError(f"map.pose_mode: expected 'drag' or 'batch', got {mode!r}")
         out = Path(
-            config.get("out") or Path("outputs") / "pose" / rig.name / Path(targets_file).stem
+            config.get("out") or Layout.user_output("pose", rig.name) / Path(targets_file).stem
         )
         write_folder_atomic(out, lambda staging: _write_poses(staging, rig, subset, controls,
                                                               targets, error, seconds))  # fmt: skip

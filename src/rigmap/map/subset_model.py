@@ -31,7 +31,6 @@ from rigmap.store import Layout, json_ready, write_folder_atomic, write_json_ato
 
 RECORD_FILE = "map_model.json"
 RECORD_FORMAT = "rigmap.map_model/1"
-FOLDER_PREFIX = "map-"
 TRAIN_SAMPLER = "none"  # corpus frames only, as the paper's GPR (§6.1)
 
 
@@ -87,7 +86,7 @@ def training_digest(rig, data_dir: str | os.PathLike) -> str:
 
 def model_folder(layout: Layout, rig_name: str, subset: JointSubset) -> Path:
     """``models/<rig>/map-<subset name>/``: where the map keeps a subset's mapping."""
-    return layout.rig_models(rig_name) / f"{FOLDER_PREFIX}{subset.name}"
+    return layout.map_model(rig_name, subset.name)
 
 
 def obtain_subset_model(

@@ -17,6 +17,14 @@ SPLITS = ("train", "test")  # what the animate and pose stages write
 #: new takes of the training motions (other seeds): the in-distribution test set (issue #15)
 HELDOUT = "heldout"
 _NAME = re.compile(r"^[a-z0-9_]+$")
+#: the Hydra config shipped inside the package (a symlink to the checkout's conf/ in a
+#: source tree, copied files in a wheel): found beside the package, never by climbing
+PACKAGED_CONF = Path(__file__).resolve().parents[1] / "conf"
+#: where a user's own runs write by default (``/outputs/`` is git-ignored; ours)
+USER_OUTPUTS = Path("outputs")
+EDITS = "edits"  # the edit-propagation folder under data/, models/ and metrics/ of a subject
+LATENT = "latent"  # the latent-synthesis folder under data/, models/ and metrics/ of a rig
+MAP_PREFIX = "map-"  # a map subset's model folder: models/<rig>/map-<subset>
 
 
 @dataclass(frozen=True)
@@ -124,6 +132,36 @@ class Layout:
     def metrics_folder(self, rig: str, metric_set: str) -> Path:
         """One evaluation set's metrics: ``metrics/<rig>/<set>/``."""
         return self.metrics / rig / metric_set
+
+    # --- one application's folders --------------------------------------------------
+    def edits_data(self, rig: str) -> Path:
+        """Edited clips: ``data/<rig>/edits/``."""
+        return self.rig_data(rig) / EDITS
+
+    def edits_models(self, rig: str) -> Path:
+        return self.rig_models(rig) / EDITS
+
+    def edits_metrics(self, rig: str) -> Path:
+        return self.metrics_folder(rig, EDITS)
+
+    def latent_data(self, rig: str) -> Path:
+        """Synthesised clips and their log: ``data/<rig>/latent/``."""
+        return self.rig_data(rig) / LATENT
+
+    def latent_models(self, rig: str) -> Path:
+        return self.rig_models(rig) / LATENT
+
+    def latent_metrics(self, rig: str) -> Path:
+        return self.metrics_folder(rig, LATENT)
+
+    def map_model(self, rig: str, subset: str) -> Path:
+        """A map subset's model cache: ``models/<rig>/map-<subset>/``."""
+        return self.rig_models(rig) / f"{MAP_PREFIX}{subset}"
+
+    @staticmethod
+    def user_output(*parts: str) -> Path:
+        """A user's own run's folder: ``outputs/<parts>`` (``map/<rig>``, ``edits/<name>``)."""
+        return USER_OUTPUTS.joinpath(*parts)
 
     def figures(self) -> Path:
         return self.reports / "figures"
