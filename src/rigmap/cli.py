@@ -582,7 +582,7 @@ def _key_values(pairs: list[str], required: tuple[str, ...]) -> dict[str, str]:
 
 
 def _corpus_show(args) -> int:
-    from rigmap.animation.contact_sheet import show_clip
+    from rigmap.viz.contact_sheet import show_clip
 
     chosen = _key_values(args.selection, ("rig", "clip"))
     _output_file(args.out, "--out", "clip.png")
