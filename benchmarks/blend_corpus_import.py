@@ -21,8 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from rigmap.animation.blend_corpus import import_blend_corpus, write_actions_blend
 from rigmap.animation.library import build_clip, motion_library
-from rigmap.rigs.blender.blend_corpus import import_blend_corpus, write_actions_blend
 from rigmap.rigs.blender.rigify import rigify_blend
 
 

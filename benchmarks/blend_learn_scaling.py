@@ -108,10 +108,10 @@ def gpr_budget(models: Path) -> dict:
 
 
 def run_variant(n_actions: int, variant: str, folder: Path, overrides) -> dict:
+    from rigmap.animation.blend_corpus import write_actions_blend
     from rigmap.animation.corpus import Corpus
     from rigmap.cli import compose_config
     from rigmap.learn import run_learn
-    from rigmap.rigs.blender.blend_corpus import write_actions_blend
     from rigmap.rigs.blender.rigify import rigify_blend
 
     blend = folder / f"hero_{n_actions}_{variant}.blend"

@@ -7,7 +7,7 @@ The same ``seed`` gives byte-identical files.
     python pipelines/animate.py rig=quadruped seed=0
 
 A ``blend_file`` rig with ``rig.actions`` takes its corpus from the file's own actions
-instead (:mod:`rigmap.rigs.blender.blend_corpus`; conf/rig/blend_file.yaml):
+instead (:mod:`rigmap.animation.blend_corpus`; conf/rig/blend_file.yaml):
 
     python pipelines/animate.py rig=blend_file rig.path=/models/hero.blend rig.armature=rig
 """
@@ -27,7 +27,7 @@ def run(cfg: DictConfig) -> list[Path]:
     if cfg.rig.get("actions") is not None:  # a user's .blend: its own actions are the corpus
         from omegaconf import OmegaConf
 
-        from rigmap.rigs.blender.blend_corpus import write_blend_corpora
+        from rigmap.animation.blend_corpus import write_blend_corpora
 
         options = OmegaConf.to_container(cfg.rig, resolve=True)
         return write_blend_corpora(options, options["actions"], layout_of(cfg))

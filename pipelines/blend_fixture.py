@@ -29,8 +29,8 @@ FPS = 24
 
 
 def run(cfg: DictConfig) -> Path:
+    from rigmap.animation.blend_corpus import write_actions_blend
     from rigmap.animation.library import build_clip, motion_library
-    from rigmap.rigs.blender.blend_corpus import write_actions_blend
     from rigmap.rigs.blender.rigify import rigify_blend
 
     library = motion_library("rigify_human")

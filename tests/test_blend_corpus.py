@@ -23,14 +23,14 @@ from scipy.spatial.transform import Rotation
 
 from blend_bad_files import MAKE_FILES
 from blender_script import run_bpy
-from rigmap.animation.corpus import Corpus
-from rigmap.rigs.blender import find_blender
-from rigmap.rigs.blender.blend_corpus import (
+from rigmap.animation.blend_corpus import (
     BlendCheckError,
     BlendCorpusError,
     import_blend_corpus,
     write_actions_blend,
 )
+from rigmap.animation.corpus import Corpus
+from rigmap.rigs.blender import find_blender
 
 pytestmark = [pytest.mark.blender]
 
@@ -168,8 +168,8 @@ def test_the_animate_stage_and_rig_blend_file_read_the_imported_corpus(hero, her
     writes the corpus, every other stage's rig (rig_from_config) reads it back."""
     from omegaconf import OmegaConf
 
+    from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import read_corpus_split
-    from rigmap.rigs.blender.blend_corpus import write_blend_corpora
     from rigmap.stage.inputs import rig_from_config
     from rigmap.store import Layout
 
@@ -296,10 +296,10 @@ def test_mapped_keys_go_into_a_copy_that_keeps_the_files_actions(hero, hero_blen
     the copy, poses the rig within the key reduction's stated joint tolerance."""
     from omegaconf import OmegaConf
 
+    from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import read_corpus_split
     from rigmap.map.blend_output import write_mapped_keys_blend
     from rigmap.map.key_reduction import reduce_within_joint_tolerance
-    from rigmap.rigs.blender.blend_corpus import write_blend_corpora
     from rigmap.rigs.blender.export import read_blend_animation
     from rigmap.stage.inputs import rig_from_config
     from rigmap.store import Layout
@@ -353,10 +353,10 @@ def test_rigmap_map_onto_the_users_file_writes_back_keys_that_replay_within_its_
     import yaml
     from omegaconf import OmegaConf
 
+    from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import pose_corpora
     from rigmap.cli import compose_config, find_config_dir
     from rigmap.map.app import map_from_config
-    from rigmap.rigs.blender.blend_corpus import write_blend_corpora
     from rigmap.rigs.blender.export import read_blend_animation
     from rigmap.stage.inputs import rig_from_config
     from rigmap.stage.runner import stage_config

@@ -1,15 +1,21 @@
-"""No import cycle among ``rigmap`` modules, and no over-long function.
+"""No import cycle among ``rigmap`` modules or among its packages, and no over-long function.
 
 The import graph is read from the source with ``ast``: every ``import`` and
 ``from … import`` counts, at module level or inside a function (a lazy import
 hides a cycle from Python, not from a reader), relative imports are resolved,
 and ``from package import name`` leads to ``package.name`` when that is a module
 and to the package's ``__init__`` otherwise (its re-exports count).
+
+Between packages, each top-level package of ``rigmap`` (``rigmap.rigs`` …) is one
+node holding all its modules, and each top-level module (``rigmap.cli``) is its own:
+a package cycle with no module cycle is still two layers that need each other. The
+applications (``APPLICATIONS``) may import anything; nothing imports them.
 """
 
 from __future__ import annotations
 
 import ast
+import itertools
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -19,6 +25,10 @@ PACKAGE = SRC / "rigmap"
 # outside rig builders and motion-library clips ("module:qualified name"): none.
 ALLOWED_CYCLES: list[frozenset[str]] = []
 ALLOWED_LONG_FUNCTIONS: set[str] = set()
+
+# The command line and the jobs it runs: they import the library; the library never imports
+# them back (ours: the layering rule of issue #35).
+APPLICATIONS = ("rigmap.cli", "rigmap.learn", "rigmap.reproduce")
 
 MAX_FUNCTION_LINES = 80
 LONG_FUNCTIONS_ALLOWED_UNDER = ("rigmap/rigs/characters/", "rigmap/animation/library/")
@@ -143,6 +153,73 @@ def test_no_import_cycle_among_rigmap_modules():
     assert not cycles, "import cycles:\n" + "\n".join(
         f"{d}   (part: {', '.join(p)})" for d, p in zip(described, cycles, strict=True)
     )
+
+
+def top_level(module: str) -> str:
+    """The package-graph node of a module: ``rigmap.rigs.blender.rig`` -> ``rigmap.rigs``."""
+    return ".".join(module.split(".")[:2])
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Module imports folded onto top-level nodes (the ``rigmap`` root's own re-exports aside:
+    every module reaches it by being imported, so it belongs to no layer)."""
+    folded: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        node = top_level(module)
+        folded.setdefault(node, set())
+        folded[node] |= {top_level(t) for t in targets} - {node, "rigmap"}
+    return folded
+
+
+def test_the_package_graph_folds_modules_onto_top_level_packages():
+    graph = {
+        "rigmap": set(),
+        "rigmap.a": {"rigmap.a.x"},
+        "rigmap.a.x": {"rigmap.b.y"},
+        "rigmap.b.y": {"rigmap.c", "rigmap"},
+        "rigmap.c": {"rigmap.a.z"},
+        "rigmap.a.z": set(),
+    }
+    folded = package_graph(graph)
+    assert folded == {
+        "rigmap": set(),
+        "rigmap.a": {"rigmap.b"},
+        "rigmap.b": {"rigmap.c"},
+        "rigmap.c": {"rigmap.a"},
+    }
+    assert not strongly_connected(graph)  # no module cycle …
+    assert strongly_connected(folded) == [["rigmap.a", "rigmap.b", "rigmap.c"]]  # … a package one
+
+
+def test_no_import_cycle_among_rigmap_packages():
+    graph = import_graph()
+    packages = package_graph(graph)
+    assert {"rigmap.rigs", "rigmap.animation", "rigmap.viz", "rigmap.cli"} <= set(packages)
+    cycles = strongly_connected(packages)
+    described = []
+    for part in cycles:
+        hops = one_cycle(packages, part)
+        edges = [
+            f"{m} -> {t}"
+            for a, b in itertools.pairwise(hops)
+            for m in sorted(graph)
+            if top_level(m) == a
+            for t in sorted(graph[m])
+            if top_level(t) == b
+        ]
+        described.append(" -> ".join(hops) + "\n    " + "\n    ".join(edges))
+    assert not cycles, "import cycles between packages:\n" + "\n".join(described)
+
+
+def test_no_library_module_imports_an_application():
+    graph = import_graph()
+    offenders = sorted(
+        f"{m} -> {t}"
+        for m, targets in graph.items()
+        for t in targets
+        if top_level(t) in APPLICATIONS and top_level(m) not in APPLICATIONS
+    )
+    assert not offenders, "library modules importing an application:\n" + "\n".join(offenders)
 
 
 def _long_functions() -> list[tuple[str, int]]:

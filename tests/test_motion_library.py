@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from rigmap.animation import KeyframeError, SoftRangeWarning
-from rigmap.animation.contact_sheet import play_clip
 from rigmap.animation.library import (
     ClipBuilder,
     Variation,
@@ -21,6 +20,7 @@ from rigmap.animation.library import (
     motion_library,
 )
 from rigmap.rigs import load
+from rigmap.viz.contact_sheet import play_clip
 
 # Table 3 of the paper: training frames per character (>=); keyed frames "about 200"
 MIN_TRAIN_FRAMES = {
@@ -254,7 +254,7 @@ def test_contact_sheet_and_gif_are_written(tmp_path):
 
     from PIL import Image
 
-    from rigmap.animation.contact_sheet import write_contact_sheet, write_gif
+    from rigmap.viz.contact_sheet import write_contact_sheet, write_gif
 
     rig = load("quadruped")
     motion = motion_library("quadruped").find("Walk")[1]
@@ -279,7 +279,7 @@ def test_contact_sheet_and_gif_are_written(tmp_path):
 
 
 def test_show_clip_checks_the_split_before_drawing(tmp_path):
-    from rigmap.animation.contact_sheet import show_clip
+    from rigmap.viz.contact_sheet import show_clip
 
     with pytest.raises(KeyError, match="'Walk' of rig 'quadruped' is in the 'train' split"):
         show_clip("quadruped", "Walk", tmp_path / "walk.png", split="test")

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.config_compose import compose_config, find_config_dir
 from rigmap.errors import RigmapError
 from rigmap.user_outputs import user_paths
 
@@ -430,70 +431,6 @@ def _add_reproduce(commands) -> None:
     reproduce.set_defaults(run=_reproduce)
 
 
-def find_config_dir(explicit: Path | None = None) -> Path:
-    """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the copy inside the
-    package (``rigmap/conf``), so an installed rigmap runs from any folder."""
-    from rigmap.store import PACKAGED_CONF
-
-    candidates = [Path(explicit)] if explicit is not None else [Path.cwd() / "conf", PACKAGED_CONF]
-    for candidate in candidates:
-        if (candidate / "config.yaml").is_file():
-            return candidate.resolve()
-    looked = ", ".join(str(c / "config.yaml") for c in candidates)
-    raise FileNotFoundError(
-        f"no Hydra config found (looked for {looked}); run from the repository root or pass "
-        "--config-dir PATH/TO/conf"
-    )
-
-
-def compose_config(
-    overrides: list[str],
-    config_dir: Path | None = None,
-    *,
-    with_hydra: bool = False,
-    config_name: str = "config",
-):
-    """``conf/<config_name>.yaml`` with Hydra ``overrides``, as the pipeline apps would see it.
-
-    ``with_hydra`` keeps the ``hydra`` node (its ``runtime.choices`` name the groups chosen).
-    """
-    from hydra import compose, initialize_config_dir
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    folder = find_config_dir(config_dir)
-    try:
-        with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
-            cfg = compose(
-                config_name=config_name, overrides=list(overrides), return_hydra_config=with_hydra
-            )
-    except (HydraException, OmegaConfBaseException) as error:
-        raise ValueError(
-            f"config {folder}/{config_name}.yaml with overrides {overrides}: {error}"
-        ) from None
-    _check_ranges(cfg)
-    return cfg
-
-
-def _check_ranges(cfg) -> None:
-    """The counts, seeds and rates ``rigmap.params_checks`` knows, checked as composed (so a
-    bad override is refused naming its key before any work)."""
-    from omegaconf import OmegaConf
-    from omegaconf.errors import OmegaConfBaseException
-
-    from rigmap.params_checks import FLOAT_RANGES, MIN_COUNTS, range_problems
-
-    values = {}
-    for key in (*MIN_COUNTS, *FLOAT_RANGES):
-        try:
-            values[key] = OmegaConf.select(cfg, key, default=None)
-        except OmegaConfBaseException:
-            continue  # an interpolation this command does not resolve: not its value
-    problems = range_problems(values)
-    if problems:
-        raise ValueError("; ".join(problems))
-
-
 def _fit(args) -> int:
     from omegaconf import OmegaConf
 
@@ -579,7 +516,7 @@ def _key_values(pairs: list[str], required: tuple[str, ...]) -> dict[str, str]:
 
 
 def _corpus_show(args) -> int:
-    from rigmap.animation.contact_sheet import show_clip
+    from rigmap.viz.contact_sheet import show_clip
 
     chosen = _key_values(args.selection, ("rig", "clip"))
     _output_file(args.out, "--out", "clip.png")

@@ -1,7 +1,7 @@
 """``rigmap learn path/to/rig.blend``: the pipeline's stages on a user's own .blend, in order.
 
 The file's armature is ``rig=blend_file`` (conf/rig/blend_file.yaml) and its actions the
-corpus (:mod:`rigmap.rigs.blender.blend_corpus`); then the stages the built-in Blender rigs
+corpus (:mod:`rigmap.animation.blend_corpus`); then the stages the built-in Blender rigs
 run in dvc.yaml, with the same commands (``pipelines/<stage>.py``): pose, supersample (the
 ``pipeline.blender_samplers``), the network, the GPR (``pipeline.blender_kernels``) and the
 mean predictor, and Table 1's methods on the test clips (``evaluate.set=methods``) into

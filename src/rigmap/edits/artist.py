@@ -176,7 +176,7 @@ def load_settings(config_dir=None) -> dict:
     """``conf/edits/default.yaml``'s model settings (residual, weights, iterations)."""
     from omegaconf import OmegaConf
 
-    from rigmap.cli import compose_config
+    from rigmap.config_compose import compose_config
 
     cfg = compose_config(["+edits=default"], config_dir)
     return OmegaConf.to_container(cfg.edits, resolve=True)

@@ -312,6 +312,6 @@ def write_per_frame_csv(result: MethodResult, path: str | os.PathLike) -> Path:
     return write_text_atomic(path, result.per_frame_table().to_csv(index=False))
 
 
-#: the old name, still imported by rigmap.tracking.runs, rigmap.reports.index_page and
+#: the old name, still imported by rigmap.reports.index_page and
 #: rigmap.reports.table; new code calls rigmap.store.write_text_atomic
 write_text_atomically = write_text_atomic

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from rigmap.animation.blend_corpus import action_payload
 from rigmap.animation.keyframes import FCurve, Key
 from rigmap.map.key_reduction import ReducedKeys
-from rigmap.rigs.blender.blend_corpus import action_payload
 from rigmap.rigs.blender.export import FRAME_COLUMN, export_blend
 from rigmap.rigs.blender.lookup import blender_rig
 from rigmap.store import atomic_file

@@ -67,7 +67,7 @@ def _load_rig(name: str, data_root: Path | None = None):
     from rigmap.rigs import load
 
     if data_root is not None:
-        from rigmap.rigs.blender.blend_corpus import IMPORT_FILE
+        from rigmap.animation.blend_corpus import IMPORT_FILE
 
         imported = Path(data_root) / name / "corpus" / IMPORT_FILE
         if imported.is_file():

@@ -22,7 +22,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import pandas as pd
 from mlflow import MlflowClient
@@ -30,7 +30,7 @@ from mlflow.entities import Metric, Param, RunStatus
 from mlflow.exceptions import MlflowException
 from mlflow.utils.mlflow_tags import MLFLOW_PARENT_RUN_ID, MLFLOW_RUN_NAME
 
-from rigmap.evaluation.metrics import MethodResult, write_text_atomically
+from rigmap.store import write_text_atomic
 from rigmap.tracking import artifacts
 from rigmap.tracking.champion import CHAMPION_METRIC, promote_if_better
 from rigmap.tracking.keys import (
@@ -56,6 +56,17 @@ from rigmap.tracking.store import (
 EXPERIMENT_PREFIX = "rigmap"
 EXPERIMENT_KIND = "custom_model_development"  # the mlflow.experimentKind tag of every experiment
 _BATCH = 100  # MLflow accepts at most 100 params or tags per log_batch call
+
+
+@runtime_checkable
+class MethodResults(Protocol):
+    """What a method run reads from an evaluation's results
+    (:class:`rigmap.evaluation.metrics.MethodResult` is one): named here so that
+    tracking, which evaluation logs through, does not import evaluation back."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+    def per_frame_table(self) -> pd.DataFrame: ...
 
 
 def experiment_name(rig: str, prefix: str = EXPERIMENT_PREFIX) -> str:
@@ -273,7 +284,7 @@ def log_method_run(
     kernel: str | None,
     refine: str | None,
     config: Any,
-    result: MethodResult | Mapping[str, Any],
+    result: MethodResults | Mapping[str, Any],
     per_frame: pd.DataFrame | None = None,
     predicted_controls: pd.DataFrame | None = None,
     model: MappingToLog | None = None,
@@ -293,10 +304,10 @@ def log_method_run(
             "each rig has its own experiment and parent run"
         )
     client = parent.tracker.client
-    summary = result.to_dict() if isinstance(result, MethodResult) else dict(result)
+    summary = result.to_dict() if isinstance(result, MethodResults) else dict(result)
     if summary.get("rig", rig) != rig:
         raise ValueError(f"log_method_run: the metrics are for rig {summary['rig']!r}, not {rig!r}")
-    if isinstance(result, MethodResult) and per_frame is None:
+    if isinstance(result, MethodResults) and per_frame is None:
         per_frame = result.per_frame_table()
     metrics = method_metrics(summary)
     run_tags = {
@@ -347,11 +358,11 @@ def _log_run_artifacts(client, run_id, summary, config, per_frame, predicted_con
     """The run's files: metrics JSON, config, per-frame CSV and plot, predicted curves."""
     with tempfile.TemporaryDirectory(prefix="rigmap-run-") as scratch:
         folder = Path(scratch)
-        write_text_atomically(folder / "metrics.json", _json(summary))
+        write_text_atomic(folder / "metrics.json", _json(summary))
         if config is not None:
             artifacts.write_config_yaml(config, folder / "config.yaml")
         if per_frame is not None:
-            write_text_atomically(folder / "per_frame.csv", per_frame.to_csv(index=False))
+            write_text_atomic(folder / "per_frame.csv", per_frame.to_csv(index=False))
             artifacts.plot_per_frame_errors(
                 per_frame,
                 folder / "per_frame_error.png",

@@ -257,11 +257,12 @@ def build_blend_file(**options) -> BlenderRig:
         )
     path = Path(options.pop("path"))
     name = options.pop("name", None) or f"blend_file:{path.stem}"
-    actions = options.pop("actions", None)
-    if actions is not None:  # the corpus is the file's actions: their keyed controls are used
-        from rigmap.rigs.blender.blend_corpus import imported_rig_options
-
-        options.update(imported_rig_options({**options, "path": str(path)}, actions))
+    if options.get("actions") is not None:
+        raise ValueError(
+            "rig 'blend_file' with actions is built by rigmap.animation.blend_corpus."
+            "build_blend_file (the rig's manifest factory), which imports them first"
+        )
+    options.pop("actions", None)
     unset = [k for k in ("armature", "cog_bone") if k in options and options[k] is None]
     for key in unset:  # null in a config: BlenderRig's default
         del options[key]

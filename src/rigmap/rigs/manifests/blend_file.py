@@ -2,4 +2,6 @@
 
 from rigmap.rigs.manifest import RigManifest
 
-MANIFEST = RigManifest("blend_file", "rigmap.rigs.blender.rigify:build_blend_file", "Blender file")
+MANIFEST = RigManifest(
+    "blend_file", "rigmap.animation.blend_corpus:build_blend_file", "Blender file"
+)

@@ -1,6 +1,6 @@
 """A user's actions read back as keys on the rig's controls, and the checks before a long run.
 
-Runs inside Blender (imports bpy). The main process (:mod:`rigmap.rigs.blender.blend_corpus`)
+Runs inside Blender (imports bpy). The main process (:mod:`rigmap.animation.blend_corpus`)
 turns what :func:`read_file` reports into rigmap clips and a corpus.
 
 For every action (or those whose name matches a glob) the F-curves that address the

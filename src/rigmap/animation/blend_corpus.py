@@ -6,8 +6,8 @@ space — the keys as stored (frame, value, interpolation, both Bézier handles)
 keyframe model — sampled on the whole frames of the action's frame range, exactly as the
 ``animate`` stage writes a built-in rig's corpus (``data/<rig>/corpus/{train,test}.parquet``).
 
-A Blender worker (:mod:`.in_blender.blend_actions`) reads the file; the file is never
-written. Around the keys:
+A Blender worker (:mod:`rigmap.rigs.blender.in_blender.blend_actions`) reads the file;
+the file is never written. Around the keys:
 
 * *used controls*: those keyed in the actions, unless ``used`` globs say otherwise;
 * *soft ranges*: the span of the keyed values (and the rest value), widened by
@@ -194,7 +194,8 @@ def session_options(
     scale_range: Sequence[float],
     use_scripts: bool,
 ) -> dict:
-    """The worker's session options, spelled as :class:`~.rig.BlenderRig` spells them."""
+    """The worker's session options, spelled as
+    :class:`~rigmap.rigs.blender.rig.BlenderRig` spells them."""
     include, exclude = _patterns(joints, f"{path.name} joints")
     return {
         "path": str(path),
@@ -745,6 +746,21 @@ def write_blend_corpora(
         )
     log(f"{result.rig_name}: read {result.path.name} in {result.seconds['total']:.1f} s")
     return [folder / "train.parquet", folder / "test.parquet"]
+
+
+def build_blend_file(**options):
+    """The ``blend_file`` rig (its manifest's factory): with ``actions``, the controls the
+    file's actions key become the used ones (:func:`imported_rig_options`); then
+    :func:`rigmap.rigs.blender.rigify.build_blend_file`. Here, not in ``rigs``, because the
+    import reads the actions as clips (``rigs`` sits below ``animation``)."""
+    from rigmap.rigs.blender.rigify import build_blend_file as build_rig
+
+    actions = options.pop("actions", None)
+    if actions is not None and options.get("path"):
+        rig_options = {k: v for k, v in options.items() if k not in ("path", "name")}
+        path = str(Path(options["path"]))
+        options.update(imported_rig_options({**rig_options, "path": path}, actions))
+    return build_rig(**options)
 
 
 def imported_rig_options(rig_options: Mapping, actions: Mapping | None) -> dict:

@@ -1,0 +1,72 @@
+"""Hydra composition of ``conf/`` as the pipeline apps see it, with the range checks of
+:mod:`rigmap.params_checks`: used by the command line and by the few library commands
+that read their settings from ``conf/`` (``rigmap edits``), so these need not import the
+CLI (which imports them)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def find_config_dir(explicit: Path | None = None) -> Path:
+    """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the copy inside the
+    package (``rigmap/conf``), so an installed rigmap runs from any folder."""
+    from rigmap.store import PACKAGED_CONF
+
+    candidates = [Path(explicit)] if explicit is not None else [Path.cwd() / "conf", PACKAGED_CONF]
+    for candidate in candidates:
+        if (candidate / "config.yaml").is_file():
+            return candidate.resolve()
+    looked = ", ".join(str(c / "config.yaml") for c in candidates)
+    raise FileNotFoundError(
+        f"no Hydra config found (looked for {looked}); run from the repository root or pass "
+        "--config-dir PATH/TO/conf"
+    )
+
+
+def compose_config(
+    overrides: list[str],
+    config_dir: Path | None = None,
+    *,
+    with_hydra: bool = False,
+    config_name: str = "config",
+):
+    """``conf/<config_name>.yaml`` with Hydra ``overrides``, as the pipeline apps would see it.
+
+    ``with_hydra`` keeps the ``hydra`` node (its ``runtime.choices`` name the groups chosen).
+    """
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    folder = find_config_dir(config_dir)
+    try:
+        with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
+            cfg = compose(
+                config_name=config_name, overrides=list(overrides), return_hydra_config=with_hydra
+            )
+    except (HydraException, OmegaConfBaseException) as error:
+        raise ValueError(
+            f"config {folder}/{config_name}.yaml with overrides {overrides}: {error}"
+        ) from None
+    _check_ranges(cfg)
+    return cfg
+
+
+def _check_ranges(cfg) -> None:
+    """The counts, seeds and rates ``rigmap.params_checks`` knows, checked as composed (so a
+    bad override is refused naming its key before any work)."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    from rigmap.params_checks import FLOAT_RANGES, MIN_COUNTS, range_problems
+
+    values = {}
+    for key in (*MIN_COUNTS, *FLOAT_RANGES):
+        try:
+            values[key] = OmegaConf.select(cfg, key, default=None)
+        except OmegaConfBaseException:
+            continue  # an interpolation this command does not resolve: not its value
+    problems = range_problems(values)
+    if problems:
+        raise ValueError("; ".join(problems))
