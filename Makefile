@@ -51,7 +51,7 @@ paper-table1: setup
 # Issue #37's real-mocap suite: every clip of ../shared/mocap/ mapped whole onto the biped
 # (about 4 000 frames, 5-6 min on 2 cores: not part of the quick replication). Needs the
 # biped's corpus and poses (dvc repro animate@biped pose@biped);
-# reports/tables/map_suite_biped.md and metrics/biped/map_suite/
+# reports/map_suite/biped.md and metrics/biped/map_suite/
 mocap-suite: setup
 	$(BIN)/python pipelines/map_suite.py rig=biped
 

@@ -1,7 +1,7 @@
 """``make mocap-suite``: every clip of ``../shared/mocap/`` mapped whole onto a rig (issue #37).
 
 Writes ``<paths.data>/<rig>/map_suite/<clip>/``, ``<paths.metrics>/<rig>/map_suite/<clip>.json``
-and ``<paths.reports>/tables/map_suite_<rig>.md``; the work is :mod:`rigmap.map.mocap_suite`.
+and ``<paths.reports>/map_suite/<rig>.md``; the work is :mod:`rigmap.map.mocap_suite`.
 It needs the rig's corpus and poses (the ``animate`` and ``pose`` stages).
 
     python pipelines/map_suite.py rig=biped

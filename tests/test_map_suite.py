@@ -53,6 +53,8 @@ def test_the_suite_maps_a_whole_clip_of_the_other_conversion_and_writes_its_page
     assert metrics["euler_flips"] == 0
     assert metrics["contact_slip_max_cm"] <= 0.1
     assert 0 < metrics["keys_per_frame_and_control"] < 1
+    # beside the report, not in reports/tables/, which the report stage replaces whole
+    assert page == project / "reports" / "map_suite" / "biped.md"
     text = page.read_text()
     assert "| cmu_09_01 | run | 37 |" in text
     assert "mocap.cs.cmu.edu" in text and "of 1 clips" in text

@@ -6,7 +6,7 @@ two walks. Each clip is mapped whole at ``map.fps`` as ``rigmap map`` maps it (i
 skeleton matched when it is the other CMU conversion, a T-pose frame cut, glitch frames
 rebuilt) into ``<data>/<rig>/map_suite/<clip>/``; per clip
 ``<metrics>/<rig>/map_suite/<clip>.json`` holds the :mod:`rigmap.map.mocap_stage`
-scores plus the motion kind, and ``<reports>/tables/map_suite_<rig>.md`` is the page: one
+scores plus the motion kind, and ``<reports>/map_suite/<rig>.md`` is the page: one
 row per clip with joint RMS (cm, % height), skate against the source's, ground
 penetration, the largest control jump (training std), keys per frame and control, Euler
 flips and frames per second, then the bars of the issue, met or not.
@@ -74,7 +74,8 @@ def map_suite(
         folder = layout.metrics_folder(rig_name, METRICS_SET)
         write_json_atomic(folder / f"{source.stem}.json", row)
         rows.append(row)
-    page = layout.tables() / f"map_suite_{rig_name}.md"
+    # beside the report, not in reports/tables/ (the report stage owns that folder whole)
+    page = layout.reports / "map_suite" / f"{rig_name}.md"
     return write_text_atomic(page, suite_page(rig_name, rows))
 
 
