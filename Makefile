@@ -3,13 +3,14 @@ PYTHON ?= python3.11
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+SWEEPER := $(VENV)/.optuna-sweeper-1.3.0
 
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
 .PHONY: setup blender postgres tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
 
-setup: $(STAMP)
+setup: $(STAMP) $(SWEEPER)
 
 # torch==2.13.0 first: it is the CPU build already on disk; any other spec pulls CUDA.
 $(STAMP): pyproject.toml
@@ -18,6 +19,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
+
+# hydra/sweeper=optuna: hydra-optuna-sweeper's metadata pins optuna<3 but its code runs on the
+# Optuna 5 we use (tests/test_sweep_launchers.py), so --no-deps, after every other pip call
+# (redone whenever $(STAMP) is), and nothing later resolves optuna again.
+$(SWEEPER): $(STAMP)
+	$(BIN)/pip install --quiet --no-deps hydra-optuna-sweeper==1.3.0
+	touch $(SWEEPER)
 
 # Blender (bpy 5.0.1 pins numpy<2) gets its own environment, .venv-blender, for the
 # worker processes that evaluate Rigify and user .blend rigs.

@@ -1,8 +1,9 @@
-"""Sweeps: rigmap's Optuna sweeper (killed and resumed, one MLflow parent with a child per
-trial on PostgreSQL), resumed through the submitit launcher with submitit's local executor.
+"""Sweeps with the maintained Optuna sweeper (hydra-optuna-sweeper) and rigmap's callback
+(rigmap.tracking.optuna_sweep): a 12-trial study killed and resumed, its trials resumed as
+submitit jobs, one MLflow parent run with a child per trial; and a sweep on a Ray head.
 
 Trials are the real ``pipelines/tune.py`` trials of the quadruped's joint-space network,
-shrunk to a couple of seconds each.
+shrunk to a few seconds each.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ TINY = [
     "tune.train_rows=60",
     "tune.val_rows=20",
 ]
+MAINTAINED = "hydra_plugins.hydra_optuna_sweeper.optuna_sweeper.OptunaSweeper"
 
 
 def tune_command(tmp_path: Path, uri: str, *extra: str) -> list[str]:
@@ -34,7 +36,8 @@ def tune_command(tmp_path: Path, uri: str, *extra: str) -> list[str]:
 
 
 def clean_env() -> dict:
-    return {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    return {**env, "PYTHONUNBUFFERED": "1"}
 
 
 def children(client, parent_id: str):
@@ -48,52 +51,115 @@ def children(client, parent_id: str):
     )
 
 
-def test_optuna_sweep_killed_mid_trial_resumes_through_submitit(pg_tracking_server, tmp_path):
-    """Killed (SIGKILL) while trial 1 runs under the basic launcher; the same sweep resumed
-    with submitit's local executor, the trial cut off asked again as a submitit job."""
+def load_study(tmp_path: Path, name: str):
     import optuna
-    from mlflow import MlflowClient
 
-    command = tune_command(tmp_path, pg_tracking_server.uri, "hydra.sweeper.n_trials=2",
-                           "hydra.sweeper.study_name=killed")  # fmt: skip
+    return optuna.load_study(study_name=name, storage=f"sqlite:///{tmp_path / 'optuna.db'}")
+
+
+def states(study) -> list[str]:
+    return [t.state.name for t in study.trials]
+
+
+def kill_at_launch(command: list[str], job: int) -> str:
+    """Run the sweep and SIGKILL its process group once job ``job`` is launched (the jobs
+    before it complete, it is cut off while it runs); the output seen so far."""
     sweep = subprocess.Popen(
         command, cwd=REPO, env=clean_env(), text=True, start_new_session=True,
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
     )  # fmt: skip
     seen = []
-    for line in sweep.stdout:  # kill once trial 1 is running (trial 0 done and logged)
+    for line in sweep.stdout:
         seen.append(line)
-        if "#1 :" in line:
+        if f"#{job} :" in line:
             os.killpg(sweep.pid, signal.SIGKILL)
             break
     sweep.wait(timeout=60)
-    assert sweep.returncode == -signal.SIGKILL, "".join(seen)[-3000:]
-    submitit = ["hydra/launcher=submitit_local", "hydra.sweeper.n_jobs=2",
-                "hydra.launcher.timeout_min=10"]  # fmt: skip
-    resumed = subprocess.run([*command, *submitit], cwd=REPO, env=clean_env(),
-                             capture_output=True, text=True, timeout=600)  # fmt: skip
-    assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
-    assert "was cut off by a kill: retried" in resumed.stdout + resumed.stderr
+    out = "".join(seen)
+    assert sweep.returncode == -signal.SIGKILL, out[-3000:]
+    return out
 
-    study = optuna.load_study(study_name="killed", storage=f"sqlite:///{tmp_path / 'optuna.db'}")
-    states = [t.state.name for t in study.trials]
-    assert states.count("COMPLETE") == 2 and states.count("FAIL") == 1, states
-    # the cut-off trial's parameters were tried again
-    failed = next(t for t in study.trials if t.state.name == "FAIL")
-    assert any(t.params == failed.params for t in study.trials if t.state.name == "COMPLETE")
-    client = MlflowClient(pg_tracking_server.uri)
+
+def run_sweep(command: list[str]) -> str:
+    done = subprocess.run(
+        command, cwd=REPO, env=clean_env(), capture_output=True, text=True, timeout=900
+    )
+    out = done.stdout + done.stderr
+    assert done.returncode == 0, out[-3000:]
+    return out
+
+
+def check_mlflow(tmp_path: Path, uri: str, study) -> None:
+    """One FINISHED parent run, one FINISHED child per complete trial, named after it."""
+    from mlflow import MlflowClient
+    from omegaconf import OmegaConf
+
+    complete = [t for t in study.trials if t.state.name == "COMPLETE"]
+    client = MlflowClient(uri)
     parent_id = study.user_attrs["mlflow_parent_run_id"]
     parent = client.get_run(parent_id)
-    assert parent.info.status == "FINISHED" and parent.data.tags["best_trial"]
+    assert parent.info.status == "FINISHED"
+    assert parent.data.tags["best_trial"] == str(study.best_trial.number)
     runs = children(client, parent_id)
-    assert len(runs) == 2 and {r.info.status for r in runs} == {"FINISHED"}
-    assert sorted(float(r.data.metrics["joint_error"]) for r in runs) == sorted(
-        t.value for t in study.trials if t.state.name == "COMPLETE"
-    )
-    assert (tmp_path / "sweep" / "optimization_results.yaml").is_file()
-    # the resumed trial ran as a submitit job, with its own log
+    assert len(runs) == 12 and {r.info.status for r in runs} == {"FINISHED"}
+    by_trial = {int(r.data.tags["optuna_trial"]): r for r in runs}
+    assert sorted(by_trial) == sorted(t.number for t in complete)
+    for trial in complete:
+        assert by_trial[trial.number].data.metrics["joint_error"] == trial.value
+        assert by_trial[trial.number].info.run_name == f"trial-{trial.number}"
+    results = OmegaConf.load(tmp_path / "sweep" / "optimization_results.yaml")
+    assert results.best_params == study.best_params and results.best_value == study.best_value
+    assert results.best_trial == study.best_trial.number
+    assert results.mlflow_parent_run_id == parent_id
+
+
+def test_optuna_sweep_of_12_killed_and_resumed_ends_with_12_complete_trials(tmp_path):
+    """SIGKILL while trial 4 runs under the basic launcher; the same sweep resumed with
+    submitit's local executor (two jobs at a time, in other processes) fails the cut-off
+    trial, asks its point again and runs the 8 trials missing; a third call runs none."""
+    uri = f"sqlite:///{tmp_path / 'mlruns.db'}"
+    command = tune_command(tmp_path, uri, "hydra.sweeper.n_trials=12",
+                           "hydra.sweeper.study_name=killed")  # fmt: skip
+    kill_at_launch(command, 4)
+    assert states(load_study(tmp_path, "killed")) == ["COMPLETE"] * 4 + ["RUNNING"]
+
+    submitit = ["hydra/launcher=submitit_local", "hydra.sweeper.n_jobs=2",
+                "hydra.launcher.timeout_min=10"]  # fmt: skip
+    out = run_sweep([*command, *submitit])
+    assert "trial 4 was cut off by a kill: failed, asked again" in out
+    assert "4 of 12 trials complete; running the rest" in out
+    study = load_study(tmp_path, "killed")
+    assert states(study).count("COMPLETE") == 12 and states(study).count("FAIL") == 1
+    assert study.trials[4].state.name == "FAIL"
+    assert study.trials[5].params == study.trials[4].params  # the cut-off point, asked again
+    # the resumed seeded sampler draws new points, not the first run's again
+    points = [tuple(t.params.values()) for t in study.trials if t.state.name == "COMPLETE"]
+    assert len(set(points)) == 12
     job_logs = list((tmp_path / "sweep" / ".submitit").glob("*/*_log.out"))
-    assert len(job_logs) == 1 and "trial: joint error" in job_logs[0].read_text()
+    assert len(job_logs) == 8 and all("trial: joint error" in p.read_text() for p in job_logs)
+    check_mlflow(tmp_path, uri, study)
+
+    out = run_sweep(command)  # a finished study: nothing more to run
+    assert "12 of 12 trials complete" in out and "Launching" not in out
+    study = load_study(tmp_path, "killed")
+    assert len(study.trials) == 13
+    check_mlflow(tmp_path, uri, study)
+
+
+def test_the_sweeper_is_the_maintained_plugin_on_optuna_4_or_newer():
+    import importlib.metadata
+    import importlib.util
+
+    import optuna
+    from hydra.core.plugins import Plugins
+    from hydra.plugins.sweeper import Sweeper
+
+    assert importlib.metadata.version("hydra-optuna-sweeper") == "1.3.0"
+    assert int(optuna.__version__.split(".")[0]) >= 4, optuna.__version__
+    assert importlib.util.find_spec("hydra_plugins.hydra_optuna_sweeper") is not None
+    assert importlib.util.find_spec("hydra_plugins.rigmap_optuna_sweeper") is None
+    sweepers = {f"{p.__module__}.{p.__name__}" for p in Plugins.instance().discover(Sweeper)}
+    assert MAINTAINED in sweepers and not any("rigmap" in s for s in sweepers), sweepers
 
 
 def test_slurm_launcher_config_and_sweeper_space_compose():
@@ -104,21 +170,33 @@ def test_slurm_launcher_config_and_sweeper_space_compose():
     launcher, sweeper = cfg.hydra.launcher, cfg.hydra.sweeper
     assert launcher._target_.endswith("submitit_launcher.SlurmLauncher")
     assert launcher.cpus_per_task == 2 and launcher.array_parallelism == 32
-    assert sweeper._target_.endswith("rigmap_optuna_sweeper.optuna_sweeper.OptunaSweeper")
+    assert sweeper._target_ == MAINTAINED
+    assert sweeper.sampler._target_ == "optuna.samplers.TPESampler" and sweeper.sampler.seed == 0
+    assert sweeper.storage == "sqlite:///outputs/tune/optuna.db"
+    assert sweeper.study_name == "quadruped-nn" and sweeper.n_trials == 12
+    assert sweeper.params["regressor.hidden"] == "choice(32, 64, 128)"
+    assert sweeper.params["regressor.learning_rate"] == "tag(log, interval(1.0e-4, 1.0e-2))"
     searched = {"gaussian_scale", "hidden", "learning_rate", "control_weight"}
     assert set(sweeper.params) == {f"regressor.{name}" for name in searched}
-    assert sweeper.n_trials == 12 and cfg.regressor._target_.endswith("JointSpaceNetworkRegressor")
+    callback = cfg.hydra.callbacks.optuna_mlflow
+    assert callback._target_ == "rigmap.tracking.optuna_sweep.OptunaSweepCallback"
+    assert callback.rig == "quadruped" and callback.resume is True
+    assert cfg.regressor._target_.endswith("JointSpaceNetworkRegressor")
 
 
-def test_sweeper_refuses_a_bad_search_space():
-    from hydra_plugins.rigmap_optuna_sweeper.optuna_sweeper import OptunaSweeper, distribution
+def test_the_sweep_callback_refuses_a_sweep_without_storage_or_a_bad_resume(tmp_path):
+    from hydra import compose, initialize_config_dir
 
-    with pytest.raises(ValueError, match="type 'gaussian'; expected float, int or categorical"):
-        distribution("regressor.hidden", {"type": "gaussian"})
-    with pytest.raises(ValueError, match=r"'regressor\.hidden' needs 'high'"):
-        distribution("regressor.hidden", {"type": "int", "low": 1})
-    with pytest.raises(ValueError, match="params is empty"):
-        OptunaSweeper("s", "sqlite:///x.db", "minimize", 2, 1, 0, {}, "quadruped")
+    from rigmap.tracking.optuna_sweep import OptunaSweepCallback
+
+    overrides = ["hydra.sweeper.storage=null", f"tracking.uri=sqlite:///{tmp_path / 'm.db'}"]
+    with initialize_config_dir(str(REPO / "conf"), version_base="1.3"):
+        cfg = compose("tune", overrides=overrides, return_hydra_config=True)
+    with pytest.raises(ValueError, match=r"^hydra\.sweeper\.storage: a resumable Optuna sweep"):
+        OptunaSweepCallback("quadruped").on_multirun_start(cfg)
+    with pytest.raises(ValueError, match=r"optuna_mlflow\.resume: 'yes' is not true/false"):
+        OptunaSweepCallback("quadruped", resume="yes")
+    assert not list(tmp_path.iterdir())  # nothing written before the refusal
 
 
 @pytest.fixture
@@ -177,8 +255,9 @@ def loopback_ray_head(tmp_path):
 
 
 def test_optuna_sweep_runs_its_trials_as_tasks_on_a_local_ray_head(loopback_ray_head, tmp_path):
-    """hydra/launcher=ray_cluster (hydra-ray-launcher): the sweep's two trials run as Ray
-    tasks on a head started apart from the sweep, and both complete in the study."""
+    """hydra/launcher=ray_cluster (hydra-ray-launcher) under the maintained Optuna sweeper:
+    the sweep's two trials run as Ray tasks on a head started apart from the sweep, and both
+    complete in the study."""
     import optuna
 
     uri = f"sqlite:///{tmp_path / 'mlruns.db'}"

@@ -1,12 +1,14 @@
 """One trial of a hyperparameter sweep: fit the network on a rig's poses, score it held out.
 
 ``pipelines/tune.py`` runs it as a Hydra app; ``--multirun`` with ``hydra/sweeper=optuna``
-(conf/tune.yaml) makes it an Optuna study. A trial draws its own seeded training and
-validation poses from the rig (no DVC data needed, so a Slurm node needs only the code),
-fits ``regressor`` through :class:`~rigmap.regression.mapping.InverseMapping` as the fit
-stage does, and returns the validation joint error (mean squared joint distance, cm²: what
-the sweep minimises). With ``optuna.parent_run_id`` set (the sweeper passes it) the trial
-is logged as an MLflow child run of the study's parent run, with its parameters and score.
+(the maintained hydra-optuna-sweeper, conf/tune.yaml) makes it an Optuna study. A trial
+draws its own seeded training and validation poses from the rig (no DVC data needed, so a
+Slurm node needs only the code), fits ``regressor`` through
+:class:`~rigmap.regression.mapping.InverseMapping` as the fit stage does, and returns the
+validation joint error (mean squared joint distance, cm²: what the sweep minimises). With
+``optuna.parent_run_id`` set (the sweep's callback,
+:class:`rigmap.tracking.optuna_sweep.OptunaSweepCallback`, passes it) the trial is logged
+as an MLflow child run of the study's parent run, with its parameters and score.
 """
 
 from __future__ import annotations
@@ -73,12 +75,17 @@ def log_trial(tracking: Mapping | None, sweep: Mapping, params: Mapping, scores:
 
     tracker = Tracker.from_config(dict(tracking or {}))
     parent = tracker.client.get_run(str(sweep["parent_run_id"]))
+    tags = {
+        MLFLOW_PARENT_RUN_ID: parent.info.run_id,
+        "optuna_study": str(sweep.get("study", "")),
+        "kind": "optuna_trial",
+    }
+    trial = sweep.get("trial")
+    if trial is not None:  # else the sweep's callback names the run after the sweep
+        tags["optuna_trial"] = str(trial)
     run = tracker.client.create_run(
-        parent.info.experiment_id,
-        run_name=f"trial-{sweep['trial']}",
-        tags={MLFLOW_PARENT_RUN_ID: parent.info.run_id, "optuna_trial": str(sweep["trial"]),
-              "optuna_study": str(sweep.get("study", "")), "kind": "optuna_trial"},
-    )  # fmt: skip
+        parent.info.experiment_id, run_name=f"trial-{'?' if trial is None else trial}", tags=tags
+    )
     run_id = run.info.run_id
     for key, value in params.items():
         tracker.client.log_param(run_id, key, value)
