@@ -20,7 +20,8 @@ Hydra calls ``on_multirun_start`` before it builds the sweeper, so the callback 
 ``on_multirun_end`` names each child run after its Optuna trial, logs the best trial on the
 parent, adds the parent's id to ``optimization_results.yaml`` and finishes the parent run.
 One sweep process per study at a time: a second one would see the first one's running
-trials as stale.
+trials as stale. A sweep stopped by an error or a kill leaves its parent run RUNNING (Hydra
+has no multirun-failed hook); the next run of the same study reopens and finishes it.
 """
 
 from __future__ import annotations
