@@ -226,8 +226,9 @@ class Edit:
                 continue
             if operation.kind == "oscillate":
                 phase_column = self._columns(track, operation.phase, "scale")[0]
-                wave = np.sin(gait_phase(track.values[:, phase_column], track.fps,
-                                         operation.window_s))  # fmt: skip
+                wave = np.sin(
+                    gait_phase(track.values[:, phase_column], track.fps, operation.window_s)
+                )
                 gate = gate * wave
             for k, target in enumerate(operation.targets):
                 columns = self._columns(track, target, operation.kind)
@@ -342,9 +343,13 @@ def crouch_legs(
                 f"{frame} ({c[frame]:.4g} against bones {thigh:.4g} + {shin:.4g})"
             )
         knee_column = 5 + 3 * knee
-        knee_vector = _hinge_bend(values[:, knee_column : knee_column + 3],
-                                  skeleton.offsets[knee], skeleton.offsets[ankle], c,
-                                  names[knee])  # fmt: skip
+        knee_vector = _hinge_bend(
+            values[:, knee_column : knee_column + 3],
+            skeleton.offsets[knee],
+            skeleton.offsets[ankle],
+            c,
+            names[knee],
+        )
         knee_local = Rotation.from_rotvec(knee_vector).as_matrix()
         chain = skeleton.offsets[knee] + knee_local @ skeleton.offsets[ankle]  # hip → ankle
         pointing = np.einsum("nab,nb->na", world_r[:, hip], chain)

@@ -25,9 +25,14 @@ def draw_latent_spaces(rig, fitted, without, fps: float, variance, path, *, labe
         entry = fitted.sets[label]
         fraction, n_pca = variance  # (PCA variance fraction, components or None)
         other = LatentModel.fit(
-            rig, entry.values, entry.segments, fps=fps, variance=fraction, n_pca=n_pca,
+            rig,
+            entry.values,
+            entry.segments,
+            fps=fps,
+            variance=fraction,
+            n_pca=n_pca,
             settings=without,
-        )  # fmt: skip
+        )
         for ax, model, title in (
             (row[0], fitted.models[label], "with the connectivity prior"),
             (row[1], other, "without it"),

@@ -148,26 +148,41 @@ def fit_models(
     for label, entry in sets.items():
         start = time.perf_counter()
         models[label] = LatentModel.fit(
-            rig, entry.values, entry.segments, fps=fps, settings=settings, variance=variance,
+            rig,
+            entry.values,
+            entry.segments,
+            fps=fps,
+            settings=settings,
+            variance=variance,
             n_pca=n_pca,
-        )  # fmt: skip
+        )
         seconds[label] = time.perf_counter() - start
     return FittedModels(models, dict(sets), seconds)
 
 
 def face_expression_sets(
-    rig, *, seed: int = 0, size: str = "quick", labels=None, takes: int | None = None,
-    heldout: bool = False, coordinated: int | None = None,
-) -> dict[str, LabelledSet]:  # fmt: skip
+    rig,
+    *,
+    seed: int = 0,
+    size: str = "quick",
+    labels=None,
+    takes: int | None = None,
+    heldout: bool = False,
+    coordinated: int | None = None,
+) -> dict[str, LabelledSet]:
     """The face's expression library as labelled sets (training, or held out);
     ``coordinated``: how takes vary (:mod:`rigmap.animation.library.face_expressions`)."""
     from rigmap.animation.library import face_expressions as fx
 
     chosen = fx.LABELS if labels is None else tuple(labels)
     built = fx.build_takes(
-        seed=seed, size=size, labels=chosen, takes=takes, heldout=heldout,
+        seed=seed,
+        size=size,
+        labels=chosen,
+        takes=takes,
+        heldout=heldout,
         coordinated=coordinated,
-    )  # fmt: skip
+    )
     return labelled_sets(
         [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
         n_controls=len(rig.controls.used_indices),
@@ -187,9 +202,14 @@ LIBRARY_TAKES: dict[str, tuple[int, int]] = {"quick": (2, 1), "paper": (6, 2)}  
 
 
 def library_sets(
-    rig, motions: Mapping[str, str], *, seed: int = 0, size: str = "quick", labels=None,
+    rig,
+    motions: Mapping[str, str],
+    *,
+    seed: int = 0,
+    size: str = "quick",
+    labels=None,
     heldout: bool = False,
-) -> dict[str, LabelledSet]:  # fmt: skip
+) -> dict[str, LabelledSet]:
     """Labelled sets from a rig's motion library: label → motion name, each played as
     seeded takes ``"<label> <k>"`` (held out: seeds moved by the library's offset)."""
     from rigmap.animation.library import HELDOUT_SEED_OFFSET, build_clip, motion_library
