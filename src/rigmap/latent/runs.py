@@ -29,7 +29,7 @@ from rigmap.latent import files
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVMSettings
 from rigmap.latent.library import FittedModels, fit_models, rig_sets
-from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, read_script
+from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, MAX_SCRIPT_FRAMES_LIMIT, read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
 from rigmap.store import PACKAGED_CONF, Layout, json_ready, write_json_atomic, write_text_atomic
@@ -190,10 +190,16 @@ def play_script(
 
 
 def max_script_frames(config: dict) -> int:
-    """``latent.max_script_frames``: a whole number >= 1 (default :data:`MAX_SCRIPT_FRAMES`)."""
+    """``latent.max_script_frames``: a whole number from 1 to :data:`MAX_SCRIPT_FRAMES_LIMIT`
+    (default :data:`MAX_SCRIPT_FRAMES`; both ours)."""
     value = config.get("max_script_frames", MAX_SCRIPT_FRAMES)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise LatentInputError(f"latent.max_script_frames={value!r}: expected a whole number >= 1")
+    if value > MAX_SCRIPT_FRAMES_LIMIT:
+        raise LatentInputError(
+            f"latent.max_script_frames={value}: expected at most {MAX_SCRIPT_FRAMES_LIMIT} "
+            "(every frame's controls are held in memory)"
+        )
     return value
 
 
