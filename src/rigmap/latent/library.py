@@ -147,17 +147,33 @@ def fit_models(
     models, seconds = {}, {}
     for label, entry in sets.items():
         start = time.perf_counter()
-        models[label] = LatentModel.fit(
-            rig,
-            entry.values,
-            entry.segments,
-            fps=fps,
-            settings=settings,
-            variance=variance,
-            n_pca=n_pca,
+        models[label] = fit_set(
+            rig, entry, fps=fps, settings=settings, variance=variance, n_pca=n_pca
         )
         seconds[label] = time.perf_counter() - start
     return FittedModels(models, dict(sets), seconds)
+
+
+def fit_set(
+    rig,
+    entry: LabelledSet,
+    *,
+    fps: float,
+    settings: GPLVMSettings | None = None,
+    variance: float = 0.85,
+    n_pca: int | None = None,
+) -> LatentModel:
+    """One labelled set's latent model: the stage's fits, the measures' refits and the
+    figure's refit without the prior all go through here."""
+    return LatentModel.fit(
+        rig,
+        entry.values,
+        entry.segments,
+        fps=fps,
+        variance=variance,
+        n_pca=n_pca,
+        settings=settings,
+    )
 
 
 def face_expression_sets(

@@ -25,7 +25,7 @@ import numpy as np
 
 from rigmap.latent.control_scaling import fit_control_scaling, surface
 from rigmap.latent.gplvm import GPLVMSettings
-from rigmap.latent.library import LabelledSet
+from rigmap.latent.library import LabelledSet, fit_set
 from rigmap.latent.model import LatentModel
 from rigmap.latent.motion_graph import (
     WINDOW,
@@ -92,15 +92,7 @@ def _fit(rig, entry: LabelledSet, settings: GPLVMSettings, fps: float, variance)
     """``variance``: a PCA variance fraction, or ``(fraction, n_components or None)``."""
     fraction, n_pca = variance if isinstance(variance, tuple) else (variance, None)
     start = time.perf_counter()
-    model = LatentModel.fit(
-        rig,
-        entry.values,
-        entry.segments,
-        fps=fps,
-        variance=fraction,
-        n_pca=n_pca,
-        settings=settings,
-    )
+    model = fit_set(rig, entry, fps=fps, variance=fraction, n_pca=n_pca, settings=settings)
     return model, time.perf_counter() - start
 
 

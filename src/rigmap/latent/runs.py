@@ -281,6 +281,8 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
     P = np.vstack([s.values for s in sets.values()])
     P_test = np.vstack([heldout[label].values for label in labels])
     compare = settings_of(config, max_iter=int(ev.get("compare_max_iter") or config["max_iter"]))
+    fit = {"fps": fps, "variance": variance}  # how every refit below is made
+    data = (rig, sets, heldout)  # what the two sweeps fit on and test on
     jobs = {
         "pca": lambda: [
             {
@@ -295,25 +297,19 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
         ],
         "scaling": lambda: m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
         "latent_dims": lambda: m.latent_dim_sweep(
-            rig,
-            sets,
-            heldout,
+            *data,
             labels[: int(ev["sweep_labels"])],
             ev["latent_dims"],
             settings=settings,
-            fps=fps,
-            variance=variance,
             fitted=fitted,
+            **fit,
         ),
         "one_vs_per_label": lambda: m.one_against_per_label(
-            rig,
-            sets,
-            heldout,
+            *data,
             labels[: int(ev["compare_labels"])],
             ev["compare_dims"],
             settings=compare,
-            fps=fps,
-            variance=variance,
+            **fit,
         ),
         "matching": lambda: m.matching_rows(table, labels),
         "smoothness": lambda: m.transition_smoothness(
