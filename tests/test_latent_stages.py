@@ -211,10 +211,17 @@ def test_missing_models_and_bad_steps_are_clear_errors(tmp_path):
 
 def test_the_stage_script_reports_a_bad_step_as_one_line(tmp_path):
     result = subprocess.run(
-        [sys.executable, str(ROOT / "pipelines/latent.py"), "rig=face", "+latent_step=bake",
-         f"paths.models={tmp_path}"],
-        capture_output=True, text=True, cwd=ROOT,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "pipelines/latent.py"),
+            "rig=face",
+            "+latent_step=bake",
+            f"paths.models={tmp_path}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert result.returncode == 2
     assert "error: latent:" in result.stderr and "+latent_step" in result.stderr
 

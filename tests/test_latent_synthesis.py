@@ -18,9 +18,13 @@ def fitted():
 
 def controller(fitted, seed=0, start="happy", **kw):
     return Controller(
-        fitted.models, start=start, takes=fitted.sets, transitions=face_transitions(), seed=seed,
+        fitted.models,
+        start=start,
+        takes=fitted.sets,
+        transitions=face_transitions(),
+        seed=seed,
         **kw,
-    )  # fmt: skip
+    )
 
 
 def test_field_controls_match_the_model(fitted):
@@ -235,8 +239,11 @@ def test_a_yaml_script_runs_like_its_commands(fitted, tmp_path):
     start, commands = read_script(path)
     assert start == "happy"
     assert commands == [
-        Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0"),
-    ]  # fmt: skip
+        Move(take="happy 1", frame=20),
+        Idle(12),
+        Transition("neutral"),
+        Play("neutral 0"),
+    ]
     a = controller(fitted, seed=3, start=start).run(commands)
     b = controller(fitted, seed=3).run(
         [Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0")]
@@ -268,8 +275,14 @@ def test_the_shipped_example_script_parses():
     start, commands = read_script(path)
     assert start == "happy"
     assert [type(c).__name__ for c in commands] == [
-        "Move", "Idle", "Transition", "Idle", "Transition", "Play", "Idle",
-    ]  # fmt: skip
+        "Move",
+        "Idle",
+        "Transition",
+        "Idle",
+        "Transition",
+        "Play",
+        "Idle",
+    ]
 
 
 def test_a_script_past_the_frame_cap_is_refused_naming_the_file_command_and_range(tmp_path):
