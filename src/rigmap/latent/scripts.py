@@ -96,7 +96,7 @@ def check_frame_total(commands, *, source: str, max_frames: int) -> None:
         f"{source}: command {k + 1} ({_describe(command)}) passes the cap: "
         f"the commands ask for {asked} frames, more than latent.max_script_frames={max_frames} "
         f"(accepted: 0 to {max_frames} frames in all, a cap of ours); "
-        "shorten the script or raise the cap"
+        f"shorten the script or raise the cap (to at most {MAX_SCRIPT_FRAMES_LIMIT})"
     )
 
 
