@@ -32,8 +32,9 @@ def walk():
 
 
 def bone_lengths(positions, parents):
-    return np.array([np.linalg.norm(positions[j] - positions[p]) for j, p in enumerate(parents)
-                     if p >= 0])  # fmt: skip
+    return np.array(
+        [np.linalg.norm(positions[j] - positions[p]) for j, p in enumerate(parents) if p >= 0]
+    )
 
 
 def test_ik_keeps_bone_lengths_and_pins_while_reaching(walk):
@@ -44,8 +45,9 @@ def test_ik_keeps_bone_lengths_and_pins_while_reaching(walk):
     targets = drag_targets(positions, names, {"LeftWrist": drag, "LeftElbow": 0.5 * drag})
     feet = {names.index(n): positions[names.index(n)] for n in ("LeftAnkle", "RightAnkle")}
     solved, iterations = bone_length_ik(positions, skeleton.parents, targets, feet)
-    np.testing.assert_allclose(bone_lengths(solved, skeleton.parents),
-                               bone_lengths(positions, skeleton.parents), atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        bone_lengths(solved, skeleton.parents), bone_lengths(positions, skeleton.parents), atol=1e-6
+    )
     for joint, where in feet.items():
         np.testing.assert_allclose(solved[joint], where, atol=1e-9)
     # every undragged joint's target is where it is, so the whole body shares the pull:
@@ -66,12 +68,16 @@ def test_ik_keeps_bone_lengths_and_pins_while_reaching(walk):
 def test_minimal_rotations_reproduce_the_ik_positions_and_the_edit_blends(walk):
     skeleton, track = walk
     drag = {"RightWrist": np.array([0.0, 4.0, 2.0])}
-    edited, solved = apply_pose_edit(track, skeleton, 400, drag, blend=10,
-                                     pins=("LeftAnkle", "RightAnkle"))  # fmt: skip
+    edited, solved = apply_pose_edit(
+        track, skeleton, 400, drag, blend=10, pins=("LeftAnkle", "RightAnkle")
+    )
     after = skeleton_positions(edited, skeleton)
     np.testing.assert_allclose(after[400], solved, atol=1e-6)
-    np.testing.assert_allclose(bone_lengths(after[405], skeleton.parents),
-                               bone_lengths(after[0], skeleton.parents), atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        bone_lengths(after[405], skeleton.parents),
+        bone_lengths(after[0], skeleton.parents),
+        atol=1e-6,
+    )
     changed = np.abs(edited.values - track.values).max(axis=1) > 1e-12
     assert np.flatnonzero(changed).tolist() == list(range(390, 411))  # blended in and out
     np.testing.assert_allclose(edited.values[:, :4], track.values[:, :4])  # root path kept
@@ -130,13 +136,18 @@ def test_pinning_the_sources_contacts_removes_the_skate_an_edit_adds(walk):
         for first, last in contacts.intervals(k):
             anchors[first : last + 1, k] = source[first : last + 1, columns[k]].mean(axis=0)
     pinned = pin_feet(bowed, skeleton, contacts.planted, feet, anchors)
-    skate = {name: foot_skate(skeleton_positions(t, skeleton) * cm, contacts, names)
-             for name, t in (("source", track), ("bowed", bowed), ("pinned", pinned))}  # fmt: skip
+    skate = {
+        name: foot_skate(skeleton_positions(t, skeleton) * cm, contacts, names)
+        for name, t in (("source", track), ("bowed", bowed), ("pinned", pinned))
+    }
     assert skate["bowed"] > 1.5 * skate["source"]
     assert skate["pinned"] < 0.05 * skate["bowed"]
     after = skeleton_positions(pinned, skeleton)
-    np.testing.assert_allclose(bone_lengths(after[100], skeleton.parents),
-                               bone_lengths(source[100], skeleton.parents), atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        bone_lengths(after[100], skeleton.parents),
+        bone_lengths(source[100], skeleton.parents),
+        atol=1e-6,
+    )
     knees = [names.index("LeftKnee"), names.index("RightKnee")]
     width = lambda p: np.linalg.norm(p[:, knees[0]] - p[:, knees[1]], axis=1).mean()  # noqa: E731
     assert width(after) > width(source) + 0.5  # the knees stay out

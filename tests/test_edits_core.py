@@ -31,9 +31,12 @@ def test_banded_solve_equals_the_dense_solve():
     problem = clip_problem()
     for weights in (Weights(), Weights(2.0, 0.5, 3.0, 0.1), Weights(1.0, 0.0, 1.0, 0.0)):
         for priors in ((1.0, 1.0), (0.3, 0.02)):
-            np.testing.assert_allclose(combine(*problem, weights, priors=priors),
-                                       combine_dense(*problem, weights, priors=priors),
-                                       rtol=1e-9, atol=1e-9)  # fmt: skip
+            np.testing.assert_allclose(
+                combine(*problem, weights, priors=priors),
+                combine_dense(*problem, weights, priors=priors),
+                rtol=1e-9,
+                atol=1e-9,
+            )
 
 
 def test_a_frame_at_the_prior_variance_weighs_prediction_and_source_equally():
@@ -45,8 +48,15 @@ def test_a_frame_at_the_prior_variance_weighs_prediction_and_source_equally():
     frames = len(source)
     only = Weights(1.0, 1.0, 0.0, 0.0)
     for prior in (1e-3, 1.0, 50.0):
-        solved = combine(source, km, np.full(frames, prior), km[1:-1], np.ones(frames - 2),
-                         only, priors=(prior, 1.0))  # fmt: skip
+        solved = combine(
+            source,
+            km,
+            np.full(frames, prior),
+            km[1:-1],
+            np.ones(frames - 2),
+            only,
+            priors=(prior, 1.0),
+        )
         np.testing.assert_allclose(solved, 0.5 * (source + km), atol=1e-9)
     literal = combine(source, km, np.full(frames, 1e-3), km[1:-1], np.ones(frames - 2), only)
     assert np.abs(literal - km).max() < 1e-5
@@ -258,8 +268,10 @@ def cmu_edit_data():
         yk.append(target)
         xa.append(acceleration[1:-1])
         ya.append(accelerations(target))
-    return {"kinematic": (np.vstack(xk), np.vstack(yk)),
-            "acceleration": (np.vstack(xa), np.vstack(ya))}  # fmt: skip
+    return {
+        "kinematic": (np.vstack(xk), np.vstack(yk)),
+        "acceleration": (np.vstack(xa), np.vstack(ya)),
+    }
 
 
 def test_the_gil_free_lapack_calls_equal_scipys_wrappers_bit_for_bit(cmu_edit_data):

@@ -29,8 +29,11 @@ EDITS = Path(__file__).resolve().parents[1] / "conf/edit"
 def setup():
     rig = rigmap.rigs.load("biped")
     subject = rig_subject(rig)
-    clips = {(name, seed): rig_clip(rig, subject.channels, name, seed)
-             for name in ("Walk", "Idle", "Wave") for seed in (0, 1)}  # fmt: skip
+    clips = {
+        (name, seed): rig_clip(rig, subject.channels, name, seed)
+        for name in ("Walk", "Idle", "Wave")
+        for seed in (0, 1)
+    }
     config = yaml.safe_load((EDITS / "arm_swing.yaml").read_text())
     edit = Edit.from_config("arm_swing", config, "rig")
     scale = ChannelScale.fit(list(clips.values()))
@@ -42,8 +45,9 @@ def setup():
 
 def test_fixed_frames_are_learned_and_the_suggestion_is_the_most_uncertain(setup):
     subject, scale, examples, heldout, truths = setup
-    refinement = Refinement(EditModel(subject.joints, residual=True), scale, examples,
-                            subject_mirror(subject))  # fmt: skip
+    refinement = Refinement(
+        EditModel(subject.joints, residual=True), scale, examples, subject_mirror(subject)
+    )
     model = refinement.fit()
     wave, truth = heldout[2], truths[2]
     before = np.abs(scale.scaled(model.apply(wave)) - scale.scaled(truth))[20:32].mean()
@@ -65,22 +69,40 @@ def test_fixed_frames_are_learned_and_the_suggestion_is_the_most_uncertain(setup
 
 def test_rounds_of_suggested_fixes_lower_the_edit_error(setup):
     subject, scale, examples, heldout, truths = setup
-    rows = refinement_rounds(EditModel(subject.joints, residual=True), scale, examples,
-                             heldout, truths, rounds=2, per_round=2, segment=8)  # fmt: skip
+    rows = refinement_rounds(
+        EditModel(subject.joints, residual=True),
+        scale,
+        examples,
+        heldout,
+        truths,
+        rounds=2,
+        per_round=2,
+        segment=8,
+    )
     authored = [r["frames_authored"] for r in rows]
     assert authored[:2] == [0, 16] and 16 < authored[2] <= 32
     assert rows[-1]["edit_error_std"] < 0.7 * rows[0]["edit_error_std"]
     with pytest.raises(TargetError, match="choice must be"):
-        refinement_rounds(EditModel(subject.joints), scale, examples, heldout, truths,
-                          choice="best")  # fmt: skip
+        refinement_rounds(
+            EditModel(subject.joints), scale, examples, heldout, truths, choice="best"
+        )
 
 
 def test_random_is_played_over_seeds_and_summarised_round_by_round(setup):
     subject, scale, examples, heldout, truths = setup
-    report = compare_choices(lambda: EditModel(subject.joints, residual=True), scale,
-                             examples, heldout, truths, choices=("variance", "variance_clips"),
-                             random_seeds=3, seed=4, rounds=1, per_round=1,
-                             segment=8)  # fmt: skip
+    report = compare_choices(
+        lambda: EditModel(subject.joints, residual=True),
+        scale,
+        examples,
+        heldout,
+        truths,
+        choices=("variance", "variance_clips"),
+        random_seeds=3,
+        seed=4,
+        rounds=1,
+        per_round=1,
+        segment=8,
+    )
     runs = report["random"]
     assert sorted(runs) == ["4", "5", "6"]
     assert len({run[1]["fixed"] for run in runs.values()}) > 1  # the seeds fix other frames
@@ -130,9 +152,15 @@ def test_the_cli_plays_refinement_rounds(tmp_path, capsys):
 
     root = Path(__file__).resolve().parents[1]
     paths = [f"paths.{k}={tmp_path / k}" for k in ("models", "data", "metrics")]
-    chosen = ["edits.run=[biped]", "edits.names=[arm_swing]", "+edits.refine.rounds=1",
-              "+edits.refine.per_round=1", "+edits.refine.random_seeds=2",
-              "+edits.mirror=true", *paths]  # fmt: skip
+    chosen = [
+        "edits.run=[biped]",
+        "edits.names=[arm_swing]",
+        "+edits.refine.rounds=1",
+        "+edits.refine.per_round=1",
+        "+edits.refine.random_seeds=2",
+        "+edits.mirror=true",
+        *paths,
+    ]
     assert main(["edits", "add", "--config-dir", str(root / "conf"), *chosen]) == 0
     folder = tmp_path / "metrics/biped/edits/refinement"
     report = yaml.safe_load((folder / "arm_swing.json").read_text())

@@ -24,8 +24,11 @@ EDITS = Path(__file__).resolve().parents[1] / "conf/edit"
 def biped():
     rig = rigmap.rigs.load("biped")
     subject = rig_subject(rig)
-    clips = {(name, seed): rig_clip(rig, subject.channels, name, seed)
-             for name in ("Walk", "Idle", "Wave") for seed in (0, 1)}  # fmt: skip
+    clips = {
+        (name, seed): rig_clip(rig, subject.channels, name, seed)
+        for name in ("Walk", "Idle", "Wave")
+        for seed in (0, 1)
+    }
     return subject, clips
 
 

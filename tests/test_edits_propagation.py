@@ -39,8 +39,11 @@ def edit(name: str, mode: str) -> Edit:
 def biped():
     rig = rigmap.rigs.load("biped")
     subject = rig_subject(rig)
-    clips = {(name, seed): rig_clip(rig, subject.channels, name, seed)
-             for name in ("Walk", "Idle", "Wave") for seed in (0, 1)}  # fmt: skip
+    clips = {
+        (name, seed): rig_clip(rig, subject.channels, name, seed)
+        for name in ("Walk", "Idle", "Wave")
+        for seed in (0, 1)
+    }
     return rig, subject, clips
 
 
@@ -151,14 +154,16 @@ def test_arms_forward_carries_to_a_held_out_walk_and_leaves_a_stand_alone(biped,
     scale, forward, pairs = arms_forward_examples(subject, clips)
     model = EditModel(subject.joints, residual=True).fit(pairs, scale)
     walk, idle = clips[("Walk", 1)], clips[("Idle", 1)]
-    walked = score_clip(walk, forward.apply(walk), model.apply(subject.source(walk)), scale,
-                        subject.relative_cm).summary()  # fmt: skip
+    walked = score_clip(
+        walk, forward.apply(walk), model.apply(subject.source(walk)), scale, subject.relative_cm
+    ).summary()
     # 1.065 measured: the near-noiseless GP (σ_n ≈ 4e-9) overshoots off the seed-0 walk's
     # cycle by 5-10 % (per-column input scaling gave 1.007 here but 0.00 on arm_swing)
     assert walked["transfer"] == pytest.approx(1.0, abs=0.1)
     assert walked["joint_rmse_cm"] < 0.25 * walked["source_joint_rmse_cm"]
-    stood = score_clip(idle, forward.apply(idle), model.apply(subject.source(idle)), scale,
-                       subject.relative_cm).summary()  # fmt: skip
+    stood = score_clip(
+        idle, forward.apply(idle), model.apply(subject.source(idle)), scale, subject.relative_cm
+    ).summary()
     assert stood["leak_frames"] == idle.n_frames and stood["leak_std"] < 0.01
     save_model(model, tmp_path / "model.npz")
     again = load_model(tmp_path / "model.npz").apply(subject.source(walk))
@@ -172,8 +177,9 @@ def test_arm_swing_reaches_a_held_out_walk_and_the_variance_marks_unlike_motion(
     implementation) it carried nothing (ρ = 0.00) and gave every clip the same variance."""
     rig, subject, clips = biped
     # the stages' training-std units: the biped library's training clips (seed 0)
-    scale = ChannelScale.fit([rig_clip(rig, subject.channels, m.name, 0)
-                              for m in motion_library(rig.name).train])  # fmt: skip
+    scale = ChannelScale.fit(
+        [rig_clip(rig, subject.channels, m.name, 0) for m in motion_library(rig.name).train]
+    )
     swing = edit("arm_swing", "rig")
     train = [subject.source(clips[(name, 0)]) for name in ("Walk", "Idle")]
     kinematic_only = Weights(1.0, 0.0, 0.0, 0.0)
@@ -184,8 +190,10 @@ def test_arm_swing_reaches_a_held_out_walk_and_the_variance_marks_unlike_motion(
         walk = clips[("Walk", 1)]
         result = model.apply(subject.source(walk), kinematic_only)
         rho[how] = score_clip(walk, swing.apply(walk), result, scale, None).summary()["transfer"]
-        variance[how] = {name: model.predict(subject.source(clips[(name, 1)]))[0].variance.mean()
-                         for name in ("Walk", "Idle", "Wave")}  # fmt: skip
+        variance[how] = {
+            name: model.predict(subject.source(clips[(name, 1)]))[0].variance.mean()
+            for name in ("Walk", "Idle", "Wave")
+        }
     assert rho["global"] > 0.6 and rho["column"] < 0.1
     seen = max(variance["global"]["Walk"], variance["global"]["Idle"])
     assert variance["global"]["Wave"] > 10 * seen
@@ -202,9 +210,11 @@ def test_bad_input_is_named(biped):
     with pytest.raises(EditConfigError, match=r"control 'upper_arm_l\.ry'.*did you mean"):
         Edit.from_config("typo", typo, "rig").apply(walk)
     with pytest.raises(EditConfigError, match="joint 'LeftArm'"):
-        Edit.from_config("typo", {"operations": {"skeleton": [
-            {"kind": "amplify", "targets": ["LeftArm"]}]}}, "skeleton").apply(
-            skeleton_targets(read_bvh(WALK)))  # fmt: skip
+        Edit.from_config(
+            "typo",
+            {"operations": {"skeleton": [{"kind": "amplify", "targets": ["LeftArm"]}]}},
+            "skeleton",
+        ).apply(skeleton_targets(read_bvh(WALK)))
     positions = subject.positions(walk).copy()
     positions[5, 3] = np.nan
     with pytest.raises(TargetError, match="joint 3 is not finite at frame 5"):
@@ -236,11 +246,16 @@ def test_the_cli_fits_applies_and_scores_an_edit(tmp_path, capsys):
     # the held-out walk carries the edit (1.99 cm against the source's 27.5 measured); the
     # pooled joint error (4.5 against 8.7 cm) is mostly leak on the kick and the turn in
     # place, whose stepping poses look like walking (the features see speed weakly)
-    detail = yaml.safe_load((tmp_path / "metrics/biped/edits/detail/arms_forward_walking.json")
-                            .read_text())["clips"]["Walk (seed 1)"]  # fmt: skip
+    detail = yaml.safe_load(
+        (tmp_path / "metrics/biped/edits/detail/arms_forward_walking.json").read_text()
+    )["clips"]["Walk (seed 1)"]
     assert detail["joint_rmse_cm"] < 0.2 * detail["source_joint_rmse_cm"]
-    assert set(scores["ablation"]) == {"kinematic_only", "acceleration_only_anchored",
-                                       "both_without_regularisers", "full"}  # fmt: skip
+    assert set(scores["ablation"]) == {
+        "kinematic_only",
+        "acceleration_only_anchored",
+        "both_without_regularisers",
+        "full",
+    }
     assert (tmp_path / "models/biped/edits/arms_forward_walking.npz").is_file()
     assert "metrics/biped/edits/summary.json" in capsys.readouterr().out
 
@@ -267,8 +282,10 @@ def test_both_gps_fit_on_one_blas_thread_while_they_run_side_by_side(biped, monk
     first = EditModel(subject.joints, residual=True).fit(pairs, scale)
     second = EditModel(subject.joints, residual=True).fit(pairs, scale)
     assert len(seen) > 20 and all(threads == {1} for threads in seen)
-    for a, b in ((first.kinematic_gp_, second.kinematic_gp_),
-                 (first.acceleration_gp_, second.acceleration_gp_)):  # fmt: skip
+    for a, b in (
+        (first.kinematic_gp_, second.kinematic_gp_),
+        (first.acceleration_gp_, second.acceleration_gp_),
+    ):
         assert (a.length_scale_, a.signal_, a.noise_) == (b.length_scale_, b.signal_, b.noise_)
 
 

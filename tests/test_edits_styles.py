@@ -52,8 +52,14 @@ def cmu():
 
 
 def lengths(positions, parents):
-    return np.stack([np.linalg.norm(positions[:, j] - positions[:, p], axis=1)
-                     for j, p in enumerate(parents) if p >= 0], axis=1)  # fmt: skip
+    return np.stack(
+        [
+            np.linalg.norm(positions[:, j] - positions[:, p], axis=1)
+            for j, p in enumerate(parents)
+            if p >= 0
+        ],
+        axis=1,
+    )
 
 
 def test_crouch_lowers_the_pelvis_with_feet_planted_and_bones_kept_on_the_biped(biped):
@@ -64,14 +70,21 @@ def test_crouch_lowers_the_pelvis_with_feet_planted_and_bones_kept_on_the_biped(
     pelvis = names.index("pelvis")
     np.testing.assert_allclose(before[:, pelvis, 1] - after[:, pelvis, 1], 12.0, atol=1e-6)
     for foot in ("foot_l", "foot_r", "toe_l", "toe_r"):
-        np.testing.assert_allclose(after[:, names.index(foot)], before[:, names.index(foot)],
-                                   atol=1e-6)  # fmt: skip
-    for a, b in (("thigh_l", "shin_l"), ("shin_l", "foot_l"), ("thigh_r", "shin_r"),
-                 ("shin_r", "foot_r")):  # fmt: skip
+        np.testing.assert_allclose(
+            after[:, names.index(foot)], before[:, names.index(foot)], atol=1e-6
+        )
+    for a, b in (
+        ("thigh_l", "shin_l"),
+        ("shin_l", "foot_l"),
+        ("thigh_r", "shin_r"),
+        ("shin_r", "foot_r"),
+    ):
         i, j = names.index(a), names.index(b)
-        np.testing.assert_allclose(np.linalg.norm(after[:, i] - after[:, j], axis=1),
-                                   np.linalg.norm(before[:, i] - before[:, j], axis=1),
-                                   atol=1e-6)  # fmt: skip
+        np.testing.assert_allclose(
+            np.linalg.norm(after[:, i] - after[:, j], axis=1),
+            np.linalg.norm(before[:, i] - before[:, j], axis=1),
+            atol=1e-6,
+        )
     assert np.array_equal(edit("crouch", "rig", amount=0.0).apply(walk).values, walk.values)
 
 
@@ -85,8 +98,9 @@ def test_crouch_of_the_cmu_walk_lowers_the_hips_with_ankles_pinned_and_hinge_kne
     np.testing.assert_allclose(before[:, 0, 1] - after[:, 0, 1], drop, atol=1e-9)
     legs = [names.index(n) for n in ("LeftAnkle", "RightAnkle", "LeftToe", "RightToe")]
     np.testing.assert_allclose(after[:, legs], before[:, legs], atol=1e-6)  # feet planted
-    np.testing.assert_allclose(lengths(after, skeleton.parents),
-                               lengths(before, skeleton.parents), atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        lengths(after, skeleton.parents), lengths(before, skeleton.parents), atol=1e-6
+    )
     knee = names.index("LeftKnee")
     assert np.mean(after[:, knee, 1] < before[:, knee, 1] - 0.2 * drop) > 0.99  # knees bend
     # the knee is on the circle the bone-length IK allows with the hip lowered and the ankle
@@ -118,13 +132,28 @@ def test_crouch_names_what_it_cannot_do(cmu, biped):
     with pytest.raises(EditConfigError, match="'Hips' is not an ankle"):
         crouch_legs(track, skeleton, ["Hips"], 1.0)
     with pytest.raises(EditConfigError, match="crouch is a skeleton-mode operation"):
-        Edit.from_config("c", {"operations": {"rig": [
-            {"kind": "crouch", "targets": ["foot_l"], "amount": 5.0}]}}, "rig")  # fmt: skip
+        Edit.from_config(
+            "c",
+            {"operations": {"rig": [{"kind": "crouch", "targets": ["foot_l"], "amount": 5.0}]}},
+            "rig",
+        )
     with pytest.raises(EditConfigError, match="needs a phase channel"):
-        Edit.from_config("s", {"operations": {"rig": [
-            {"kind": "oscillate", "targets": ["chest.rz"], "amount": 0.1}]}}, "rig")  # fmt: skip
-    bad_phase = {"operations": {"rig": [{"kind": "oscillate", "targets": ["chest.rz"],
-                                         "amount": 0.1, "phase": "leg_l.tz"}]}}  # fmt: skip
+        Edit.from_config(
+            "s",
+            {
+                "operations": {
+                    "rig": [{"kind": "oscillate", "targets": ["chest.rz"], "amount": 0.1}]
+                }
+            },
+            "rig",
+        )
+    bad_phase = {
+        "operations": {
+            "rig": [
+                {"kind": "oscillate", "targets": ["chest.rz"], "amount": 0.1, "phase": "leg_l.tz"}
+            ]
+        }
+    }
     with pytest.raises(EditConfigError, match=r"channel 'leg_l\.tz'.*did you mean"):
         Edit.from_config("s", bad_phase, "rig").apply(biped[2])
 
@@ -140,11 +169,28 @@ def test_gait_phase_of_a_sinusoid_and_sway_follows_it():
     values = np.zeros((frames, 6))
     values[:, 0] = 1.0 / fps
     values[:, 4] = np.cos(omega * t)  # the phase channel
-    track = TargetTrack(("dt", "root.step_forward", "root.step_lateral", "root.turn",
-                         "foot.tz", "chest.rz"), values, fps, (0.0, 0.0, 0.0))  # fmt: skip
-    swayed = Edit.from_config("s", {"operations": {"rig": [
-        {"kind": "oscillate", "targets": ["chest.rz"], "amount": 0.1, "phase": "foot.tz"}]}},
-        "rig").apply(track)  # fmt: skip
+    track = TargetTrack(
+        ("dt", "root.step_forward", "root.step_lateral", "root.turn", "foot.tz", "chest.rz"),
+        values,
+        fps,
+        (0.0, 0.0, 0.0),
+    )
+    swayed = Edit.from_config(
+        "s",
+        {
+            "operations": {
+                "rig": [
+                    {
+                        "kind": "oscillate",
+                        "targets": ["chest.rz"],
+                        "amount": 0.1,
+                        "phase": "foot.tz",
+                    }
+                ]
+            }
+        },
+        "rig",
+    ).apply(track)
     np.testing.assert_allclose(swayed.values[inner, 5], 0.1 * np.sin(omega * t[inner]), atol=0.005)
     np.testing.assert_array_equal(swayed.values[:, :5], values[:, :5])
 
@@ -200,5 +246,6 @@ def test_jog_is_faster_with_longer_strides_and_bent_elbows(biped, cmu):
     _, track = cmu
     jogged = edit("jog", "skeleton").apply(track, CM)
     assert jogged.root().time[-1] < 0.85 * track.root().time[-1]
-    np.testing.assert_allclose(Edit.from_config("jog", unit, "skeleton").apply(track, CM).values,
-                               track.values, atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        Edit.from_config("jog", unit, "skeleton").apply(track, CM).values, track.values, atol=1e-12
+    )

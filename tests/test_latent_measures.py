@@ -23,9 +23,12 @@ def test_the_knee_is_where_most_of_the_drop_is_made():
 def test_the_report_note_names_the_knee_from_the_numbers():
     def table(errors):
         return pd.DataFrame(
-            [{"label": lab, "latent_dim": q, "surface_rms_cm": e * f}
-             for lab, f in (("happy", 1.0), ("roar", 0.5)) for q, e in errors.items()]
-        )  # fmt: skip
+            [
+                {"label": lab, "latent_dim": q, "surface_rms_cm": e * f}
+                for lab, f in (("happy", 1.0), ("roar", 0.5))
+                for q, e in errors.items()
+            ]
+        )
 
     steady = knee_note(table({1: 0.048, 2: 0.032, 3: 0.031, 4: 0.025, 5: 0.017}))
     assert "0.036, 0.024, 0.023, 0.019, 0.013 cm" in steady

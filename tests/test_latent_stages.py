@@ -167,7 +167,9 @@ def test_synth_run_writes_controls_and_names_bad_commands(project, tmp_path, cap
     assert main(["synth", "run", str(script), *TINY, *paths, *options]) == 0
     table = pd.read_parquet(out)
     assert table["frame"].tolist() == list(range(len(table))) and len(table) > 36
-    assert "TRANSITION" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "TRANSITION" in printed.out
+    assert "synthesis" in printed.err  # the progress bar of the frames played, on stderr
     bad = tmp_path / "bad.yaml"
     bad.write_text("start: happy\ncommands:\n  - transition: {model: sleepy}\n")
     assert main(["synth", "run", str(bad), *TINY, *paths, *options]) == 2
@@ -175,6 +177,13 @@ def test_synth_run_writes_controls_and_names_bad_commands(project, tmp_path, cap
     bad.write_text("start: happy\ncommands:\n  - play: {take: roar 0}\n")
     assert main(["synth", "run", str(bad), *TINY, *paths, *options]) == 2
     assert "unknown segment 'roar 0' in model 'happy'" in capsys.readouterr().err
+    out.unlink()
+    bad.write_text("start: happy\ncommands:\n  - idle: {frames: 10000000}\n")
+    assert main(["synth", "run", str(bad), *TINY, *paths, *options]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: command 1 (idle frames=10000000) passes the cap" in err
+    assert "accepted: 0 to 100000 frames in all" in err and "synthesis" not in err
+    assert not out.exists()  # refused before anything played or was written
 
 
 def test_synth_demo_plays_a_game_through_the_controller(project, tmp_path, capsys):
@@ -202,10 +211,17 @@ def test_missing_models_and_bad_steps_are_clear_errors(tmp_path):
 
 def test_the_stage_script_reports_a_bad_step_as_one_line(tmp_path):
     result = subprocess.run(
-        [sys.executable, str(ROOT / "pipelines/latent.py"), "rig=face", "+latent_step=bake",
-         f"paths.models={tmp_path}"],
-        capture_output=True, text=True, cwd=ROOT,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "pipelines/latent.py"),
+            "rig=face",
+            "+latent_step=bake",
+            f"paths.models={tmp_path}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert result.returncode == 2
     assert "error: latent:" in result.stderr and "+latent_step" in result.stderr
 

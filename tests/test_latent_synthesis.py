@@ -18,9 +18,13 @@ def fitted():
 
 def controller(fitted, seed=0, start="happy", **kw):
     return Controller(
-        fitted.models, start=start, takes=fitted.sets, transitions=face_transitions(), seed=seed,
+        fitted.models,
+        start=start,
+        takes=fitted.sets,
+        transitions=face_transitions(),
+        seed=seed,
         **kw,
-    )  # fmt: skip
+    )
 
 
 def test_field_controls_match_the_model(fitted):
@@ -235,8 +239,11 @@ def test_a_yaml_script_runs_like_its_commands(fitted, tmp_path):
     start, commands = read_script(path)
     assert start == "happy"
     assert commands == [
-        Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0"),
-    ]  # fmt: skip
+        Move(take="happy 1", frame=20),
+        Idle(12),
+        Transition("neutral"),
+        Play("neutral 0"),
+    ]
     a = controller(fitted, seed=3, start=start).run(commands)
     b = controller(fitted, seed=3).run(
         [Move(take="happy 1", frame=20), Idle(12), Transition("neutral"), Play("neutral 0")]
@@ -268,5 +275,56 @@ def test_the_shipped_example_script_parses():
     start, commands = read_script(path)
     assert start == "happy"
     assert [type(c).__name__ for c in commands] == [
-        "Move", "Idle", "Transition", "Idle", "Transition", "Play", "Idle",
-    ]  # fmt: skip
+        "Move",
+        "Idle",
+        "Transition",
+        "Idle",
+        "Transition",
+        "Play",
+        "Idle",
+    ]
+
+
+def test_a_script_past_the_frame_cap_is_refused_naming_the_file_command_and_range(tmp_path):
+    """Refused while reading: the script, the command that crosses the cap, the range."""
+    from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, read_script
+
+    huge = tmp_path / "huge.yaml"
+    huge.write_text("commands:\n  - move: {take: happy 1}\n  - idle: {frames: 10000000}\n")
+    with pytest.raises(LatentInputError) as refused:
+        read_script(huge)
+    message = str(refused.value)
+    assert message.startswith(f"{huge}: command 2 (idle frames=10000000) passes the cap")
+    assert f"accepted: 0 to {MAX_SCRIPT_FRAMES} frames in all" in message
+    both = tmp_path / "both.yaml"
+    both.write_text(
+        "commands:\n  - idle: {frames: 30}\n  - idle: {frames: 20}\n"
+        "  - transition: {model: roar, idle_frames: 1}\n"
+    )
+    assert len(read_script(both, max_frames=51)[1]) == 3  # 51 frames: exactly at the cap
+    with pytest.raises(LatentInputError, match=r"command 3 \(transition idle_frames=1\)"):
+        read_script(both, max_frames=50)
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (0, "expected a whole number >= 1"),
+        (2.5, "expected a whole number >= 1"),
+        (10**9, "expected at most 1000000"),
+    ],
+)
+def test_the_frame_cap_itself_is_bounded(value, message):
+    from rigmap.latent.runs import max_script_frames
+
+    with pytest.raises(LatentInputError, match=rf"latent\.max_script_frames={value}: {message}"):
+        max_script_frames({"max_script_frames": value})
+    assert max_script_frames({}) == 100_000
+
+
+def test_a_run_past_the_cap_names_the_command_playing(fitted, capsys):
+    """A take's length is not known to the script: the controller stops it at the cap."""
+    take = fitted.sets["happy"].names[0]
+    with pytest.raises(LatentInputError, match=rf"stopped at frame 5 in Play\(take='{take}'\)"):
+        controller(fitted).run([Idle(2), Play(take)], max_frames=5, progress=True)
+    assert "synthesis" in capsys.readouterr().err  # the progress bar, on stderr

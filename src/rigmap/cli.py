@@ -102,9 +102,16 @@ def _parser() -> argparse.ArgumentParser:
     from rigmap.learn import add_learn_command
 
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
-    for add in (_add_rigs, _add_corpus, _add_export, _add_fit, _add_evaluate, _add_map,
-                _add_edits,
-                _add_reproduce):  # fmt: skip
+    for add in (
+        _add_rigs,
+        _add_corpus,
+        _add_export,
+        _add_fit,
+        _add_evaluate,
+        _add_map,
+        _add_edits,
+        _add_reproduce,
+    ):
         add(commands)
     add_learn_command(commands, compose_config, find_config_dir)
     from rigmap.latent.cli import add_synth_command
@@ -370,9 +377,10 @@ def _stage_arguments(command, config_name: str, overrides: str) -> None:
         help=f"Hydra overrides of conf/{config_name}.yaml ({overrides})",
     )
     _folder_option(
-        command, "--config-dir",
+        command,
+        "--config-dir",
         "the Hydra conf/ folder (default: ./conf, else the one shipped inside the package)",
-    )  # fmt: skip
+    )
 
 
 def _add_reproduce(commands) -> None:
@@ -425,9 +433,10 @@ def _add_reproduce(commands) -> None:
         help="only write params.yaml (then run dvc repro / dvc exp run yourself)",
     )
     _folder_option(
-        reproduce, "--project",
+        reproduce,
+        "--project",
         "the repository (folder with dvc.yaml and conf/; default: found from here up)",
-    )  # fmt: skip
+    )
     reproduce.set_defaults(run=_reproduce)
 
 

@@ -15,6 +15,15 @@ GLITCH_HELP = (
 )
 
 
+def _config_dir_option(command) -> None:
+    command.add_argument(
+        "--config-dir",
+        type=Path,
+        default=None,
+        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
+    )
+
+
 def add_learn_command(verbs) -> None:
     learn = verbs.add_parser(
         "learn",
@@ -28,22 +37,13 @@ def add_learn_command(verbs) -> None:
         f"into --out (default {USER_OUTPUTS}/edits/<first edited file's name>/). Example: "
         "rigmap edits learn --source walk.bvh --edited walk_arms_up.bvh --frames 40:475",
     )
-    learn.add_argument(
-        "--source",
-        action="append",
-        type=Path,
-        metavar="BVH",
-        required=True,
-        help="a source clip (repeat once per pair)",
-    )
-    learn.add_argument(
-        "--edited",
-        action="append",
-        type=Path,
-        metavar="BVH",
-        required=True,
-        help="the edited version of the --source at the same place",
-    )
+    for flag, what in (
+        ("--source", "a source clip (repeat once per pair)"),
+        ("--edited", "the edited version of the --source at the same place"),
+    ):
+        learn.add_argument(
+            flag, action="append", type=Path, metavar="BVH", required=True, help=what
+        )
     learn.add_argument(
         "--frames",
         action="append",
@@ -52,12 +52,7 @@ def add_learn_command(verbs) -> None:
     )
     learn.add_argument("--out", type=Path, default=None, help="the folder to write the model to")
     learn.add_argument("--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP)
-    learn.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
-    )
+    _config_dir_option(learn)
     learn.set_defaults(run=run_learn)
 
 
@@ -83,12 +78,7 @@ def add_fix_command(verbs) -> None:
     )
     fix.add_argument("--suggest", type=int, default=3, help="how many segments to suggest")
     fix.add_argument("--segment", type=int, default=12, help="frames per suggested segment")
-    fix.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
-    )
+    _config_dir_option(fix)
     fix.set_defaults(run=run_fix)
 
 

@@ -186,8 +186,10 @@ def minimal_rotation_pose(
     parents, offsets = skeleton.parents, skeleton.offsets
     n = len(parents)
     new = np.asarray(new_positions, dtype=np.float64)
-    children = [[c for c in range(n) if parents[c] == j and np.linalg.norm(offsets[c]) > 0]
-                for j in range(n)]  # fmt: skip
+    children = [
+        [c for c in range(n) if parents[c] == j and np.linalg.norm(offsets[c]) > 0]
+        for j in range(n)
+    ]
     world = np.empty((n, 3, 3))
     out = np.asarray(local, dtype=np.float64).copy()
     for j in range(n):
@@ -244,8 +246,9 @@ def frame_pose(track: TargetTrack, skeleton: Skeleton, frame: int):
     return world_p, local, world_r[0]
 
 
-def pose_channels(track: TargetTrack, skeleton: Skeleton, frame: int, local, root_rotation,
-                  root_height: float) -> np.ndarray:  # fmt: skip
+def pose_channels(
+    track: TargetTrack, skeleton: Skeleton, frame: int, local, root_rotation, root_height: float
+) -> np.ndarray:
     """The pose channels (root height, tilt, exp maps) of an edited frame, each rotation
     vector on the branch nearest the frame's own (so the edit's offset stays small)."""
     heading = track.root().heading[frame]
@@ -348,8 +351,7 @@ def pin_feet(
             pins[columns[k]], axes[columns[k]] = anchors[frame, k], (0, 1, 2)
         solved, _ = bone_length_ik(positions, skeleton.parents, positions, pins, pin_axes=axes)
         new_local, new_root = minimal_rotation_pose(local, root_rotation, skeleton, solved)
-        values[frame, 4:] = pose_channels(track, skeleton, frame, new_local, new_root,
-                                          solved[0, 1])  # fmt: skip
+        values[frame, 4:] = pose_channels(track, skeleton, frame, new_local, new_root, solved[0, 1])
     return track.with_values(values, source=f"{track.source} (feet pinned)")
 
 

@@ -116,8 +116,9 @@ def combine(
     ``masked``: ``(D,)`` booleans, outputs kept at the source; ``priors``: the kinematic
     and acceleration predictors' prior variances (the regularisers' unit, module docstring).
     """
-    j, mk, vk, ma, va = _checked(source, kinematic_mean, kinematic_variance,
-                                 acceleration_mean, acceleration_variance)  # fmt: skip
+    j, mk, vk, ma, va = _checked(
+        source, kinematic_mean, kinematic_variance, acceleration_mean, acceleration_variance
+    )
     n_frames, n_out = j.shape
     w = weights
     rk, ra = _regularizer_precisions(vk, va, priors)
@@ -140,20 +141,28 @@ def combine(
     return solution
 
 
-def combine_dense(source, kinematic_mean, kinematic_variance, acceleration_mean,
-                  acceleration_variance, weights: Weights = Weights(),
-                  priors: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:  # fmt: skip
+def combine_dense(
+    source,
+    kinematic_mean,
+    kinematic_variance,
+    acceleration_mean,
+    acceleration_variance,
+    weights: Weights = Weights(),
+    priors: tuple[float, float] = (1.0, 1.0),
+) -> np.ndarray:
     """The same solve with dense matrices: the reference the banded solve is tested against."""
-    j, mk, vk, ma, va = _checked(source, kinematic_mean, kinematic_variance,
-                                 acceleration_mean, acceleration_variance)  # fmt: skip
+    j, mk, vk, ma, va = _checked(
+        source, kinematic_mean, kinematic_variance, acceleration_mean, acceleration_variance
+    )
     rk, ra = _regularizer_precisions(vk, va, priors)
     L = second_difference(len(j))
     w = weights
     Dk = np.diag(w.kinematic / vk + w.kinematic_regularizer * rk)
     Da = np.diag(w.acceleration / va + w.acceleration_regularizer * ra)
     rhs = (w.kinematic / vk)[:, None] * mk + (w.kinematic_regularizer * rk)[:, None] * j
-    rhs += L.T @ ((w.acceleration / va)[:, None] * ma + (w.acceleration_regularizer * ra)[:, None]
-                  * (L @ j))  # fmt: skip
+    rhs += L.T @ (
+        (w.acceleration / va)[:, None] * ma + (w.acceleration_regularizer * ra)[:, None] * (L @ j)
+    )
     return np.linalg.solve(Dk + L.T @ Da @ L, rhs)
 
 

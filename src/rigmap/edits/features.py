@@ -82,8 +82,9 @@ def _frame_rotations(positions, left, right, frame, root_rotations) -> np.ndarra
             raise FeatureError("frame 'root_rotation' needs the root's rotations (F, 3, 3)")
         rotations = np.asarray(root_rotations, dtype=np.float64)
         if rotations.shape != (len(positions), 3, 3):
-            raise FeatureError(f"root rotations have shape {rotations.shape}, expected "
-                               f"({len(positions)}, 3, 3)")  # fmt: skip
+            raise FeatureError(
+                f"root rotations have shape {rotations.shape}, expected ({len(positions)}, 3, 3)"
+            )
         return rotations
     raise FeatureError(f"frame {frame!r} must be 'heading' or 'root_rotation'")
 

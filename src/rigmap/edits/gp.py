@@ -113,9 +113,14 @@ class SharedGP:
     docstring).
     """
 
-    def __init__(self, max_iterations: int = MAX_ITERATIONS, optimize: bool = True,
-                 center: bool = True, method: str = "lbfgs",
-                 input_scale: str = "global"):  # fmt: skip
+    def __init__(
+        self,
+        max_iterations: int = MAX_ITERATIONS,
+        optimize: bool = True,
+        center: bool = True,
+        method: str = "lbfgs",
+        input_scale: str = "global",
+    ):
         if method not in METHODS:
             raise GPInputError(f"unknown GP fitting method {method!r}; expected one of {METHODS}")
         if input_scale not in INPUT_SCALES:
@@ -152,8 +157,13 @@ class SharedGP:
         theta = np.log([start["length_scale"], start["signal"], start["noise"]])
         self.iterations_ = self.evaluations_ = 0
         if self.optimize and self.method == "lbfgs":
-            result = minimize(self._objective, theta, jac=True, method="L-BFGS-B",
-                              options={"maxiter": self.max_iterations})  # fmt: skip
+            result = minimize(
+                self._objective,
+                theta,
+                jac=True,
+                method="L-BFGS-B",
+                options={"maxiter": self.max_iterations},
+            )
             theta, self.iterations_ = result.x, int(result.nit)
         elif self.optimize:
             theta = self._fit_profile(theta[0])
@@ -226,11 +236,13 @@ class SharedGP:
         trace = float(np.trace(inner))
         inner *= rbf
         inner *= self._lower  # (ααᵀ − D K⁻¹) ∘ rbf, weighted to the whole sum
-        gradient = np.array([
-            -0.5 * float(np.vdot(inner, sq)) / length**2,  # ∂K/∂log ℓ = rbf ∘ sq / ℓ²
-            -float(inner.sum()),  # ∂K/∂log σ_f = 2 rbf
-            -noise**2 * trace,  # ∂K/∂log σ_n = 2 σ_n² I
-        ])  # fmt: skip
+        gradient = np.array(
+            [
+                -0.5 * float(np.vdot(inner, sq)) / length**2,  # ∂K/∂log ℓ = rbf ∘ sq / ℓ²
+                -float(inner.sum()),  # ∂K/∂log σ_f = 2 rbf
+                -(noise**2) * trace,  # ∂K/∂log σ_n = 2 σ_n² I
+            ]
+        )
         return value, gradient
 
     def _fit_profile(self, log_length: float) -> np.ndarray:
@@ -257,8 +269,9 @@ class SharedGP:
             values_at[u] = value + 0.5 * n * d * np.log(2 * np.pi)
             return -0.5 * (float((alpha * (dK @ alpha)).sum()) - d * trace)
 
-        u, steps = _descend_to_root(slope, float(log_length), _LOG_LENGTH_RANGE,
-                                    self.max_iterations)  # fmt: skip
+        u, steps = _descend_to_root(
+            slope, float(log_length), _LOG_LENGTH_RANGE, self.max_iterations
+        )
         if u not in inner:
             slope(u)
         self.iterations_, self.evaluations_ = steps, len(inner)
@@ -276,8 +289,15 @@ class SharedGP:
         names = ("X_", "Y_", "x_mean_", "x_std_", "y_mean_")
         arrays = {name: getattr(self, name) for name in names}
         arrays["factor"], arrays["alpha"] = self._factor[0], self._alpha
-        arrays["hyper"] = np.array([self.length_scale_, self.signal_, self.noise_,
-                                    self.log_marginal_likelihood_, self.iterations_])  # fmt: skip
+        arrays["hyper"] = np.array(
+            [
+                self.length_scale_,
+                self.signal_,
+                self.noise_,
+                self.log_marginal_likelihood_,
+                self.iterations_,
+            ]
+        )
         return arrays
 
     @classmethod
@@ -350,8 +370,14 @@ def _profile_signal_noise(eigenvalues: np.ndarray, s: np.ndarray, d: int):
             best = (value, z)
     bounds = [(None, None), _LOG_NOISE2_RANGE]
     z0 = np.clip(best[1], [-np.inf, bounds[1][0]], [np.inf, bounds[1][1]])
-    found = minimize(objective, z0, jac=True, method="L-BFGS-B", bounds=bounds,
-                     options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500})  # fmt: skip
+    found = minimize(
+        objective,
+        z0,
+        jac=True,
+        method="L-BFGS-B",
+        bounds=bounds,
+        options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500},
+    )
     z, value = (found.x, found.fun) if found.fun <= best[0] else (best[1], best[0])
     return float(np.exp(z[0])), float(np.exp(z[1])), float(value)
 
@@ -372,8 +398,15 @@ def _descend_to_root(slope, u: float, bounds: tuple[float, float], max_steps: in
         steps += 1
         if np.sign(gb) != np.sign(ga):
             a, b = sorted((u, v))
-            root, info = brentq(slope, a, b, xtol=1e-3, maxiter=max(max_steps - steps, 1),
-                                full_output=True, disp=False)  # fmt: skip
+            root, info = brentq(
+                slope,
+                a,
+                b,
+                xtol=1e-3,
+                maxiter=max(max_steps - steps, 1),
+                full_output=True,
+                disp=False,
+            )
             return float(root), steps + info.function_calls
         if v in (low, high):
             return v, steps

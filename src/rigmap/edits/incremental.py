@@ -104,8 +104,9 @@ def suggest_segments(variances, masks: dict, count: int, segment: int) -> list[S
     return _pick(variances, {k: (None, None, m) for k, m in masks.items()}, count, segment)
 
 
-def _pick(variances, fixed, count: int, segment: int, rng=None,
-          per_clip: bool = False) -> list[Suggestion]:  # fmt: skip
+def _pick(
+    variances, fixed, count: int, segment: int, rng=None, per_clip: bool = False
+) -> list[Suggestion]:
     """Segments around the highest (or, with ``rng``, random) unfixed frames; ``per_clip``
     (``"variance_clips"``, module docstring): only among the clips with the fewest frames
     fixed so far (this round's picks included)."""
@@ -186,21 +187,29 @@ def refinement_rounds(
                 unfixed.merge(score_clip(source.track, truth, result, scale, None))
         authored = int(sum(m.sum() for _, _, m in refinement.fixed.values()))
         summary = everything.summary()
-        rows.append({
-            "round": round_,
-            "frames_authored": authored,
-            "edit_error_std": summary["edit_error_std"],
-            "unfixed_edit_error_std": unfixed.summary()["edit_error_std"],
-            "joint_rmse_cm": summary["joint_rmse_cm"],
-            "transfer": summary["transfer"],
-            "fit_s": fit_s,
-            "fixed": fixed_now,
-        })  # fmt: skip
+        rows.append(
+            {
+                "round": round_,
+                "frames_authored": authored,
+                "edit_error_std": summary["edit_error_std"],
+                "unfixed_edit_error_std": unfixed.summary()["edit_error_std"],
+                "joint_rmse_cm": summary["joint_rmse_cm"],
+                "transfer": summary["transfer"],
+                "fit_s": fit_s,
+                "fixed": fixed_now,
+            }
+        )
         if round_ == rounds:
             break
         variances = [p[0].variance for p in predictions]
-        picks = _pick(variances, refinement.fixed, per_round, segment,
-                      rng if choice == "random" else None, choice == "variance_clips")  # fmt: skip
+        picks = _pick(
+            variances,
+            refinement.fixed,
+            per_round,
+            segment,
+            rng if choice == "random" else None,
+            choice == "variance_clips",
+        )
         for pick in picks:
             refinement.add(pick.clip, heldout[pick.clip], truths[pick.clip], pick.start, pick.stop)
         fixed_now = "; ".join(f"{heldout[p.clip].track.source} {p.start}:{p.stop}" for p in picks)
@@ -237,16 +246,18 @@ def compare_choices(
         raise TargetError("random is played over the seeds (random_seeds), not as a choice")
 
     def play(choice: str, draw: int) -> list[dict]:
-        return refinement_rounds(make_model(), scale, examples, heldout, truths,
-                                 choice=choice, seed=draw, **settings)  # fmt: skip
+        return refinement_rounds(
+            make_model(), scale, examples, heldout, truths, choice=choice, seed=draw, **settings
+        )
 
     report = {choice: play(choice, seed) for choice in choices}
     random = {str(seed + i): play("random", seed + i) for i in range(random_seeds)}
     return {**report, "random": random, "summary": summarise_rounds(report, random)}
 
 
-def summarise_rounds(chosen: dict[str, list[dict]], random: dict[str, list[dict]],
-                     key: str = "edit_error_std") -> list[dict]:  # fmt: skip
+def summarise_rounds(
+    chosen: dict[str, list[dict]], random: dict[str, list[dict]], key: str = "edit_error_std"
+) -> list[dict]:
     """Per round: each chosen run's ``key`` and frames authored beside random's over its
     seeds — mean, sample std (ddof 1; 0 with one seed), median, min, max, mean frames —
     and, for each choice, how many seeds' random runs it is below (``<choice>_below_random``).

@@ -147,10 +147,13 @@ class Mirror:
         from rigmap.edits.propagation import SourceClip  # propagation imports this module
 
         mirrored = [
-            (SourceClip(self.positions(pair[0].positions), self.track(pair[0].track)),
-             self.track(pair[1]), *pair[2:])
+            (
+                SourceClip(self.positions(pair[0].positions), self.track(pair[0].track)),
+                self.track(pair[1]),
+                *pair[2:],
+            )
             for pair in pairs
-        ]  # fmt: skip
+        ]
         return [*pairs, *mirrored]
 
 

@@ -39,8 +39,9 @@ def _function(module, name: str, *argtypes):
 # signatures as SciPy declares them (LP64: Fortran INTEGER is a C int)
 _dpotri = _function(cython_lapack, "dpotri", _CHAR, _INT, _DOUBLE, _INT, _INT)
 _dpotrs = _function(cython_lapack, "dpotrs", _CHAR, _INT, _INT, _DOUBLE, _INT, _DOUBLE, _INT, _INT)
-_dsyrk = _function(cython_blas, "dsyrk", _CHAR, _CHAR, _INT, _INT, _DOUBLE, _DOUBLE, _INT,
-                   _DOUBLE, _DOUBLE, _INT)  # fmt: skip
+_dsyrk = _function(
+    cython_blas, "dsyrk", _CHAR, _CHAR, _INT, _INT, _DOUBLE, _DOUBLE, _INT, _DOUBLE, _DOUBLE, _INT
+)
 
 
 def _int(value: int):
@@ -86,8 +87,16 @@ def potrs_lower(factor: np.ndarray, b: np.ndarray) -> np.ndarray:
     if x.ndim != 2 or len(x) != len(factor):
         raise ValueError(f"expected b with {len(factor)} rows, got shape {x.shape}")
     n, nrhs, info = len(factor), x.shape[1], ctypes.c_int(0)
-    _dpotrs(b"L", _int(n), _int(nrhs), _pointer(factor), _int(max(n, 1)), _pointer(x),
-            _int(max(n, 1)), ctypes.byref(info))  # fmt: skip
+    _dpotrs(
+        b"L",
+        _int(n),
+        _int(nrhs),
+        _pointer(factor),
+        _int(max(n, 1)),
+        _pointer(x),
+        _int(max(n, 1)),
+        ctypes.byref(info),
+    )
     if info.value != 0:
         raise ValueError(f"LAPACK dpotrs: illegal value in argument {-info.value}")
     return x
@@ -102,6 +111,16 @@ def syrk_lower(a: np.ndarray) -> np.ndarray:
     a = np.asfortranarray(a)
     n, k = a.shape
     c = np.zeros((n, n), order="F")
-    _dsyrk(b"L", b"N", _int(n), _int(k), _double(1.0), _pointer(a), _int(max(n, 1)),
-           _double(0.0), _pointer(c), _int(max(n, 1)))  # fmt: skip
+    _dsyrk(
+        b"L",
+        b"N",
+        _int(n),
+        _int(k),
+        _double(1.0),
+        _pointer(a),
+        _int(max(n, 1)),
+        _double(0.0),
+        _pointer(c),
+        _int(max(n, 1)),
+    )
     return c

@@ -51,8 +51,7 @@ from scipy.signal import hilbert
 from scipy.spatial.transform import Rotation
 
 from rigmap.edits.representation import TargetError, TargetTrack
-from rigmap.edits.skeleton_mode import AXES, Skeleton
-from rigmap.regression.placement import turn_matrix
+from rigmap.edits.skeleton_mode import AXES, Skeleton, forward_kinematics, track_rotations
 
 GATES = ("always", "walking", "standing", "speed")
 KINDS = ("amplify", "offset", "scale", "oscillate", "crouch")
@@ -226,8 +225,9 @@ class Edit:
                 continue
             if operation.kind == "oscillate":
                 phase_column = self._columns(track, operation.phase, "scale")[0]
-                wave = np.sin(gait_phase(track.values[:, phase_column], track.fps,
-                                         operation.window_s))  # fmt: skip
+                wave = np.sin(
+                    gait_phase(track.values[:, phase_column], track.fps, operation.window_s)
+                )
                 gate = gate * wave
             for k, target in enumerate(operation.targets):
                 columns = self._columns(track, target, operation.kind)
@@ -316,10 +316,10 @@ def crouch_legs(
         raise EditConfigError(f"{track.source}: its channels are not this skeleton's")
     drop = np.broadcast_to(np.asarray(drop, dtype=np.float64), (track.n_frames,))
     names = list(skeleton.joint_names)
-    n, k = track.n_frames, len(names)
+    k = len(names)
     values = track.values.copy()
-    local = Rotation.from_rotvec(values[:, 5:].reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
-    world_r, world_p, _ = _forward(track, skeleton, local)
+    local = track_rotations(track, k)
+    world_r, world_p = forward_kinematics(track, skeleton, local)
     down = np.array([0.0, 1.0, 0.0]) * drop[:, None]
     for ankle_name in ankles:
         if ankle_name not in names:
@@ -342,9 +342,13 @@ def crouch_legs(
                 f"{frame} ({c[frame]:.4g} against bones {thigh:.4g} + {shin:.4g})"
             )
         knee_column = 5 + 3 * knee
-        knee_vector = _hinge_bend(values[:, knee_column : knee_column + 3],
-                                  skeleton.offsets[knee], skeleton.offsets[ankle], c,
-                                  names[knee])  # fmt: skip
+        knee_vector = _hinge_bend(
+            values[:, knee_column : knee_column + 3],
+            skeleton.offsets[knee],
+            skeleton.offsets[ankle],
+            c,
+            names[knee],
+        )
         knee_local = Rotation.from_rotvec(knee_vector).as_matrix()
         chain = skeleton.offsets[knee] + knee_local @ skeleton.offsets[ankle]  # hip → ankle
         pointing = np.einsum("nab,nb->na", world_r[:, hip], chain)
@@ -404,21 +408,6 @@ def _hinge_bend(rotvecs, thigh, shin, reach, knee: str) -> np.ndarray:
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _forward(track: TargetTrack, skeleton: Skeleton, local: np.ndarray):
-    """World rotations ``(F, J, 3, 3)``, positions ``(F, J, 3)`` and the root's heading."""
-    n, k = local.shape[:2]
-    root = track.root()
-    world_r = np.empty_like(local)
-    world_p = np.empty((n, k, 3))
-    world_r[:, 0] = turn_matrix(root.heading) @ local[:, 0]
-    world_p[:, 0] = np.column_stack([root.x, track.values[:, 4], root.z])
-    for j in range(1, k):
-        p = skeleton.parents[j]
-        world_r[:, j] = world_r[:, p] @ local[:, j]
-        world_p[:, j] = world_p[:, p] + world_r[:, p] @ skeleton.offsets[j]
-    return world_r, world_p, root.heading
 
 
 def _minimal(old: np.ndarray, new: np.ndarray) -> np.ndarray:

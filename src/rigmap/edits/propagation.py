@@ -157,8 +157,10 @@ class EditModel:
                 {"length_scale": gp.length_scale_, "signal": gp.signal_, "noise": gp.noise_}
                 for gp in (self.kinematic_gp_, self.acceleration_gp_)
             ]
-        jobs = [(self._estimator(center).fit, X, Y, start)
-                for (X, Y), start in zip(data, starts, strict=True)]  # fmt: skip
+        jobs = [
+            (self._estimator(center).fit, X, Y, start)
+            for (X, Y), start in zip(data, starts, strict=True)
+        ]
         with threadpool_limits(limits=1, user_api="blas"):
             if self.fit_threads == 1:  # one after the other, in this thread
                 fits = [fit(X, Y, initial=start) for fit, X, Y, start in jobs]
@@ -172,8 +174,9 @@ class EditModel:
     def _estimator(self, center: bool):
         if self.estimator == "mls":
             return MovingLeastSquares()
-        return SharedGP(self.max_iterations, center=center, method=self.gp_method,
-                        input_scale=self.input_scale)  # fmt: skip
+        return SharedGP(
+            self.max_iterations, center=center, method=self.gp_method, input_scale=self.input_scale
+        )
 
     def predict(self, source: SourceClip) -> tuple[Prediction, Prediction]:
         """The two GPs' predictions on a clip, in scaled channels (targets, not offsets)."""
@@ -200,8 +203,16 @@ class EditModel:
         k, a = predictions or self.predict(source)
         scaled = self.scale.scaled(source.track)
         priors = (self.kinematic_gp_.prior_variance, self.acceleration_gp_.prior_variance)
-        solution = combine(scaled, k.mean, k.variance, a.mean, a.variance,
-                           weights or self.weights, masked=masked, priors=priors)  # fmt: skip
+        solution = combine(
+            scaled,
+            k.mean,
+            k.variance,
+            a.mean,
+            a.variance,
+            weights or self.weights,
+            masked=masked,
+            priors=priors,
+        )
         return source.track.with_values(
             self.scale.unscaled(solution), source=f"{source.track.source} (propagated)"
         )

@@ -110,8 +110,14 @@ def run_add(config: dict, layout: Layout) -> list[Path]:
 # ours: 5 rounds of 2 segments of 12 frames (0.5 s at 24 fps), random fixes over 5 seeds
 # (seed, seed + 1, ...), the plain highest-variance suggestion beside them ("choices" may
 # add "variance_clips", rigmap.edits.incremental)
-REFINE_DEFAULTS = {"rounds": 5, "per_round": 2, "segment": 12, "seed": 0, "random_seeds": 5,
-                   "choices": ["variance"]}  # fmt: skip
+REFINE_DEFAULTS = {
+    "rounds": 5,
+    "per_round": 2,
+    "segment": 12,
+    "seed": 0,
+    "random_seeds": 5,
+    "choices": ["variance"],
+}
 #: the smallest value of each count (ours: one round, segment, seed at least)
 REFINE_MINIMA = {"rounds": 1, "per_round": 1, "segment": 1, "seed": 0, "random_seeds": 1}
 
@@ -122,8 +128,10 @@ def refine_settings(config: dict) -> dict:
     given = dict(config.get("refine") or {})
     unknown = sorted(set(given) - set(REFINE_DEFAULTS))
     if unknown:
-        raise TargetError(f"edits.refine: unknown setting(s) {unknown}; the settings are "
-                          f"{sorted(REFINE_DEFAULTS)}")  # fmt: skip
+        raise TargetError(
+            f"edits.refine: unknown setting(s) {unknown}; the settings are "
+            f"{sorted(REFINE_DEFAULTS)}"
+        )
     settings = {**REFINE_DEFAULTS, **given}
     for key, value in settings.items():
         if key != "choices" and (
@@ -133,8 +141,10 @@ def refine_settings(config: dict) -> dict:
                 f"edits.refine.{key} must be an integer >= {REFINE_MINIMA[key]}, got {value!r}"
             )
     if isinstance(settings["choices"], str):
-        raise TargetError(f"edits.refine.choices must be a list, e.g. [variance,variance_clips]; "
-                          f"got {settings['choices']!r}")  # fmt: skip
+        raise TargetError(
+            f"edits.refine.choices must be a list, e.g. [variance,variance_clips]; "
+            f"got {settings['choices']!r}"
+        )
     settings["choices"] = [str(c) for c in settings["choices"]]
     return settings
 
@@ -150,15 +160,26 @@ def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
         examples = [(source, edit.apply(source.track, cm, skeleton)) for source in data.train]
         truths = [edit.apply(source.track, cm, skeleton) for source in data.heldout]
         report = compare_choices(
-            lambda: model_from(data, config), data.scale, examples, data.heldout, truths,
-            choices=settings["choices"], random_seeds=int(settings["random_seeds"]),
-            seed=int(settings["seed"]), rounds=int(settings["rounds"]),
-            per_round=int(settings["per_round"]), segment=int(settings["segment"]),
-            mirror=mirror, relative_cm=data.subject.relative_cm,
-        )  # fmt: skip
+            lambda: model_from(data, config),
+            data.scale,
+            examples,
+            data.heldout,
+            truths,
+            choices=settings["choices"],
+            random_seeds=int(settings["random_seeds"]),
+            seed=int(settings["seed"]),
+            rounds=int(settings["rounds"]),
+            per_round=int(settings["per_round"]),
+            segment=int(settings["segment"]),
+            mirror=mirror,
+            relative_cm=data.subject.relative_cm,
+        )
         rows = [{"choice": c, "seed": "", **row} for c in settings["choices"] for row in report[c]]
-        rows += [{"choice": "random", "seed": seed, **row}
-                 for seed, table in report["random"].items() for row in table]  # fmt: skip
+        rows += [
+            {"choice": "random", "seed": seed, **row}
+            for seed, table in report["random"].items()
+            for row in table
+        ]
         write_text_atomic(folder / f"{name}.csv", _csv(rows))
         write_text_atomic(folder / f"{name}_summary.csv", _csv(report["summary"]))
         write_json_atomic(folder / f"{name}.json", json_ready({**report, "settings": settings}))

@@ -122,10 +122,26 @@ def skeleton_positions(track: TargetTrack, skeleton: Skeleton) -> np.ndarray:
     """World joint positions ``(F, J, 3)`` of a track, by forward kinematics (BVH units)."""
     if track.channels != skeleton.channels():
         raise TargetError(f"{track.source}: its channels are not this skeleton's")
-    n, k = track.n_frames, len(skeleton.joint_names)
-    root = track.root()
+    local = track_rotations(track, len(skeleton.joint_names))
+    return forward_kinematics(track, skeleton, local)[1]
+
+
+def track_rotations(track: TargetTrack, k: int) -> np.ndarray:
+    """``(F, K, 3, 3)`` the local rotations a track's rotation vectors hold (the root's
+    tilt, without its heading)."""
+    n = track.n_frames
     vectors = track.values[:, 5:].reshape(n, k, 3)
-    local = Rotation.from_rotvec(vectors.reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
+    return Rotation.from_rotvec(vectors.reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
+
+
+def forward_kinematics(
+    track: TargetTrack, skeleton: Skeleton, local: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations ``(F, J, 3, 3)`` and positions ``(F, J, 3)`` of ``local`` rotations
+    on the track's root path (heading, ground position, height): one FK for the
+    positions and the procedural edits."""
+    n, k = local.shape[:2]
+    root = track.root()
     world_r = np.empty_like(local)
     world_p = np.empty((n, k, 3))
     world_r[:, 0] = turn_matrix(root.heading) @ local[:, 0]
@@ -134,7 +150,7 @@ def skeleton_positions(track: TargetTrack, skeleton: Skeleton) -> np.ndarray:
         p = skeleton.parents[j]
         world_r[:, j] = world_r[:, p] @ local[:, j]
         world_p[:, j] = world_p[:, p] + world_r[:, p] @ skeleton.offsets[j]
-    return world_p
+    return world_r, world_p
 
 
 def track_motion(track: TargetTrack, template: BVHMotion) -> BVHMotion:
@@ -148,8 +164,7 @@ def track_motion(track: TargetTrack, template: BVHMotion) -> BVHMotion:
         raise TargetError(f"{track.source}: its channels are not {template.source}'s skeleton's")
     n, k = track.n_frames, len(skeleton.joint_names)
     root = track.root()
-    vectors = track.values[:, 5:].reshape(n, k, 3)
-    local = Rotation.from_rotvec(vectors.reshape(-1, 3)).as_matrix().reshape(n, k, 3, 3)
+    local = track_rotations(track, k)
     local[:, 0] = turn_matrix(root.heading) @ local[:, 0]
     position = np.column_stack([root.x, track.values[:, 4], root.z]) - template.offsets[0]
     values = np.zeros((n, template.channel_count))

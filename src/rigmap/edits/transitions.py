@@ -120,8 +120,13 @@ def _torso_keys(b: ClipBuilder, h: Human, end: float, s) -> None:
         phase = k % 4  # 0: left strike, 2: right strike
         stance = 1.0 if phase in (0, 1) else -1.0
         turn = 1 if phase == 0 else -1 if phase == 2 else 0
-        h.cog(t, ty=-1.0 - w * (2.0 + (1.5 if phase % 2 == 0 else 0.0)), tx=1.5 * stance * w,
-              tz=0.0, ry=0.0)  # fmt: skip
+        h.cog(
+            t,
+            ty=-1.0 - w * (2.0 + (1.5 if phase % 2 == 0 else 0.0)),
+            tx=1.5 * stance * w,
+            tz=0.0,
+            ry=0.0,
+        )
         h.spine(
             t,
             hips=(0.02 * w, 0.12 * turn * w, -0.05 * stance * w),

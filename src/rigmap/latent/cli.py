@@ -46,16 +46,18 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         ),
     ):
         command = verbs.add_parser(
-            verb, help=what,
+            verb,
+            help=what,
             description=f"Runs the latent_{verb} stage (pipelines/latent.py "
             f"+latent_step={verb}) in this process: {what}. Example: rigmap synth {verb} "
             "rig=face latent.max_iter=100 latent.log_to_mlflow=false. Writes under outputs/ "
             "(paths.models=DIR names another folder), relative to the working directory.",
-        )  # fmt: skip
+        )
         _overrides(command)
         command.set_defaults(run=lambda args, verb=verb: _stage(verb, args, compose_config))
     run = verbs.add_parser(
-        "run", help="play a timed YAML command script into a controls parquet",
+        "run",
+        help="play a timed YAML command script into a controls parquet",
         description="Plays a command script (conf/latent/scripts/<name>.yaml, or a path to a "
         ".yaml: `start: <model>` and a list of commands such as `- move: {take: happy 1, "
         "frame: 20}`, `- idle: {frames: 48}`, `- transition: {model: roar}`, `- play: {take: "
@@ -65,7 +67,7 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         "Unknown models "
         "or takes are errors naming them. Example: rigmap synth run roar_after_idle rig=face "
         "--out shot.parquet (overrides right after the script, options after them).",
-    )  # fmt: skip
+    )
     run.add_argument("script", help="a script name (conf/latent/scripts/) or a .yaml path")
     run.add_argument(
         "--out",
@@ -77,14 +79,15 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
     _overrides(run)
     run.set_defaults(run=lambda args: _run(args, compose_config))
     demo = verbs.add_parser(
-        "demo", help="headless interactive demo: a game loop driving the controller",
+        "demo",
+        help="headless interactive demo: a game loop driving the controller",
         description="A headless game of noughts and crosses (the paper's Tic-Tac-Toe demo) "
         "between two seeded random players; each event (a move, a threat, a win, a loss, a "
         "draw) submits an emotion's commands (TRANSITION to it, PLAY one of its takes) to the "
         "real-time controller, which is stepped once per frame at 24 fps. Prints the events, "
         "the frames and the controller's frames per second and p99 frame time. Example: "
         "rigmap synth demo rig=face --games 2 --out demo.parquet.",
-    )  # fmt: skip
+    )
     demo.add_argument("--games", type=int, default=1, help="games to play (default 1)")
     demo.add_argument("--seed", type=int, default=0, help="seed of the players and the particle")
     demo.add_argument("--frames-per-turn", type=int, default=24, help="frames between turns")
@@ -95,13 +98,17 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
 
 def _overrides(command) -> None:
     command.add_argument(
-        "overrides", nargs="*", metavar="KEY=VALUE",
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
         help=f"Hydra overrides of conf/config.yaml ({OVERRIDES})",
-    )  # fmt: skip
+    )
     command.add_argument(
-        "--config-dir", type=Path, default=None,
+        "--config-dir",
+        type=Path,
+        default=None,
         help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )  # fmt: skip
+    )
 
 
 def _stage(verb: str, args, compose_config) -> int:
@@ -144,10 +151,14 @@ def _run(args, compose_config) -> int:
     as_csv = args.out.suffix.lower() == ".csv"
     columns = live_link_columns(rig.used_controls) if as_csv else None  # before playing
     P, controller = runs.play_script(
-        fitted, table, runs.script_path(args.script), seed=args.seed,
-        blend_frames=int(config["blend_frames"]), max_frames=runs.max_script_frames(config),
+        fitted,
+        table,
+        runs.script_path(args.script),
+        seed=args.seed,
+        blend_frames=int(config["blend_frames"]),
+        max_frames=runs.max_script_frames(config),
         progress=True,
-    )  # fmt: skip
+    )
     meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": config["fps"]}
     if as_csv:  # a Live Link Face CSV: plays on any ARKit-driven face
         write_take(args.out, P, columns, fps=float(config["fps"]))
@@ -198,8 +209,9 @@ def _demo(args, compose_config) -> int:
     rig, _, fitted, table = _loaded(args, compose_config)
     rng = np.random.default_rng(args.seed)
     start = "neutral" if "neutral" in fitted.models else next(iter(fitted.models))
-    ctrl = Controller(fitted.models, start=start, takes=fitted.sets, transitions=table,
-                      seed=args.seed)  # fmt: skip
+    ctrl = Controller(
+        fitted.models, start=start, takes=fitted.sets, transitions=table, seed=args.seed
+    )
     frames, times = [], []
     for game in range(args.games):
         for player, event in game_events(rng):
@@ -217,8 +229,10 @@ def _demo(args, compose_config) -> int:
             frames.append(ctrl.step())
             times.append(time.perf_counter() - t0)
     times_ms = 1e3 * np.array(times)
-    print(f"{len(frames)} frames; controller {1e3 / times_ms.mean():.0f} frames/s, "
-          f"p99 {np.percentile(times_ms, 99):.1f} ms a frame (24 fps needs 41.7 ms)")  # fmt: skip
+    print(
+        f"{len(frames)} frames; controller {1e3 / times_ms.mean():.0f} frames/s, "
+        f"p99 {np.percentile(times_ms, 99):.1f} ms a frame (24 fps needs 41.7 ms)"
+    )
     if args.out is not None:
         meta = {"rig": rig.name, "demo": "noughts and crosses", "seed": args.seed}
         runs.write_controls(args.out, rig, np.array(frames), meta)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.latent.model import LatentModel
+from rigmap.latent.library import fit_set
 
 
 def draw_latent_spaces(rig, fitted, without, fps: float, variance, path, *, labels):
@@ -24,10 +24,7 @@ def draw_latent_spaces(rig, fitted, without, fps: float, variance, path, *, labe
     for row, label in zip(axes, labels, strict=True):
         entry = fitted.sets[label]
         fraction, n_pca = variance  # (PCA variance fraction, components or None)
-        other = LatentModel.fit(
-            rig, entry.values, entry.segments, fps=fps, variance=fraction, n_pca=n_pca,
-            settings=without,
-        )  # fmt: skip
+        other = fit_set(rig, entry, fps=fps, variance=fraction, n_pca=n_pca, settings=without)
         for ax, model, title in (
             (row[0], fitted.models[label], "with the connectivity prior"),
             (row[1], other, "without it"),

@@ -147,27 +147,58 @@ def fit_models(
     models, seconds = {}, {}
     for label, entry in sets.items():
         start = time.perf_counter()
-        models[label] = LatentModel.fit(
-            rig, entry.values, entry.segments, fps=fps, settings=settings, variance=variance,
-            n_pca=n_pca,
-        )  # fmt: skip
+        models[label] = fit_set(
+            rig, entry, fps=fps, settings=settings, variance=variance, n_pca=n_pca
+        )
         seconds[label] = time.perf_counter() - start
     return FittedModels(models, dict(sets), seconds)
 
 
+def fit_set(
+    rig,
+    entry: LabelledSet,
+    *,
+    fps: float,
+    settings: GPLVMSettings | None = None,
+    variance: float = 0.85,
+    n_pca: int | None = None,
+) -> LatentModel:
+    """One labelled set's latent model: the stage's fits, the measures' refits and the
+    figure's refit without the prior all go through here."""
+    return LatentModel.fit(
+        rig,
+        entry.values,
+        entry.segments,
+        fps=fps,
+        variance=variance,
+        n_pca=n_pca,
+        settings=settings,
+    )
+
+
 def face_expression_sets(
-    rig, *, seed: int = 0, size: str = "quick", labels=None, takes: int | None = None,
-    heldout: bool = False, coordinated: int | None = None,
-) -> dict[str, LabelledSet]:  # fmt: skip
+    rig,
+    *,
+    seed: int = 0,
+    size: str = "quick",
+    labels=None,
+    takes: int | None = None,
+    heldout: bool = False,
+    coordinated: int | None = None,
+) -> dict[str, LabelledSet]:
     """The face's expression library as labelled sets (training, or held out);
     ``coordinated``: how takes vary (:mod:`rigmap.animation.library.face_expressions`)."""
     from rigmap.animation.library import face_expressions as fx
 
     chosen = fx.LABELS if labels is None else tuple(labels)
     built = fx.build_takes(
-        seed=seed, size=size, labels=chosen, takes=takes, heldout=heldout,
+        seed=seed,
+        size=size,
+        labels=chosen,
+        takes=takes,
+        heldout=heldout,
         coordinated=coordinated,
-    )  # fmt: skip
+    )
     return labelled_sets(
         [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
         n_controls=len(rig.controls.used_indices),
@@ -187,9 +218,14 @@ LIBRARY_TAKES: dict[str, tuple[int, int]] = {"quick": (2, 1), "paper": (6, 2)}  
 
 
 def library_sets(
-    rig, motions: Mapping[str, str], *, seed: int = 0, size: str = "quick", labels=None,
+    rig,
+    motions: Mapping[str, str],
+    *,
+    seed: int = 0,
+    size: str = "quick",
+    labels=None,
     heldout: bool = False,
-) -> dict[str, LabelledSet]:  # fmt: skip
+) -> dict[str, LabelledSet]:
     """Labelled sets from a rig's motion library: label → motion name, each played as
     seeded takes ``"<label> <k>"`` (held out: seeds moved by the library's offset)."""
     from rigmap.animation.library import HELDOUT_SEED_OFFSET, build_clip, motion_library

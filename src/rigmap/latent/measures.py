@@ -25,7 +25,7 @@ import numpy as np
 
 from rigmap.latent.control_scaling import fit_control_scaling, surface
 from rigmap.latent.gplvm import GPLVMSettings
-from rigmap.latent.library import LabelledSet
+from rigmap.latent.library import LabelledSet, fit_set
 from rigmap.latent.model import LatentModel
 from rigmap.latent.motion_graph import (
     WINDOW,
@@ -92,10 +92,7 @@ def _fit(rig, entry: LabelledSet, settings: GPLVMSettings, fps: float, variance)
     """``variance``: a PCA variance fraction, or ``(fraction, n_components or None)``."""
     fraction, n_pca = variance if isinstance(variance, tuple) else (variance, None)
     start = time.perf_counter()
-    model = LatentModel.fit(
-        rig, entry.values, entry.segments, fps=fps, variance=fraction, n_pca=n_pca,
-        settings=settings,
-    )  # fmt: skip
+    model = fit_set(rig, entry, fps=fps, variance=fraction, n_pca=n_pca, settings=settings)
     return model, time.perf_counter() - start
 
 
@@ -114,10 +111,15 @@ def latent_dim_sweep(
             else:
                 model, seconds = _fit(rig, sets[label], s, fps, variance)
             rows.append(
-                {"label": label, "latent_dim": int(q), "frames": sets[label].n_frames,
-                 "pca_dims": int(model.pca.n_components_), "fit_s": seconds,
-                 **heldout_error(rig, model, heldout[label].values)}
-            )  # fmt: skip
+                {
+                    "label": label,
+                    "latent_dim": int(q),
+                    "frames": sets[label].n_frames,
+                    "pca_dims": int(model.pca.n_components_),
+                    "fit_s": seconds,
+                    **heldout_error(rig, model, heldout[label].values),
+                }
+            )
     return rows
 
 
@@ -149,8 +151,14 @@ def one_against_per_label(rig, sets, heldout, labels, dims, *, settings, fps, va
     for q in dims:
         s = GPLVMSettings(**{**settings.__dict__, "latent_dim": int(q)})
         one, one_s = _fit(rig, merged_set(sets, labels), s, fps, variance)
-        rows.append({"models": "one for all", "latent_dim": int(q), "fit_s": one_s,
-                     **heldout_error(rig, one, test)})  # fmt: skip
+        rows.append(
+            {
+                "models": "one for all",
+                "latent_dim": int(q),
+                "fit_s": one_s,
+                **heldout_error(rig, one, test),
+            }
+        )
         P_hat, seconds = [], 0.0
         for label in labels:
             model, fit_s = _fit(rig, sets[label], s, fps, variance)
@@ -158,10 +166,14 @@ def one_against_per_label(rig, sets, heldout, labels, dims, *, settings, fps, va
             P_hat.append(model.to_controls(model.project(heldout[label].values)))
         P_hat = np.vstack(P_hat)
         rows.append(
-            {"models": "one per label", "latent_dim": int(q), "fit_s": seconds,
-             "controls_rms": controls_rms(test, P_hat),
-             "surface_rms_cm": surface_rms_cm(rig, test, P_hat)}
-        )  # fmt: skip
+            {
+                "models": "one per label",
+                "latent_dim": int(q),
+                "fit_s": seconds,
+                "controls_rms": controls_rms(test, P_hat),
+                "surface_rms_cm": surface_rms_cm(rig, test, P_hat),
+            }
+        )
     return rows
 
 
@@ -172,11 +184,15 @@ def matching_rows(table, labels) -> list[dict]:
         m = table.pair(a, b)
         found = len(m) > 0
         rows.append(
-            {"pair": f"{a}-{b}", "points": len(m), "candidates": m.candidates,
-             "spread_latent": m.spread(),
-             "distance_cm_median": float(np.median(m.distance_cm)) if found else None,
-             "distance_cm_max": float(m.distance_cm.max()) if found else None}
-        )  # fmt: skip
+            {
+                "pair": f"{a}-{b}",
+                "points": len(m),
+                "candidates": m.candidates,
+                "spread_latent": m.spread(),
+                "distance_cm_median": float(np.median(m.distance_cm)) if found else None,
+                "distance_cm_max": float(m.distance_cm.max()) if found else None,
+            }
+        )
     return rows
 
 
@@ -211,9 +227,13 @@ def _our_transitions(rig, fitted, table, a, b, starts, seed, fps):
         take = sets[a].names[int(r.integers(len(sets[a].names)))]
         frame = int(r.integers(len(sets[a].take(take))))
         c = Controller(
-            fitted.models, start=a, takes=sets, transitions=table, seed=seed + s,
+            fitted.models,
+            start=a,
+            takes=sets,
+            transitions=table,
+            seed=seed + s,
             start_point=fitted.models[a].latent[sets[a].rows(take)[frame]],
-        )  # fmt: skip
+        )
         P = c.run([Transition(b, idle_frames=2 * WINDOW)])
         entry = c.log[-1]
         successes += int(entry.success)
@@ -302,10 +322,14 @@ def command_suites(fitted, table, *, n: int, seed: int) -> list[dict]:
         entries = [e for e in c.log if type(e.command).__name__.lower() == kind]
         frames = [e.frames for e in entries]
         rows.append(
-            {"command": kind.upper(), "count": len(entries),
-             "success_rate": float(np.mean([e.success for e in entries])),
-             "frames_median": float(np.median(frames)), "frames_max": int(max(frames))}
-        )  # fmt: skip
+            {
+                "command": kind.upper(),
+                "count": len(entries),
+                "success_rate": float(np.mean([e.success for e in entries])),
+                "frames_median": float(np.median(frames)),
+                "frames_max": int(max(frames)),
+            }
+        )
     return rows
 
 

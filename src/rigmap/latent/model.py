@@ -55,9 +55,12 @@ class LatentModel:
         scaling = fit_control_scaling(rig, P)
         if not scale:
             scaling = ControlScaling(
-                scaling.names, np.ones_like(scaling.weights), scaling.mean, scaling.lower,
+                scaling.names,
+                np.ones_like(scaling.weights),
+                scaling.mean,
+                scaling.lower,
                 scaling.upper,
-            )  # fmt: skip
+            )
         pca = fit_pca(scaling.scale(P), variance=variance, n_components=n_pca)
         Y = pca.transform(scaling.scale(P))
         gplvm = GPLVM(settings).fit(Y, segments, segment_times(segments, fps))

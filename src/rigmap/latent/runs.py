@@ -29,7 +29,7 @@ from rigmap.latent import files
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVMSettings
 from rigmap.latent.library import FittedModels, fit_models, rig_sets
-from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, read_script
+from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, MAX_SCRIPT_FRAMES_LIMIT, read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
 from rigmap.store import PACKAGED_CONF, Layout, json_ready, write_json_atomic, write_text_atomic
@@ -71,17 +71,24 @@ def _written(path: Path, stage: str) -> Path:
 
 def sets_of(config: dict, rig, *, heldout: bool = False):
     return rig_sets(
-        rig, seed=int(config.get("seed", 0)), size=str(config["size"]),
-        labels=config.get("labels"), heldout=heldout,
-    )  # fmt: skip
+        rig,
+        seed=int(config.get("seed", 0)),
+        size=str(config["size"]),
+        labels=config.get("labels"),
+        heldout=heldout,
+    )
 
 
 def run_fit(config: dict, rig, layout: Layout) -> Path:
     sets = sets_of(config, rig)
     fitted = fit_models(
-        rig, sets, fps=float(config["fps"]), settings=settings_of(config),
-        variance=float(config["variance"]), n_pca=n_pca_of(config),
-    )  # fmt: skip
+        rig,
+        sets,
+        fps=float(config["fps"]),
+        settings=settings_of(config),
+        variance=float(config["variance"]),
+        n_pca=n_pca_of(config),
+    )
     folder = fit_folder(layout, rig.name)
     files.save_fitted(folder, fitted)
     info = {
@@ -121,16 +128,21 @@ def run_match(config: dict, rig, layout: Layout) -> Path:
     fitted = load_fitted(layout, rig.name)
     start = time.perf_counter()
     table = match_models(
-        rig, fitted.models, threshold_cm=match_threshold(config, rig),
+        rig,
+        fitted.models,
+        threshold_cm=match_threshold(config, rig),
         max_iter=int(config["match_max_iter"]),
-    )  # fmt: skip
+    )
     seconds = time.perf_counter() - start
     folder = match_folder(layout, rig.name)
     files.save_table(folder, table)
     from rigmap.latent.measures import matching_rows
 
-    info = {"threshold_cm": table.threshold_cm, "seconds": seconds,
-            "pairs": matching_rows(table, list(fitted.models))}  # fmt: skip
+    info = {
+        "threshold_cm": table.threshold_cm,
+        "seconds": seconds,
+        "pairs": matching_rows(table, list(fitted.models)),
+    }
     return write_json_atomic(folder / "match.json", json_ready(info))
 
 
@@ -167,17 +179,27 @@ def play_script(
     start, commands = read_script(path, max_frames=max_frames)
     start = start or next(iter(fitted.models))
     controller = Controller(
-        fitted.models, start=start, takes=fitted.sets, transitions=table, seed=seed,
+        fitted.models,
+        start=start,
+        takes=fitted.sets,
+        transitions=table,
+        seed=seed,
         settings=SynthesisSettings(blend_frames=blend_frames),
-    )  # fmt: skip
+    )
     return controller.run(commands, max_frames=max_frames, progress=progress), controller
 
 
 def max_script_frames(config: dict) -> int:
-    """``latent.max_script_frames``: a whole number >= 1 (default :data:`MAX_SCRIPT_FRAMES`)."""
+    """``latent.max_script_frames``: a whole number from 1 to :data:`MAX_SCRIPT_FRAMES_LIMIT`
+    (default :data:`MAX_SCRIPT_FRAMES`; both ours)."""
     value = config.get("max_script_frames", MAX_SCRIPT_FRAMES)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise LatentInputError(f"latent.max_script_frames={value!r}: expected a whole number >= 1")
+    if value > MAX_SCRIPT_FRAMES_LIMIT:
+        raise LatentInputError(
+            f"latent.max_script_frames={value}: expected at most {MAX_SCRIPT_FRAMES_LIMIT} "
+            "(every frame's controls are held in memory)"
+        )
     return value
 
 
@@ -200,10 +222,15 @@ def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
 
 def log_rows(controller) -> list[dict]:
     return [
-        {"command": type(e.command).__name__.upper(), "model": e.model, "start": e.start,
-         "frames": e.frames, "success": bool(e.success)}
+        {
+            "command": type(e.command).__name__.upper(),
+            "model": e.model,
+            "start": e.start,
+            "frames": e.frames,
+            "success": bool(e.success),
+        }
         for e in controller.log
-    ]  # fmt: skip
+    ]
 
 
 def run_synthesize(config: dict, rig, layout: Layout) -> Path:
@@ -216,9 +243,13 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
     for name in script_names(config, rig):
         for seed in config["seeds"]:
             P, controller = play_script(
-                fitted, table, script_path(name), seed=int(seed),
-                blend_frames=int(config["blend_frames"]), max_frames=cap,
-            )  # fmt: skip
+                fitted,
+                table,
+                script_path(name),
+                seed=int(seed),
+                blend_frames=int(config["blend_frames"]),
+                max_frames=cap,
+            )
             meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": config["fps"]}
             write_controls(folder / f"{Path(name).stem}-seed{seed}.parquet", rig, P, meta)
             log[f"{Path(name).stem}-seed{seed}"] = log_rows(controller)
@@ -250,6 +281,8 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
     P = np.vstack([s.values for s in sets.values()])
     P_test = np.vstack([heldout[label].values for label in labels])
     compare = settings_of(config, max_iter=int(ev.get("compare_max_iter") or config["max_iter"]))
+    fit = {"fps": fps, "variance": variance}  # how every refit below is made
+    data = (rig, sets, heldout)  # what the two sweeps fit on and test on
     jobs = {
         "pca": lambda: [
             {
@@ -264,24 +297,36 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
         ],
         "scaling": lambda: m.scaled_against_unscaled(rig, P, P_test, ev["pca_sizes"]),
         "latent_dims": lambda: m.latent_dim_sweep(
-            rig, sets, heldout, labels[: int(ev["sweep_labels"])], ev["latent_dims"],
-            settings=settings, fps=fps, variance=variance, fitted=fitted,
+            *data,
+            labels[: int(ev["sweep_labels"])],
+            ev["latent_dims"],
+            settings=settings,
+            fitted=fitted,
+            **fit,
         ),
         "one_vs_per_label": lambda: m.one_against_per_label(
-            rig, sets, heldout, labels[: int(ev["compare_labels"])], ev["compare_dims"],
-            settings=compare, fps=fps, variance=variance,
+            *data,
+            labels[: int(ev["compare_labels"])],
+            ev["compare_dims"],
+            settings=compare,
+            **fit,
         ),
         "matching": lambda: m.matching_rows(table, labels),
         "smoothness": lambda: m.transition_smoothness(
-            rig, fitted, table, m.ordered_pairs(labels, int(ev["smoothness_pairs"])),
-            starts=int(ev["transition_starts"]), seed=seed, fps=fps,
+            rig,
+            fitted,
+            table,
+            m.ordered_pairs(labels, int(ev["smoothness_pairs"])),
+            starts=int(ev["transition_starts"]),
+            seed=seed,
+            fps=fps,
         ),
         "suites": lambda: m.command_suites(fitted, table, n=int(ev["suite_commands"]), seed=seed),
         "fit_time": lambda: [
             {"model": label, "frames": sets[label].n_frames, "fit_s": fitted.fit_seconds[label]}
             for label in labels
         ],
-    }  # fmt: skip
+    }
     tables, seconds = {}, {}
     for name, job in jobs.items():
         started = time.perf_counter()
@@ -343,8 +388,12 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
     from rigmap.latent.figures import draw_latent_spaces
 
     draw_latent_spaces(
-        rig, fitted, settings_of(config, connectivity=False), float(config["fps"]),
-        (float(config["variance"]), n_pca_of(config)), layout.figures() / f"latent_{rig.name}.png",
+        rig,
+        fitted,
+        settings_of(config, connectivity=False),
+        float(config["fps"]),
+        (float(config["variance"]), n_pca_of(config)),
+        layout.figures() / f"latent_{rig.name}.png",
         labels=list(fitted.models)[: int(config["evaluate"].get("figure_labels", 2))],
-    )  # fmt: skip
+    )
     return write_json_atomic(folder / "summary.json", json_ready(summary))

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import fields
+from itertools import accumulate
 from pathlib import Path
 
 import yaml
@@ -32,6 +33,9 @@ COMMANDS = {"move": Move, "idle": Idle, "transition": Transition, "play": Play}
 #: ours: the most frames one script may play (about 70 minutes at 24 fps), the default of
 #: ``latent.max_script_frames``
 MAX_SCRIPT_FRAMES = 100_000
+#: ours: the highest ``latent.max_script_frames`` accepted (about 11.5 hours at 24 fps):
+#: the controls of every frame are held in memory, so a larger cap could exhaust it
+MAX_SCRIPT_FRAMES_LIMIT = 1_000_000
 FRAME_COUNTS = ("frames", "idle_frames")  # the arguments that ask for a number of frames
 
 
@@ -74,14 +78,37 @@ def parse_script(
             commands.append(kind(**args))
         except TypeError as error:
             raise LatentInputError(f"{where}: {error}") from None
-    asked = sum(getattr(c, key, 0) for c in commands for key in FRAME_COUNTS)
-    if asked > max_frames:
-        raise LatentInputError(
-            f"{source}: the commands ask for {asked} frames, more than "
-            f"latent.max_script_frames={max_frames}; shorten the script or raise the cap"
-        )
+    check_frame_total(commands, source=source, max_frames=max_frames)
     start = data.get("start")
     return (None if start is None else str(start)), commands
+
+
+def check_frame_total(commands, *, source: str, max_frames: int) -> None:
+    """Refuse, before anything plays, a script whose frames add up past ``max_frames``;
+    the message names the command that crosses the cap and the range accepted."""
+    totals = list(accumulate(_frames_asked(c) for c in commands))
+    asked = totals[-1]
+    if asked <= max_frames:
+        return
+    k = next(i for i, total in enumerate(totals) if total > max_frames)
+    command = commands[k]
+    raise LatentInputError(
+        f"{source}: command {k + 1} ({_describe(command)}) passes the cap: "
+        f"the commands ask for {asked} frames, more than latent.max_script_frames={max_frames} "
+        f"(accepted: 0 to {max_frames} frames in all, a cap of ours); "
+        f"shorten the script or raise the cap (to at most {MAX_SCRIPT_FRAMES_LIMIT})"
+    )
+
+
+def _frames_asked(command) -> int:
+    return sum(getattr(command, key, 0) for key in FRAME_COUNTS)
+
+
+def _describe(command) -> str:
+    """``idle frames=48``: a command's name and the frames it asks for, as in the script."""
+    name = next(key for key, kind in COMMANDS.items() if isinstance(command, kind))
+    asked = [f"{key}={getattr(command, key)}" for key in FRAME_COUNTS if hasattr(command, key)]
+    return " ".join([name, *asked])
 
 
 def read_script(

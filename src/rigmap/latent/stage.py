@@ -109,9 +109,12 @@ def log_step(cfg, rig: str, step: str, config: dict, path: Path, seconds: float,
         prefix = "" if name == step else f"{name}."
         values.update({prefix + k: v for k, v in numbers.items() if name == step or k != "seconds"})
     with start_parent_run(
-        tracker, rig, name=f"latent-{step}", config={"latent": config},
+        tracker,
+        rig,
+        name=f"latent-{step}",
+        config={"latent": config},
         tags={"stage": f"latent_{step}", "kind": "latent"},
-    ) as parent:  # fmt: skip
+    ) as parent:
         now = int(time.time() * 1000)
         metrics = [Metric(safe_name(k), v, now, 0) for k, v in values.items()]
         for start in range(0, len(metrics), 1000):

@@ -225,9 +225,10 @@ class Controller:
         with tqdm(desc="synthesis", unit="frame", disable=not progress, leave=False) as bar:
             while self.queue or self._active is not None:
                 if max_frames is not None and len(frames) >= max_frames:
+                    playing = "" if self._entry is None else f" in {self._entry.command!r}"
                     raise LatentInputError(
                         f"the commands go on past {max_frames} frames "
-                        f"(latent.max_script_frames); stopped at frame {len(frames)}"
+                        f"(latent.max_script_frames); stopped at frame {len(frames)}{playing}"
                     )
                 frames.append(self.step())
                 bar.update()

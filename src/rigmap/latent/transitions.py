@@ -51,9 +51,14 @@ class MatchSet:
 
     def reversed(self) -> MatchSet:
         return MatchSet(
-            self.target, self.source, self.target_points, self.source_points,
-            self.distance_cm, self.control_distance, self.candidates,
-        )  # fmt: skip
+            self.target,
+            self.source,
+            self.target_points,
+            self.source_points,
+            self.distance_cm,
+            self.control_distance,
+            self.candidates,
+        )
 
     def spread(self) -> float:
         """RMS distance of the source points from their centroid (latent units; 0 if < 2)."""
@@ -168,9 +173,13 @@ def match_models(
         for b in names:
             if a != b:
                 one_way[(a, b)] = match_pair(
-                    rig, models[a], models[b], names=(a, b), threshold_cm=threshold_cm,
+                    rig,
+                    models[a],
+                    models[b],
+                    names=(a, b),
+                    threshold_cm=threshold_cm,
                     max_iter=max_iter,
-                )  # fmt: skip
+                )
     merged = {}
     for a, b in one_way:
         forward, backward = one_way[(a, b)], one_way[(b, a)].reversed()

@@ -27,6 +27,19 @@ def inverse_features(positions, cog, cog_rotation, *, n_joints: int, where: str)
     return np.concatenate([X.reshape(n, -1), cog, cog_rotation.reshape(n, 9)], axis=1)
 
 
+def default_pose_features(rig) -> np.ndarray:
+    """``(1, 3J + 12)`` features of the rig's default pose (its default controls): the
+    rest row a fit adds when no corpus frame is it, and the anchor row of tuning."""
+    pose = rig.pose(rig.default_controls(1))
+    return inverse_features(
+        np.asarray(pose.positions),
+        np.asarray(pose.cog),
+        np.asarray(pose.cog_rotation),
+        n_joints=rig.n_joints,
+        where=f"rig {rig.name!r} default pose",
+    )
+
+
 def feature_names(joint_names: list[str]) -> list[str]:
     """Column names matching :func:`inverse_features` (``<joint>.x`` …, ``cog.x`` …)."""
     names = [f"{joint}.{axis}" for joint in joint_names for axis in "xyz"]

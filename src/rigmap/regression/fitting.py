@@ -43,7 +43,12 @@ from rigmap.config_objects import instantiate_as
 from rigmap.error_measures import control_std, ground_truth_error, joint_error
 from rigmap.errors import RigmapError
 from rigmap.regression.base import Regressor
-from rigmap.regression.features import PLACEMENT_WIDTH, feature_names, inverse_features
+from rigmap.regression.features import (
+    PLACEMENT_WIDTH,
+    default_pose_features,
+    feature_names,
+    inverse_features,
+)
 from rigmap.regression.learned_jacobian import learned_jacobian_plan
 from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import Placement, find_placement
@@ -193,14 +198,7 @@ def _rest_pose(rig, corpus_controls: np.ndarray, corpus_keys: np.ndarray):
         note = f"corpus row {rest_index} (clip {clip!r}, frame {frame}) is the rig's default pose"
         return rest_index, note, None
     rest_index = len(corpus_controls)
-    pose = rig.pose(rig.default_controls(1))
-    features = inverse_features(
-        np.asarray(pose.positions),
-        np.asarray(pose.cog),
-        np.asarray(pose.cog_rotation),
-        n_joints=rig.n_joints,
-        where=f"rig {rig.name!r} default pose",
-    )
+    features = default_pose_features(rig)
     note = (
         f"no corpus frame is the rig's default pose (closest differs by "
         f"{distance.min():.3g} in some used control), so the default pose was added as "

@@ -85,6 +85,11 @@ def local_draws(pool: np.ndarray, std: np.ndarray, scale: float, n: int, rng) ->
     return rows + rng.standard_normal(rows.shape) * (float(scale) * np.asarray(std))
 
 
+def float32_tensor(a) -> torch.Tensor:
+    """A contiguous float32 tensor of ``a``: the networks train in float32."""
+    return torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))
+
+
 @dataclass
 class JointSpaceData:
     """Every training row as float32 tensors, and the scales that make the cost unit-free.
@@ -124,15 +129,14 @@ class JointSpaceData:
         _, std = column_scale(Y)
         _, spread = column_scale(targets)
         scale = float(points[: len(X)].reshape(len(X), -1).var(axis=0).mean())
-        as_tensor = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
         return cls(
-            inputs=as_tensor(inputs),
-            targets=as_tensor(targets),
+            inputs=float32_tensor(inputs),
+            targets=float32_tensor(targets),
             known=torch.from_numpy(known),
             natural=torch.from_numpy(natural),
-            joints=as_tensor(points),
-            target_std=as_tensor(std),
-            spread=as_tensor(spread),
+            joints=float32_tensor(points),
+            target_std=float32_tensor(std),
+            spread=float32_tensor(spread),
             joint_scale=max(scale, 1e-12),
         )
 

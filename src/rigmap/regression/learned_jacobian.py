@@ -31,8 +31,15 @@ from rigmap.regression.validation import as_float_array, check_finite
 PREDICT_CHUNK = 4096
 
 # the GPR settings a learned Jacobian shares with the GPR it is learned beside (§4.4)
-GPR_SETTINGS = ("regularization", "search_length_scale", "n_length_scales", "cv_splits",
-                "cv_max_outputs", "normalize", "seed")  # fmt: skip
+GPR_SETTINGS = (
+    "regularization",
+    "search_length_scale",
+    "n_length_scales",
+    "cv_splits",
+    "cv_max_outputs",
+    "normalize",
+    "seed",
+)
 
 
 class LearnedJacobian(Regressor):
@@ -75,9 +82,12 @@ class LearnedJacobian(Regressor):
         """The GPR on the flattened Jacobians: every support pose, one shared output scale."""
         settings = {name: getattr(self, name) for name in GPR_SETTINGS}
         return GaussianProcessRegressor(
-            kernel=self.kernel, n_points=None, length_scale_range=self.length_scale_range,
-            output_scale="shared", **settings,
-        )  # fmt: skip
+            kernel=self.kernel,
+            n_points=None,
+            length_scale_range=self.length_scale_range,
+            output_scale="shared",
+            **settings,
+        )
 
     def fit(
         self,

@@ -34,9 +34,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from rigmap.regression.features import inverse_features
+from rigmap.regression.features import default_pose_features
 from rigmap.regression.joint_space_network import JointSpaceNetworkRegressor
-from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
+from rigmap.regression.joint_space_training import JointSpaceData, float32_tensor, joint_space_cost
 from rigmap.regression.mapping import InverseMapping
 from rigmap.regression.network import _adam
 from rigmap.regression.rig_forward import PlacedRigForward
@@ -67,14 +67,7 @@ def _tuning_data(forward: PlacedRigForward, mapping: InverseMapping, X_pose) -> 
     """Row 0: the rest pose with its default controls; then the targets with the untuned
     network's controls for them (the anchors of the control term)."""
     rig, placement = forward.rig, mapping.placement
-    rest = rig.pose(rig.default_controls(1))
-    rest_row = inverse_features(
-        np.asarray(rest.positions),
-        np.asarray(rest.cog),
-        np.asarray(rest.cog_rotation),
-        n_joints=rig.n_joints,
-        where=f"rig {rig.name!r} rest pose",
-    )
+    rest_row = default_pose_features(rig)
     defaults = rig.controls.defaults[rig.controls.used_indices][None]
     rest_in = placement.inputs(rest_row)
     rest_target = placement.targets(defaults, rest_row)
@@ -86,13 +79,12 @@ def _tuning_data(forward: PlacedRigForward, mapping: InverseMapping, X_pose) -> 
     scale = network.free_std.clamp_min(1e-12)  # the training corpus's target std
     anchors = np.concatenate([rest_target, mapping.regressor.predict(targets_in)])
     known = np.ones(len(inputs), dtype=bool)
-    as_tensor = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
     return JointSpaceData(
-        inputs=as_tensor(inputs),
-        targets=as_tensor(anchors),
+        inputs=float32_tensor(inputs),
+        targets=float32_tensor(anchors),
         known=torch.from_numpy(known),
         natural=torch.from_numpy(known),
-        joints=as_tensor(points),
+        joints=float32_tensor(points),
         target_std=scale.float(),
         spread=scale.float(),
         joint_scale=max(float(points[1:].reshape(len(targets_in), -1).var(axis=0).mean()), 1e-12),

@@ -286,9 +286,14 @@ def _draw_frame(ax, played: PlayedClip, index: int, view: str, camera: _Camera) 
     ax.set_ylim(camera.bottom, camera.top)
     ax.set_aspect("equal")
     ax.text(
-        0.02, 0.97, f"{played.frames[index]}", transform=ax.transAxes, va="top", fontsize=8,
+        0.02,
+        0.97,
+        f"{played.frames[index]}",
+        transform=ax.transAxes,
+        va="top",
+        fontsize=8,
         color="0.25",
-    )  # fmt: skip
+    )
 
 
 def _leaves(rig) -> np.ndarray:

@@ -37,7 +37,79 @@ def default_worker_count() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-class WorkerPool:
+def start_worker(
+    argv: list[str], setup: list[tuple[str, dict]], *, log_dir: Path, start_timeout: float
+) -> tuple[WorkerProcess, list[dict]]:
+    """A worker process brought to the pool's state by replaying ``setup``, and the
+    replies; the local pool and the Ray actors prepare their workers through this one."""
+    worker = WorkerProcess(argv, log_dir=log_dir, start_timeout=start_timeout)
+    replies = []
+    try:
+        for op, args in setup:
+            header, _ = worker.request(op, args, timeout=start_timeout)
+            replies.append(header)
+    except WorkerError:
+        worker.close()  # the error says what went wrong; its log adds nothing
+        raise
+    except BaseException:
+        worker.kill()  # half set up: never hand it a request
+        raise
+    return worker, replies
+
+
+class RowPool:
+    """What the local and the Ray pool share: the context manager, one batch at a time,
+    the row chunks (the same rows go together, whatever runs them) and the outputs put
+    back in chunk order, so both give the same bytes."""
+
+    n_workers: int
+    worker_cpu_seconds: float
+    _busy: threading.Lock
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def _map_rows(self, op, arrays, args, chunk_rows, on_chunk_done):
+        raise NotImplementedError
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def map_rows(
+        self,
+        op: str,
+        arrays: dict[str, np.ndarray],
+        *,
+        args: dict | None = None,
+        chunk_rows: int = DEFAULT_CHUNK_ROWS,
+        on_chunk_done: Callable[[int], None] | None = None,
+    ) -> dict[str, np.ndarray]:
+        """Run ``op`` on row chunks of ``arrays`` across the workers; outputs stacked by row."""
+        with self._busy:
+            return self._map_rows(op, arrays, args, chunk_rows, on_chunk_done)
+
+    def _chunks(self, op: str, arrays: dict, chunk_rows: int) -> list[tuple[int, int]]:
+        """``(start, stop)`` row ranges: about an even share a worker, ``chunk_rows`` at most."""
+        n_rows = len(next(iter(arrays.values())))
+        if n_rows == 0:
+            raise ValueError(f"{op}: empty batch")
+        rows = max(1, min(chunk_rows, math.ceil(n_rows / self.n_workers)))
+        return [(start, min(start + rows, n_rows)) for start in range(0, n_rows, rows)]
+
+    def _chunk_done(self, header: dict, rows: int, on_chunk_done) -> None:
+        self.worker_cpu_seconds += float(header.get("cpu_seconds", 0.0))
+        if on_chunk_done is not None:
+            on_chunk_done(rows)
+
+    @staticmethod
+    def _stacked(results: list[dict]) -> dict[str, np.ndarray]:
+        return {key: np.concatenate([r[key] for r in results]) for key in results[0]}
+
+
+class WorkerPool(RowPool):
     """``workers`` processes started from ``argv``, each prepared by ``setup`` requests."""
 
     def __init__(
@@ -75,23 +147,11 @@ class WorkerPool:
     def _start(self, slot: int) -> WorkerProcess:
         if self._closed:
             raise RuntimeError("worker pool is closed")
-        worker = WorkerProcess(
-            self._argv(slot), log_dir=self._log_dir, start_timeout=self.start_timeout
+        self._slots[slot] = None
+        worker, replies = start_worker(
+            self._argv(slot), self._setup, log_dir=self._log_dir, start_timeout=self.start_timeout
         )
         self._slots[slot] = worker
-        replies = []
-        try:
-            for op, args in self._setup:
-                header, _ = worker.request(op, args, timeout=self.start_timeout)
-                replies.append(header)
-        except WorkerError:
-            worker.close()  # the error says what went wrong; its log adds nothing
-            self._slots[slot] = None
-            raise
-        except BaseException:
-            worker.kill()  # half set up: never hand it a request
-            self._slots[slot] = None
-            raise
         if not self.setup_replies:
             self.setup_replies = replies
         return worker
@@ -123,12 +183,6 @@ class WorkerPool:
                 self._slots[slot] = None
         self._finalizer.detach()
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
     # --- work ---------------------------------------------------------------
     def call(self, op: str, args: dict | None = None, arrays: dict | None = None, *, timeout=None):
         """One request on the first worker, restarted and retried if it crashes."""
@@ -147,25 +201,8 @@ class WorkerPool:
                     raise
         raise AssertionError("unreachable")
 
-    def map_rows(
-        self,
-        op: str,
-        arrays: dict[str, np.ndarray],
-        *,
-        args: dict | None = None,
-        chunk_rows: int = DEFAULT_CHUNK_ROWS,
-        on_chunk_done: Callable[[int], None] | None = None,
-    ) -> dict[str, np.ndarray]:
-        """Run ``op`` on row chunks of ``arrays`` across the workers; outputs stacked by row."""
-        with self._busy:
-            return self._map_rows(op, arrays, args, chunk_rows, on_chunk_done)
-
     def _map_rows(self, op, arrays, args, chunk_rows, on_chunk_done):
-        n_rows = len(next(iter(arrays.values())))
-        if n_rows == 0:
-            raise ValueError(f"{op}: empty batch")
-        rows = max(1, min(chunk_rows, math.ceil(n_rows / self.n_workers)))
-        chunks = [(start, min(start + rows, n_rows)) for start in range(0, n_rows, rows)]
+        chunks = self._chunks(op, arrays, chunk_rows)
         queue = deque(range(len(chunks)))
         attempts = [0] * len(chunks)
         results: list[dict | None] = [None] * len(chunks)
@@ -199,16 +236,14 @@ class WorkerPool:
                     return
                 with self._lock:
                     results[index] = out
-                    self.worker_cpu_seconds += float(header.get("cpu_seconds", 0.0))
-                    if on_chunk_done is not None:
-                        on_chunk_done(stop - start)
+                    self._chunk_done(header, stop - start, on_chunk_done)
 
         n_threads = min(self.n_workers, len(chunks))
         with ThreadPoolExecutor(n_threads) as executor:
             list(executor.map(run, range(n_threads)))
         if failures:
             raise failures[0]
-        return {key: np.concatenate([r[key] for r in results]) for key in results[0]}
+        return self._stacked(results)
 
 
 def _kill_all(slots: list) -> None:

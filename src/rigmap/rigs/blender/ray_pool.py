@@ -17,7 +17,6 @@ paths as the driver (a shared file system or the same image), as with Slurm.
 
 from __future__ import annotations
 
-import math
 import os
 import socket
 import threading
@@ -25,11 +24,9 @@ from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
 from rigmap.errors import RigmapError
-from rigmap.rigs.blender.pool import DEFAULT_CHUNK_ROWS
-from rigmap.rigs.blender.worker_process import WorkerCrashed, WorkerError, WorkerProcess
+from rigmap.rigs.blender.pool import RowPool, start_worker
+from rigmap.rigs.blender.worker_process import WorkerCrashed, WorkerProcess
 
 # Chunks queued on one actor at a time: the next one waits in the actor while the
 # current one runs, so the round trip through Ray is hidden behind Blender's work.
@@ -108,20 +105,9 @@ class BlenderActor:
 
     def start(self) -> dict:
         """Start the worker and replay the setup; its replies (the rig's description)."""
-        self.worker = WorkerProcess(
-            self._argv, log_dir=self._log_dir, start_timeout=self._start_timeout
+        self.worker, replies = start_worker(
+            self._argv, self._setup, log_dir=self._log_dir, start_timeout=self._start_timeout
         )
-        replies = []
-        try:
-            for op, args in self._setup:
-                header, _ = self.worker.request(op, args, timeout=self._start_timeout)
-                replies.append(header)
-        except WorkerError:
-            self.worker.close()
-            raise
-        except BaseException:
-            self.worker.kill()
-            raise
         return {"replies": replies, "pid": self.worker.pid, "node": socket.gethostname()}
 
     def request(self, op, args, arrays, timeout):
@@ -133,7 +119,7 @@ class BlenderActor:
             self.worker = None
 
 
-class RayWorkerPool:
+class RayWorkerPool(RowPool):
     """``actors`` Ray actors each holding a started, set-up worker; the local pool's interface."""
 
     def __init__(
@@ -239,12 +225,6 @@ class RayWorkerPool:
                     pass
                 self._actors[slot] = None
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
     # --- work ---------------------------------------------------------------
     def call(self, op: str, args: dict | None = None, arrays: dict | None = None, *, timeout=None):
         """One request on the first actor, on a fresh actor if it is lost."""
@@ -261,27 +241,9 @@ class RayWorkerPool:
                     self._replace(0)
         raise AssertionError("unreachable")
 
-    def map_rows(
-        self,
-        op: str,
-        arrays: dict[str, np.ndarray],
-        *,
-        args: dict | None = None,
-        chunk_rows: int = DEFAULT_CHUNK_ROWS,
-        on_chunk_done: Callable[[int], None] | None = None,
-    ) -> dict[str, np.ndarray]:
-        """``op`` on row chunks of ``arrays`` across the actors; outputs stacked by row."""
-        with self._busy:
-            return self._map_rows(op, arrays, args, chunk_rows, on_chunk_done)
-
     def _map_rows(self, op, arrays, args, chunk_rows, on_chunk_done):
         ray = self._ray
-        n_rows = len(next(iter(arrays.values())))
-        if n_rows == 0:
-            raise ValueError(f"{op}: empty batch")
-        # the local pool's chunking: the same rows go together, whatever runs them
-        rows = max(1, min(chunk_rows, math.ceil(n_rows / self.n_workers)))
-        chunks = [(start, min(start + rows, n_rows)) for start in range(0, n_rows, rows)]
+        chunks = self._chunks(op, arrays, chunk_rows)  # the local pool's chunking
         queue = deque(range(len(chunks)))
         attempts = [0] * len(chunks)
         results: list[dict | None] = [None] * len(chunks)
@@ -329,9 +291,7 @@ class RayWorkerPool:
                     submit(slot)
                     continue
                 results[index] = out
-                self.worker_cpu_seconds += float(header.get("cpu_seconds", 0.0))
-                if on_chunk_done is not None:
-                    on_chunk_done(chunks[index][1] - chunks[index][0])
+                self._chunk_done(header, chunks[index][1] - chunks[index][0], on_chunk_done)
                 submit(slot)
         except BaseException:
             for ref in in_flight:
@@ -340,7 +300,7 @@ class RayWorkerPool:
                 except Exception:  # already finished, or its actor is gone
                     pass
             raise
-        return {key: np.concatenate([r[key] for r in results]) for key in results[0]}
+        return self._stacked(results)
 
 
 def _cause(ray, error: BaseException) -> BaseException:

@@ -148,8 +148,9 @@ def executor_options(executor, name: str) -> dict:
             f"rig {name!r}: executor {kind!r} takes {sorted(known)}, not {sorted(unknown)}"
         )
     actors = options.get("actors")
-    if actors is not None and (isinstance(actors, bool) or not isinstance(actors, int)
-                               or actors < 1):  # fmt: skip
+    if actors is not None and (
+        isinstance(actors, bool) or not isinstance(actors, int) or actors < 1
+    ):
         raise RigInputError(f"rig {name!r}: executor actors must be >= 1, got {actors!r}")
     return options
 
@@ -192,8 +193,9 @@ class BlenderRig(Rig):
         path = Path(path).expanduser().resolve()
         if not path.is_file():
             raise FileNotFoundError(f"rig {name!r}: blend file {path} does not exist")
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                    or workers < 1):  # fmt: skip
+        if workers is not None and (
+            isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+        ):
             raise RigInputError(
                 f"rig {name!r}: workers must be a whole number >= 1 (or null: one per core), "
                 f"got {workers!r}"

@@ -68,11 +68,16 @@ def rotation_product(rotations: list[tuple[torch.Tensor, str]]) -> torch.Tensor:
     M = _axis_entries(*rotations[0])
     for angle, axis in rotations[1:]:
         A = _axis_entries(angle, axis)
-        M = [[_dot([A[i][k] for k in range(3)], [M[k][j] for k in range(3)]) for j in range(3)]
-             for i in range(3)]  # fmt: skip
+        M = [
+            [_dot([A[i][k] for k in range(3)], [M[k][j] for k in range(3)]) for j in range(3)]
+            for i in range(3)
+        ]
     like = rotations[0][0]
-    flat = [e if isinstance(e, torch.Tensor) else torch.full_like(like, float(e)) for row in M
-            for e in row]  # fmt: skip
+    flat = [
+        e if isinstance(e, torch.Tensor) else torch.full_like(like, float(e))
+        for row in M
+        for e in row
+    ]
     return torch.stack(flat, dim=-1).reshape(*like.shape, 3, 3)
 
 

@@ -59,8 +59,9 @@ class ChainAttributes:
         side = self.side_curl(ctx) / count if self.side_curl is not None else None
         if self.wave_amplitude is None:
             return self._rotation_of(bend, side)[:, None].expand(-1, count, 3, 3)
-        position = ctx.const([2 * math.pi * index / (count * self.wavelength)
-                              for index in range(count)])  # fmt: skip
+        position = ctx.const(
+            [2 * math.pi * index / (count * self.wavelength) for index in range(count)]
+        )
         if self.wave_phase is not None:
             position = position + self.wave_phase(ctx)[:, None]
         wave = self.wave_amplitude(ctx)[:, None] * torch.sin(position)
