@@ -75,8 +75,9 @@ class MappedClip:
 
 
 # --------------------------------------------------------------------------- map
-def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
-                    log: Log = print) -> list[MappedClip]:  # fmt: skip
+def map_from_config(
+    config: Mapping[str, Any], *, config_dir: str | os.PathLike, log: Log = print
+) -> list[MappedClip]:
     """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip."""
     from rigmap.rigs import load
 
@@ -91,17 +92,38 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
         settings = map_settings(options, rig.name)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
-            done.append(map_one(rig, targets, model, settings, out / _stem(targets.source),
-                                preview=bool(options.get("preview", True))))  # fmt: skip
+            done.append(
+                map_one(
+                    rig,
+                    targets,
+                    model,
+                    settings,
+                    out / _stem(targets.source),
+                    preview=bool(options.get("preview", True)),
+                )
+            )
             log(f"{done[-1].folder}: {_headline(done[-1].summary)}")
         return done
 
 
-def map_one(rig, targets: MappedTargets, model: SubsetModel, settings: MapSettings,
-            folder: Path, *, preview: bool = True) -> MappedClip:  # fmt: skip
+def map_one(
+    rig,
+    targets: MappedTargets,
+    model: SubsetModel,
+    settings: MapSettings,
+    folder: Path,
+    *,
+    preview: bool = True,
+) -> MappedClip:
     """Map one clip's targets and write its folder (atomically)."""
-    result = map_clip(rig, targets, model.mapping, settings, control_std=model.control_std,
-                      hold_values=model.hold_values)  # fmt: skip
+    result = map_clip(
+        rig,
+        targets,
+        model.mapping,
+        settings,
+        control_std=model.control_std,
+        hold_values=model.hold_values,
+    )
     world = result.targets
     confidence = frame_confidence(model.mapping, world)
 
@@ -137,8 +159,10 @@ def write_blend(rig, keys, fps: float, path: Path) -> None:
 def input_files(value) -> list[Path]:
     """The files an ``input`` names: one BVH or tracks file, or every ``*.bvh`` of a folder."""
     if value in (None, ""):
-        raise MapConfigError("no input: pass input=<a .bvh file, a folder of them, or a joint "
-                             "tracks .parquet/.csv/.npz file>")  # fmt: skip
+        raise MapConfigError(
+            "no input: pass input=<a .bvh file, a folder of them, or a joint "
+            "tracks .parquet/.csv/.npz file>"
+        )
     path = Path(value)
     if path.is_dir():
         files = sorted(path.glob("*.bvh"))
@@ -148,8 +172,10 @@ def input_files(value) -> list[Path]:
     if not path.is_file():
         raise FileNotFoundError(f"input {path} does not exist")
     if path.suffix.lower() not in (".bvh", *TRACK_SUFFIXES):
-        raise MapConfigError(f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
-                             "of .bvh files, .parquet, .csv or .npz")  # fmt: skip
+        raise MapConfigError(
+            f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
+            "of .bvh files, .parquet, .csv or .npz"
+        )
     return [path]
 
 
@@ -159,8 +185,10 @@ def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
     if name == MATCH:
         raise MapConfigError(f"map.retarget={MATCH} matches BVH skeletons; it names no map")
     if not name:
-        raise MapConfigError(f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
-                             f"name in {Path(config_dir) / 'retarget'}>")  # fmt: skip
+        raise MapConfigError(
+            f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
+            f"name in {Path(config_dir) / 'retarget'}>"
+        )
     path = Path(name)
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
         path = Path(config_dir) / "retarget" / f"{name}.yaml"
@@ -175,10 +203,12 @@ def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -
     retarget map's joints, and the map's name)."""
     subsets = _rig_section(options, rig.name).get("subsets") or {}
     if name not in subsets:
-        raise MapConfigError(f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
-                             f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
-                             "in map/default.yaml of the conf/ folder (for your own rig, a copy "
-                             "of conf/ given with --config-dir)")  # fmt: skip
+        raise MapConfigError(
+            f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
+            f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
+            "in map/default.yaml of the conf/ folder (for your own rig, a copy "
+            "of conf/ given with --config-dir)"
+        )
     spec = dict(subsets[name])
     if spec.get("joints") == RETARGET_JOINTS:
         if retarget is None:
@@ -362,8 +392,15 @@ def _read_clip(
 
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     layout = Layout.from_paths(config.get("paths"))
-    return obtain_subset_model(rig, subset, layout, config["regressor"], folder=config.get("model"),
-                               cache=config.get("model_cache"), log=log)  # fmt: skip
+    return obtain_subset_model(
+        rig,
+        subset,
+        layout,
+        config["regressor"],
+        folder=config.get("model"),
+        cache=config.get("model_cache"),
+        log=log,
+    )
 
 
 def _rig_options(config: Mapping) -> dict:
@@ -379,9 +416,11 @@ def _stem(source: str) -> str:
 
 
 def _headline(summary: dict) -> str:
-    return (f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
-            f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
-            f"{summary['keys']} keys")  # fmt: skip
+    return (
+        f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
+        f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
+        f"{summary['keys']} keys"
+    )
 
 
 def _progress(items, show: bool, what: str):
@@ -416,18 +455,26 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
             # toward the guess is for the many joints of a clip (MapSettings' docstring)
             plain = dataclasses.replace(settings, feet=(), prior_weight=0.0)
             controls, error, seconds = pose_from_effectors(
-                rig, model.mapping, targets, plain, control_std=model.control_std,
+                rig,
+                model.mapping,
+                targets,
+                plain,
+                control_std=model.control_std,
                 hold_values=model.hold_values,
-            )  # fmt: skip
+            )
         else:
             raise MapConfigError(f"map.pose_mode: expected 'drag' or 'batch', got {mode!r}")
         out = Path(
             config.get("out") or Layout.user_output("pose", rig.name) / Path(targets_file).stem
         )
-        write_folder_atomic(out, lambda staging: _write_poses(staging, rig, subset, controls,
-                                                              targets, error, seconds))  # fmt: skip
-        log(f"{out}: {len(controls)} pose(s), distance to the targets "
-            f"{float(error.max()):.3f} cm at most")  # fmt: skip
+        write_folder_atomic(
+            out,
+            lambda staging: _write_poses(staging, rig, subset, controls, targets, error, seconds),
+        )
+        log(
+            f"{out}: {len(controls)} pose(s), distance to the targets "
+            f"{float(error.max()):.3f} cm at most"
+        )
         return out
 
 
@@ -440,15 +487,23 @@ def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarra
     if unknown:
         raise MapConfigError(f"map.drag: unknown keys {unknown}; known: steps, carry_jacobian")
     try:
-        poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
-                                 hold_values=model.hold_values, hold=settings.hold,
-                                 damping=settings.damping, **options)  # fmt: skip
+        poser = InteractivePoser(
+            rig,
+            model.mapping,
+            control_std=model.control_std,
+            hold_values=model.hold_values,
+            hold=settings.hold,
+            damping=settings.damping,
+            **options,
+        )
     except (TypeError, ValueError) as error:
         raise MapConfigError(f"map.drag: {error}") from None
     started = time.perf_counter()
     results = [poser(frame) for frame in targets]
-    seconds = {"pose_s": time.perf_counter() - started,
-               "rig_evaluations": float(sum(r.rig_evaluations for r in results))}  # fmt: skip
+    seconds = {
+        "pose_s": time.perf_counter() - started,
+        "rig_evaluations": float(sum(r.rig_evaluations for r in results)),
+    }
     controls = np.array([r.controls for r in results])
     return controls, np.array([r.distance_cm for r in results]), seconds
 
@@ -471,6 +526,11 @@ def _write_poses(staging: Path, rig, subset, controls, targets, error, seconds) 
         ),
     )
     for k in range(len(controls)):
-        render_pose(rig, controls[k], targets[k], subset, staging / f"pose_{k}.png",
-                    title=f"{rig.name} posed from {len(subset.joints)} targets "
-                          f"({error[k]:.2f} cm RMS)")  # fmt: skip
+        render_pose(
+            rig,
+            controls[k],
+            targets[k],
+            subset,
+            staging / f"pose_{k}.png",
+            title=f"{rig.name} posed from {len(subset.joints)} targets ({error[k]:.2f} cm RMS)",
+        )

@@ -245,17 +245,30 @@ def solve_controls(rig, mapping, world, settings, control_std, hold_values, seco
     scale[held] = 0.0  # a control with scale 0 does not move
     if settings.prior_weight > 0:
         result = refine_toward_guess(
-            rig, mapping.subset.joints, Y, world, prior_weight=settings.prior_weight,
-            control_scale=scale, damping=settings.damping, iterations=settings.refine_iterations,
-            joint_weights=[settings.foot_weight if j in settings.feet else 1.0
-                           for j in mapping.subset.joints],
-        )  # fmt: skip
+            rig,
+            mapping.subset.joints,
+            Y,
+            world,
+            prior_weight=settings.prior_weight,
+            control_scale=scale,
+            damping=settings.damping,
+            iterations=settings.refine_iterations,
+            joint_weights=[
+                settings.foot_weight if j in settings.feet else 1.0 for j in mapping.subset.joints
+            ],
+        )
     else:  # plain Eq. 13 on the mapped joints
         view = WorldSubsetRig(rig, mapping.subset.joints)
         result = damped_least_squares(
-            view, Y, world, ComputedJacobian(view), damping=settings.damping,
-            max_iterations=settings.refine_iterations, control_scale=scale, keep_in_range=True,
-        )  # fmt: skip
+            view,
+            Y,
+            world,
+            ComputedJacobian(view),
+            damping=settings.damping,
+            max_iterations=settings.refine_iterations,
+            control_scale=scale,
+            keep_in_range=True,
+        )
     seconds["refine_s"] = time.perf_counter() - started
     seconds["refine_rig_evaluations"] = float(result.rig_evaluations)
     return result.Y_used

@@ -173,8 +173,9 @@ def read_tracks(
         except Exception as error:  # pyarrow and pandas raise many kinds
             raise TracksError(f"{path}: not a readable {suffix[1:]} table ({error})") from None
         return _from_table(table, unit, _need_fps(fps, path, fps_option), str(path))
-    raise TracksError(f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, "
-                      ".csv or .npz")  # fmt: skip
+    raise TracksError(
+        f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, .csv or .npz"
+    )
 
 
 def _need_fps(fps: float | None, path: Path, option: str) -> float:
