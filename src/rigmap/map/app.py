@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping
@@ -34,7 +35,7 @@ import numpy as np
 
 from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
-from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.clip import MAP_STEPS, MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
 from rigmap.map.outputs import write_map_outputs
 from rigmap.map.partial import JointSubset
@@ -57,6 +58,11 @@ from rigmap.store import (
 )
 
 TRACK_SUFFIXES = (".parquet", ".csv", ".npz")
+# Ours: the default of map.max_frames, the most frames one clip may map (about 55 minutes at
+# 30 fps); a longer request is refused before it is read or mapped.
+MAX_FRAMES = 100_000
+# Ours: a clip of more frames than this shows a progress bar (on stderr) while it is mapped.
+PROGRESS_FRAMES = 1_000
 RETARGET_JOINTS = "retarget"  # a subset whose joints are the retarget map's
 MATCH = "auto"  # map.retarget=auto: match the BVH skeleton even when the rig's default fits
 Log = Callable[[str], None]
@@ -82,8 +88,8 @@ def map_from_config(
     from rigmap.rigs import load
 
     options = config["map"]
+    window = frame_window(options)  # options first: a bad one is named before any file is read
     sources = input_files(config.get("input"))
-    window = frame_window(options)
     with load(_rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
@@ -115,17 +121,28 @@ def map_one(
     *,
     preview: bool = True,
 ) -> MappedClip:
-    """Map one clip's targets and write its folder (atomically)."""
-    result = map_clip(
-        rig,
-        targets,
-        model.mapping,
-        settings,
-        control_std=model.control_std,
-        hold_values=model.hold_values,
-    )
-    world = result.targets
-    confidence = frame_confidence(model.mapping, world)
+    """Map one clip's targets and write its folder (atomically); a clip of more than
+    :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
+    with _step_bar(targets) as bar:
+        result = map_clip(
+            rig,
+            targets,
+            model.mapping,
+            settings,
+            control_std=model.control_std,
+            hold_values=model.hold_values,
+            on_step=lambda name: _advance(bar, name),
+        )
+        world = result.targets
+        confidence = frame_confidence(model.mapping, world)
+        _advance(bar, "confidence")
+        written = _write_clip(folder, rig, result, confidence, preview=preview)
+        _advance(bar, "outputs")
+    return written
+
+
+def _write_clip(folder: Path, rig, result, confidence, *, preview: bool) -> MappedClip:
+    """The clip's folder, written whole (with its preview and, for a Blender rig, .blend)."""
 
     def extra(staging: Path) -> None:
         if preview:
@@ -288,10 +305,15 @@ def read_clips(
 def _read_source(path: Path, options: Mapping, window: FrameWindow):
     """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching); an
     npz is read for the ``window``'s frames only."""
-    if path.suffix.lower() != ".bvh":
+    suffix = path.suffix.lower()
+    if suffix != ".bvh":
         unit, fps = options.get("unit", "cm"), options.get("source_fps")
-        return read_tracks(path, unit=unit, fps=fps, window=window), None
+        tracks = read_tracks(path, unit=unit, fps=fps, window=window)
+        if suffix != ".npz":  # an npz was checked before its frames were read
+            window.check_length(len(tracks.positions), tracks.fps, path)
+        return tracks, None
     motion = read_bvh(path)
+    window.check_length(motion.n_frames, motion.fps, path)
     return tracks_from_motion(motion, str(path)), motion
 
 
@@ -346,12 +368,21 @@ def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetM
 
 
 def frame_window(options: Mapping) -> FrameWindow:
-    """``map.first_frame``, ``map.frames`` and ``map.fps``, checked (and ``map.source_fps``)."""
+    """``map.first_frame``, ``map.frames``, ``map.fps`` and ``map.max_frames``, checked (and
+    ``map.source_fps``); ``map.frames`` over the cap is refused before any file is read."""
+    cap = options.get("max_frames", MAX_FRAMES)
+    if cap is None:
+        raise MapConfigError(f"map.max_frames=None: expected an integer >= 1 (ours: {MAX_FRAMES})")
+    cap = _option({"max_frames": cap}, "max_frames", 1, "an integer >= 1 (the most frames mapped)")
     first = _option(options, "first_frame", 0, "an integer >= 0 (a source frame)")
     count = _option(options, "frames", 1, "an integer >= 1 (frames to map) or null (all)")
+    if count is not None and count > cap:
+        raise MapConfigError(
+            f"map.frames={count}: expected an integer in 1..{cap} (map.max_frames) or null (all)"
+        )
     fps = _option(options, "fps", 0.0, "a number > 0 (frames per second) or null (the source's)")
     _option(options, "source_fps", 0.0, "a number > 0 (the tracks' frames per second) or null")
-    return FrameWindow(0 if first is None else first, count, fps)
+    return FrameWindow(0 if first is None else first, count, fps, max_frames=cap)
 
 
 def _option(options: Mapping, key: str, bound, expected: str):
@@ -427,6 +458,30 @@ def _progress(items, show: bool, what: str):
     from tqdm.auto import tqdm
 
     return tqdm(items, desc=what, unit="clip", disable=not show)
+
+
+# What :func:`map_one` reports after :func:`map_clip`'s own steps.
+ONE_CLIP_STEPS = (*MAP_STEPS, "confidence", "outputs")
+
+
+def _step_bar(targets: MappedTargets):
+    """A bar over :data:`ONE_CLIP_STEPS` on stderr, shown for a long clip only."""
+    from tqdm.auto import tqdm
+
+    frames = len(targets.positions)
+    return tqdm(
+        total=len(ONE_CLIP_STEPS),
+        desc=f"map {_stem(targets.source)} ({frames} frames)",
+        unit="step",
+        file=sys.stderr,
+        disable=frames <= PROGRESS_FRAMES,
+    )
+
+
+def _advance(bar, name: str) -> None:
+    """One step of ``bar`` done; the bar names it."""
+    bar.set_postfix_str(name, refresh=False)
+    bar.update(1)
 
 
 # --------------------------------------------------------------------------- pose
