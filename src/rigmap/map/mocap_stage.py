@@ -36,19 +36,34 @@ def map_mocap(
     rig_name = config["rig"]["name"]
     written = []
     for clip in stage["clips"]:
-        settings = {**config["map"], "first_frame": stage["first_frame"], "frames": stage["frames"]}
+        window = {"first_frame": stage["first_frame"], "frames": stage["frames"]}
         source = Path(stage["folder"]) / f"{clip}.bvh"
         out = layout.rig_data(rig_name) / METRICS_SET
-        clip_config = {
-            **config,
-            "map": settings,
-            "input": str(source),
-            "out": str(out),
-            "model_cache": str(out / MODEL_FOLDER),
-        }
-        (mapped,) = map_from_config(clip_config, config_dir=config_dir, log=log)
+        mapped = map_stage_clip(config, source, out, window, config_dir=config_dir, log=log)
         written.append(write_clip_metrics(layout.metrics_folder(rig_name, METRICS_SET), mapped))
     return written
+
+
+def map_stage_clip(
+    config: Mapping[str, Any],
+    source: Path,
+    out: Path,
+    overrides: Mapping[str, Any],
+    *,
+    config_dir: str | os.PathLike,
+    log: Log,
+) -> MappedClip:
+    """One clip of a map stage into ``out/<clip>/``, with ``overrides`` over ``map`` and the
+    stage's map model cached in ``out/`` (:data:`MODEL_FOLDER`)."""
+    clip_config = {
+        **config,
+        "map": {**config["map"], **overrides},
+        "input": str(source),
+        "out": str(out),
+        "model_cache": str(out / MODEL_FOLDER),
+    }
+    (mapped,) = map_from_config(clip_config, config_dir=config_dir, log=log)
+    return mapped
 
 
 def clip_metrics(mapped: MappedClip) -> dict:

@@ -16,8 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.store import atomic_file
-
 TARGET_COLOR = "black"
 GIF_MAX_FRAMES = 48  # frames of the GIF; a longer clip is played every k-th frame (ours)
 PANEL_INCHES = 2.4
@@ -159,31 +157,22 @@ def _contact_sheet(scene: _Scene, out: Path, panels: int, columns: int, title: s
 
 
 def _gif(scene: _Scene, out: Path, fps: float, title: str) -> Path:
-    from PIL import Image
+    from rigmap.viz.gif import write_figure_gif
 
     plt = _pyplot()
     step = max(1, int(np.ceil(len(scene.world) / GIF_MAX_FRAMES)))
     fig, ax = plt.subplots(figsize=(3.4 * scene.aspect, 3.4), dpi=72)
-    images = []
+
+    def draw(index: int) -> None:
+        scene.draw(ax, index)
+        ax.set_title(title, fontsize=7)
+
     try:
-        for index in range(0, len(scene.world), step):
-            scene.draw(ax, index)
-            ax.set_title(title, fontsize=7)
-            fig.canvas.draw()
-            rgba = np.asarray(fig.canvas.buffer_rgba())
-            images.append(Image.fromarray(rgba[..., :3].copy()).quantize(colors=64))
+        frames = range(0, len(scene.world), step)
+        duration = max(20, round(1000 * step / fps))
+        return write_figure_gif(fig, draw, frames, out, duration_ms=duration)
     finally:
         plt.close(fig)
-    with atomic_file(out, suffix=".gif") as temporary:
-        images[0].save(
-            temporary,
-            format="GIF",
-            save_all=True,
-            append_images=images[1:],
-            duration=max(20, round(1000 * step / fps)),
-            loop=0,
-        )
-    return out
 
 
 def render_pose(

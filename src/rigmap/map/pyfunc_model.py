@@ -23,6 +23,7 @@ code is the installed rigmap: ``MLmodel`` names this module as ``loader_module``
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -273,18 +274,21 @@ def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignatur
     )
 
 
-def _model_arguments(
-    scratch, rig, mapping, settings, control_std, hold_values, fps, input_example
-) -> dict:
-    """What ``save_model`` and ``log_model`` both take."""
-    data = _write_artifacts(Path(scratch), rig, mapping, settings, control_std, hold_values, fps)
-    return {
-        "loader_module": LOADER_MODULE,
-        "data_path": data,
-        "signature": _signature(rig, mapping, settings, fps),
-        "input_example": input_example,
-        "pip_requirements": pinned_requirements(SubsetMapping),
-    }
+@contextlib.contextmanager
+def _model_arguments(rig, mapping, settings, control_std, hold_values, fps, input_example):
+    """What ``save_model`` and ``log_model`` both take, its artifacts in a scratch folder
+    that lasts as long as the ``with`` block."""
+    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
+        data = _write_artifacts(
+            Path(scratch), rig, mapping, settings, control_std, hold_values, fps
+        )
+        yield {
+            "loader_module": LOADER_MODULE,
+            "data_path": data,
+            "signature": _signature(rig, mapping, settings, fps),
+            "input_example": input_example,
+            "pip_requirements": pinned_requirements(SubsetMapping),
+        }
 
 
 def save_map_model(
@@ -304,10 +308,9 @@ def save_map_model(
     ``input_example`` (a few frames, :func:`input_frame`) is stored as the model's serving
     example, and MLflow maps it once while saving: a check that the saved model works.
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(
-            scratch, rig, mapping, settings, control_std, hold_values, fps, input_example
-        )
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
         return write_folder_atomic(
             path, lambda staging: mlflow.pyfunc.save_model(str(staging), **arguments)
         )
@@ -329,10 +332,9 @@ def log_map_model(
 
     Registered as ``registered_model_name`` if given (e.g. ``rigmap-<rig>-map-<subset>``).
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(
-            scratch, rig, mapping, settings, control_std, hold_values, fps, input_example
-        )
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
         return mlflow.pyfunc.log_model(
             name=name, registered_model_name=registered_model_name, **arguments
         )
