@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import argparse
 import ast
+import io
 import json
 import re
 import subprocess
 import sys
+import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,8 +50,9 @@ def allowed(path: Path) -> bool:
 
 def ruff_format(source: str, filename: str) -> str:
     """Return `source` as `ruff format` lays it out, with this project's settings."""
+    config = ["--config", str(ROOT / "pyproject.toml")]  # whatever folder the file is in
     done = subprocess.run(
-        [sys.executable, "-m", "ruff", "format", "--stdin-filename", filename, "-"],
+        [sys.executable, "-m", "ruff", "format", *config, "--stdin-filename", filename, "-"],
         input=source,
         capture_output=True,
         text=True,
@@ -72,22 +75,33 @@ def function_lengths(tree: ast.AST, prefix: str = ""):
             yield from function_lengths(node, f"{qualified}.")
 
 
-def without_fmt_skip(source: str) -> str:
+def fmt_skip_comments(source: str) -> dict[int, int]:
+    """Line number → column of each `# fmt: skip` comment (comments only, not strings that
+    mention one)."""
+    tokens = tokenize.generate_tokens(io.StringIO(source).readline)
+    return {
+        t.start[0]: t.start[1]
+        for t in tokens
+        if t.type == tokenize.COMMENT and FMT_SKIP.search(t.string)
+    }
+
+
+def without_fmt_skip(source: str, comments: dict[int, int]) -> str:
     """Drop every `# fmt: skip` comment so the formatter lays those lines out too."""
     return "\n".join(
-        FMT_SKIP.sub("", line).rstrip() if FMT_SKIP.search(line) else line
-        for line in source.splitlines()
+        line[: comments[n]].rstrip() if n in comments else line
+        for n, line in enumerate(source.splitlines(), start=1)
     )
 
 
 def shape_of(path: Path) -> FileShape:
     """Measure one file."""
     source = path.read_text(encoding="utf-8")
-    formatted = ruff_format(without_fmt_skip(source) + "\n", str(path))
+    comments = fmt_skip_comments(source)
+    formatted = ruff_format(without_fmt_skip(source, comments) + "\n", str(path))
     tree = ast.parse(formatted, filename=str(path))
     long = {q: n for q, n in function_lengths(tree) if n > MAX_FUNCTION_LINES}
-    skips = sum(1 for line in source.splitlines() if FMT_SKIP.search(line))
-    return FileShape(str(path), skips, long)
+    return FileShape(str(path), len(comments), long)
 
 
 def python_files(paths: list[Path]) -> list[Path]:
