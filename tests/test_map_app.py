@@ -384,3 +384,79 @@ def test_a_rigs_own_settings_go_over_the_map_settings():
     options["rigs"]["rigify_human"]["settings"]["no_such_setting"] = 1
     with pytest.raises(MapConfigError, match=r"map\.rigs\.rigify_human\.settings"):
         map_settings(options, "rigify_human")
+
+
+# ------------------------------------------------------------------ frame cap and progress
+def test_map_frames_over_the_cap_is_refused_before_anything_is_read(tmp_path):
+    out = tmp_path / "out"
+    config = map_config(
+        tmp_path, "input=nope.bvh", f"out={out}", "map.frames=200", "map.max_frames=100"
+    )
+    with pytest.raises(MapConfigError) as caught:  # the missing file is never reached
+        map_from_config(config, config_dir=CONF)
+    assert str(caught.value) == (
+        "map.frames=200: expected an integer in 1..100 (map.max_frames) or null (all)"
+    )
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("cap", ["0", "null", "2.5", "abc"])
+def test_a_bad_frame_cap_is_named(tmp_path, cap):
+    config = map_config(tmp_path, f"input={WALK}", f"map.max_frames={cap}")
+    with pytest.raises(MapConfigError, match=r"^map\.max_frames=.*: expected an integer >= 1"):
+        map_from_config(config, config_dir=CONF)
+
+
+def test_a_bvh_longer_than_the_cap_is_refused_before_it_is_mapped(tmp_path):
+    out = tmp_path / "out"
+    config = map_config(tmp_path, f"input={WALK}", f"out={out}", "map.max_frames=10")
+    with pytest.raises(TracksError) as caught:
+        map_from_config(config, config_dir=CONF)
+    frames = len(range(tracks_from_bvh(WALK).positions.shape[0])[::4])  # 120 fps at 30: every 4th
+    assert str(caught.value) == (
+        f"{WALK}: {frames} frames to map, more than map.max_frames=10; set map.frames to "
+        "1..10 (or raise map.max_frames)"
+    )
+    assert not out.exists()
+
+
+def test_an_npz_longer_than_the_cap_is_refused_before_its_frames_are_read(tmp_path, monkeypatch):
+    import rigmap.map.tracks
+
+    def no_allocation(*args):
+        raise AssertionError("the frames were sized for reading")
+
+    monkeypatch.setattr(rigmap.map.tracks, "check_memory", no_allocation)
+    path = tmp_path / "long.npz"
+    np.savez(path, positions=np.zeros((50, 2, 3)), joint_names=np.array(["a", "b"]), fps=30.0)
+    config = map_config(tmp_path, f"input={path}", "map.fps=null", "map.max_frames=10")
+    with pytest.raises(TracksError, match=r"long\.npz: 50 frames to map, more than map\.max_"):
+        map_from_config(config, config_dir=CONF)
+    # within the cap, the same window is read
+    window = rigmap.map.tracks.FrameWindow(count=10, max_frames=10)
+    monkeypatch.setattr(rigmap.map.tracks, "check_memory", lambda *args: None)
+    tracks = rigmap.map.tracks.read_tracks(path, unit="cm", window=window)
+    assert tracks.positions.shape == (10, 2, 3)
+
+
+@pytest.mark.parametrize(("threshold", "shown"), [(5, True), (8, False)])
+def test_a_long_clip_shows_its_progress_on_stderr(
+    mapped, project, monkeypatch, capsys, threshold, shown
+):
+    import rigmap.map.app
+
+    monkeypatch.setattr(rigmap.map.app, "PROGRESS_FRAMES", threshold)
+    config = map_config(
+        project,
+        f"input={WALK}",
+        f"out={project / 'progress'}",
+        "map.first_frame=240",
+        "map.frames=8",
+        "map.preview=false",
+        "map.settings.refine_iterations=1",
+    )
+    (clip,) = map_from_config(config, config_dir=CONF, log=lambda line: None)
+    err = capsys.readouterr().err
+    assert clip.summary["frames"] == 8
+    assert ("map cmu_131_01_walk (8 frames)" in err) is shown
+    assert ("6/6" in err and "outputs" in err) is shown

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping
@@ -34,7 +35,7 @@ import numpy as np
 
 from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
-from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.clip import MAP_STEPS, MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
 from rigmap.map.outputs import write_map_outputs
 from rigmap.map.partial import JointSubset
@@ -57,6 +58,11 @@ from rigmap.store import (
 )
 
 TRACK_SUFFIXES = (".parquet", ".csv", ".npz")
+# Ours: the default of map.max_frames, the most frames one clip may map (about 55 minutes at
+# 30 fps); a longer request is refused before it is read or mapped.
+MAX_FRAMES = 100_000
+# Ours: a clip of more frames than this shows a progress bar (on stderr) while it is mapped.
+PROGRESS_FRAMES = 1_000
 RETARGET_JOINTS = "retarget"  # a subset whose joints are the retarget map's
 MATCH = "auto"  # map.retarget=auto: match the BVH skeleton even when the rig's default fits
 Log = Callable[[str], None]
@@ -75,14 +81,15 @@ class MappedClip:
 
 
 # --------------------------------------------------------------------------- map
-def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
-                    log: Log = print) -> list[MappedClip]:  # fmt: skip
+def map_from_config(
+    config: Mapping[str, Any], *, config_dir: str | os.PathLike, log: Log = print
+) -> list[MappedClip]:
     """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip."""
     from rigmap.rigs import load
 
     options = config["map"]
+    window = frame_window(options)  # options first: a bad one is named before any file is read
     sources = input_files(config.get("input"))
-    window = frame_window(options)
     with load(_rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
@@ -91,19 +98,51 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
         settings = map_settings(options, rig.name)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
-            done.append(map_one(rig, targets, model, settings, out / _stem(targets.source),
-                                preview=bool(options.get("preview", True))))  # fmt: skip
+            done.append(
+                map_one(
+                    rig,
+                    targets,
+                    model,
+                    settings,
+                    out / _stem(targets.source),
+                    preview=bool(options.get("preview", True)),
+                )
+            )
             log(f"{done[-1].folder}: {_headline(done[-1].summary)}")
         return done
 
 
-def map_one(rig, targets: MappedTargets, model: SubsetModel, settings: MapSettings,
-            folder: Path, *, preview: bool = True) -> MappedClip:  # fmt: skip
-    """Map one clip's targets and write its folder (atomically)."""
-    result = map_clip(rig, targets, model.mapping, settings, control_std=model.control_std,
-                      hold_values=model.hold_values)  # fmt: skip
-    world = result.targets
-    confidence = frame_confidence(model.mapping, world)
+def map_one(
+    rig,
+    targets: MappedTargets,
+    model: SubsetModel,
+    settings: MapSettings,
+    folder: Path,
+    *,
+    preview: bool = True,
+) -> MappedClip:
+    """Map one clip's targets and write its folder (atomically); a clip of more than
+    :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
+    with _step_bar(targets) as bar:
+        result = map_clip(
+            rig,
+            targets,
+            model.mapping,
+            settings,
+            control_std=model.control_std,
+            hold_values=model.hold_values,
+            on_step=lambda name: _advance(bar, name),
+        )
+        world = result.targets
+        confidence = frame_confidence(model.mapping, world)
+        _advance(bar, "confidence")
+        written = _write_clip(folder, rig, result, confidence, preview=preview)
+        _advance(bar, "outputs")
+    return written
+
+
+def _write_clip(folder: Path, rig, result, confidence, *, preview: bool) -> MappedClip:
+    """The clip's folder, written whole (with its preview and, for a Blender rig, .blend)."""
 
     def extra(staging: Path) -> None:
         if preview:
@@ -137,8 +176,10 @@ def write_blend(rig, keys, fps: float, path: Path) -> None:
 def input_files(value) -> list[Path]:
     """The files an ``input`` names: one BVH or tracks file, or every ``*.bvh`` of a folder."""
     if value in (None, ""):
-        raise MapConfigError("no input: pass input=<a .bvh file, a folder of them, or a joint "
-                             "tracks .parquet/.csv/.npz file>")  # fmt: skip
+        raise MapConfigError(
+            "no input: pass input=<a .bvh file, a folder of them, or a joint "
+            "tracks .parquet/.csv/.npz file>"
+        )
     path = Path(value)
     if path.is_dir():
         files = sorted(path.glob("*.bvh"))
@@ -148,8 +189,10 @@ def input_files(value) -> list[Path]:
     if not path.is_file():
         raise FileNotFoundError(f"input {path} does not exist")
     if path.suffix.lower() not in (".bvh", *TRACK_SUFFIXES):
-        raise MapConfigError(f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
-                             "of .bvh files, .parquet, .csv or .npz")  # fmt: skip
+        raise MapConfigError(
+            f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
+            "of .bvh files, .parquet, .csv or .npz"
+        )
     return [path]
 
 
@@ -159,8 +202,10 @@ def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
     if name == MATCH:
         raise MapConfigError(f"map.retarget={MATCH} matches BVH skeletons; it names no map")
     if not name:
-        raise MapConfigError(f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
-                             f"name in {Path(config_dir) / 'retarget'}>")  # fmt: skip
+        raise MapConfigError(
+            f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
+            f"name in {Path(config_dir) / 'retarget'}>"
+        )
     path = Path(name)
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
         path = Path(config_dir) / "retarget" / f"{name}.yaml"
@@ -175,10 +220,12 @@ def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -
     retarget map's joints, and the map's name)."""
     subsets = _rig_section(options, rig.name).get("subsets") or {}
     if name not in subsets:
-        raise MapConfigError(f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
-                             f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
-                             "in map/default.yaml of the conf/ folder (for your own rig, a copy "
-                             "of conf/ given with --config-dir)")  # fmt: skip
+        raise MapConfigError(
+            f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
+            f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
+            "in map/default.yaml of the conf/ folder (for your own rig, a copy "
+            "of conf/ given with --config-dir)"
+        )
     spec = dict(subsets[name])
     if spec.get("joints") == RETARGET_JOINTS:
         if retarget is None:
@@ -258,10 +305,15 @@ def read_clips(
 def _read_source(path: Path, options: Mapping, window: FrameWindow):
     """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching); an
     npz is read for the ``window``'s frames only."""
-    if path.suffix.lower() != ".bvh":
+    suffix = path.suffix.lower()
+    if suffix != ".bvh":
         unit, fps = options.get("unit", "cm"), options.get("source_fps")
-        return read_tracks(path, unit=unit, fps=fps, window=window), None
+        tracks = read_tracks(path, unit=unit, fps=fps, window=window)
+        if suffix != ".npz":  # an npz was checked before its frames were read
+            window.check_length(len(tracks.positions), tracks.fps, path)
+        return tracks, None
     motion = read_bvh(path)
+    window.check_length(motion.n_frames, motion.fps, path)
     return tracks_from_motion(motion, str(path)), motion
 
 
@@ -316,12 +368,21 @@ def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetM
 
 
 def frame_window(options: Mapping) -> FrameWindow:
-    """``map.first_frame``, ``map.frames`` and ``map.fps``, checked (and ``map.source_fps``)."""
+    """``map.first_frame``, ``map.frames``, ``map.fps`` and ``map.max_frames``, checked (and
+    ``map.source_fps``); ``map.frames`` over the cap is refused before any file is read."""
+    cap = options.get("max_frames", MAX_FRAMES)
+    if cap is None:
+        raise MapConfigError(f"map.max_frames=None: expected an integer >= 1 (ours: {MAX_FRAMES})")
+    cap = _option({"max_frames": cap}, "max_frames", 1, "an integer >= 1 (the most frames mapped)")
     first = _option(options, "first_frame", 0, "an integer >= 0 (a source frame)")
     count = _option(options, "frames", 1, "an integer >= 1 (frames to map) or null (all)")
+    if count is not None and count > cap:
+        raise MapConfigError(
+            f"map.frames={count}: expected an integer in 1..{cap} (map.max_frames) or null (all)"
+        )
     fps = _option(options, "fps", 0.0, "a number > 0 (frames per second) or null (the source's)")
     _option(options, "source_fps", 0.0, "a number > 0 (the tracks' frames per second) or null")
-    return FrameWindow(0 if first is None else first, count, fps)
+    return FrameWindow(0 if first is None else first, count, fps, max_frames=cap)
 
 
 def _option(options: Mapping, key: str, bound, expected: str):
@@ -362,8 +423,15 @@ def _read_clip(
 
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     layout = Layout.from_paths(config.get("paths"))
-    return obtain_subset_model(rig, subset, layout, config["regressor"], folder=config.get("model"),
-                               cache=config.get("model_cache"), log=log)  # fmt: skip
+    return obtain_subset_model(
+        rig,
+        subset,
+        layout,
+        config["regressor"],
+        folder=config.get("model"),
+        cache=config.get("model_cache"),
+        log=log,
+    )
 
 
 def _rig_options(config: Mapping) -> dict:
@@ -379,15 +447,41 @@ def _stem(source: str) -> str:
 
 
 def _headline(summary: dict) -> str:
-    return (f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
-            f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
-            f"{summary['keys']} keys")  # fmt: skip
+    return (
+        f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
+        f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
+        f"{summary['keys']} keys"
+    )
 
 
 def _progress(items, show: bool, what: str):
     from tqdm.auto import tqdm
 
     return tqdm(items, desc=what, unit="clip", disable=not show)
+
+
+# What :func:`map_one` reports after :func:`map_clip`'s own steps.
+ONE_CLIP_STEPS = (*MAP_STEPS, "confidence", "outputs")
+
+
+def _step_bar(targets: MappedTargets):
+    """A bar over :data:`ONE_CLIP_STEPS` on stderr, shown for a long clip only."""
+    from tqdm.auto import tqdm
+
+    frames = len(targets.positions)
+    return tqdm(
+        total=len(ONE_CLIP_STEPS),
+        desc=f"map {_stem(targets.source)} ({frames} frames)",
+        unit="step",
+        file=sys.stderr,
+        disable=frames <= PROGRESS_FRAMES,
+    )
+
+
+def _advance(bar, name: str) -> None:
+    """One step of ``bar`` done; the bar names it."""
+    bar.set_postfix_str(name, refresh=False)
+    bar.update(1)
 
 
 # --------------------------------------------------------------------------- pose
@@ -416,18 +510,26 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
             # toward the guess is for the many joints of a clip (MapSettings' docstring)
             plain = dataclasses.replace(settings, feet=(), prior_weight=0.0)
             controls, error, seconds = pose_from_effectors(
-                rig, model.mapping, targets, plain, control_std=model.control_std,
+                rig,
+                model.mapping,
+                targets,
+                plain,
+                control_std=model.control_std,
                 hold_values=model.hold_values,
-            )  # fmt: skip
+            )
         else:
             raise MapConfigError(f"map.pose_mode: expected 'drag' or 'batch', got {mode!r}")
         out = Path(
             config.get("out") or Layout.user_output("pose", rig.name) / Path(targets_file).stem
         )
-        write_folder_atomic(out, lambda staging: _write_poses(staging, rig, subset, controls,
-                                                              targets, error, seconds))  # fmt: skip
-        log(f"{out}: {len(controls)} pose(s), distance to the targets "
-            f"{float(error.max()):.3f} cm at most")  # fmt: skip
+        write_folder_atomic(
+            out,
+            lambda staging: _write_poses(staging, rig, subset, controls, targets, error, seconds),
+        )
+        log(
+            f"{out}: {len(controls)} pose(s), distance to the targets "
+            f"{float(error.max()):.3f} cm at most"
+        )
         return out
 
 
@@ -440,15 +542,23 @@ def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarra
     if unknown:
         raise MapConfigError(f"map.drag: unknown keys {unknown}; known: steps, carry_jacobian")
     try:
-        poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
-                                 hold_values=model.hold_values, hold=settings.hold,
-                                 damping=settings.damping, **options)  # fmt: skip
+        poser = InteractivePoser(
+            rig,
+            model.mapping,
+            control_std=model.control_std,
+            hold_values=model.hold_values,
+            hold=settings.hold,
+            damping=settings.damping,
+            **options,
+        )
     except (TypeError, ValueError) as error:
         raise MapConfigError(f"map.drag: {error}") from None
     started = time.perf_counter()
     results = [poser(frame) for frame in targets]
-    seconds = {"pose_s": time.perf_counter() - started,
-               "rig_evaluations": float(sum(r.rig_evaluations for r in results))}  # fmt: skip
+    seconds = {
+        "pose_s": time.perf_counter() - started,
+        "rig_evaluations": float(sum(r.rig_evaluations for r in results)),
+    }
     controls = np.array([r.controls for r in results])
     return controls, np.array([r.distance_cm for r in results]), seconds
 
@@ -471,6 +581,11 @@ def _write_poses(staging: Path, rig, subset, controls, targets, error, seconds) 
         ),
     )
     for k in range(len(controls)):
-        render_pose(rig, controls[k], targets[k], subset, staging / f"pose_{k}.png",
-                    title=f"{rig.name} posed from {len(subset.joints)} targets "
-                          f"({error[k]:.2f} cm RMS)")  # fmt: skip
+        render_pose(
+            rig,
+            controls[k],
+            targets[k],
+            subset,
+            staging / f"pose_{k}.png",
+            title=f"{rig.name} posed from {len(subset.joints)} targets ({error[k]:.2f} cm RMS)",
+        )

@@ -34,31 +34,33 @@ def summary(result: MapResult, rig) -> dict:
     error = result.frame_error_cm
     height = rig.rest_height()
     total = sum(v for k, v in result.seconds.items() if k.endswith("_s"))
-    return json_ready({
-        "format": SUMMARY_FORMAT,
-        "rig": result.rig,
-        "source": result.source,
-        "frames": result.n_frames,
-        "fps": result.fps,
-        "mapped_joints": list(result.joint_names),
-        "joint_error_rms_cm": float(np.sqrt((error**2).mean())),
-        "joint_error_max_cm": float(error.max()),
-        "joint_error_rms_percent_of_height": float(100 * np.sqrt((error**2).mean()) / height),
-        "rig_height_cm": height,
-        "foot_skate_source_cm_per_frame": result.skate_source_cm,
-        "foot_skate_result_cm_per_frame": result.skate_result_cm,
-        "ground_penetration_source_cm": result.penetration_source_cm,
-        "ground_penetration_result_cm": result.penetration_result_cm,
-        "contact_slip_max_cm": result.contact_slip_cm,
-        "euler_flips": result.flips,
-        "largest_jump_training_std": result.largest_jump_std,
-        "keys": result.keys.key_count,
-        "keyed_controls": len(result.keys.curves),
-        "frames_times_controls": result.n_frames * len(result.keys.curves),
-        "key_tolerance_max_joint_error_cm": result.keys.max_joint_error_cm,
-        "seconds": result.seconds,
-        "frames_per_second": result.n_frames / total if total > 0 else None,
-    })  # fmt: skip
+    return json_ready(
+        {
+            "format": SUMMARY_FORMAT,
+            "rig": result.rig,
+            "source": result.source,
+            "frames": result.n_frames,
+            "fps": result.fps,
+            "mapped_joints": list(result.joint_names),
+            "joint_error_rms_cm": float(np.sqrt((error**2).mean())),
+            "joint_error_max_cm": float(error.max()),
+            "joint_error_rms_percent_of_height": float(100 * np.sqrt((error**2).mean()) / height),
+            "rig_height_cm": height,
+            "foot_skate_source_cm_per_frame": result.skate_source_cm,
+            "foot_skate_result_cm_per_frame": result.skate_result_cm,
+            "ground_penetration_source_cm": result.penetration_source_cm,
+            "ground_penetration_result_cm": result.penetration_result_cm,
+            "contact_slip_max_cm": result.contact_slip_cm,
+            "euler_flips": result.flips,
+            "largest_jump_training_std": result.largest_jump_std,
+            "keys": result.keys.key_count,
+            "keyed_controls": len(result.keys.curves),
+            "frames_times_controls": result.n_frames * len(result.keys.curves),
+            "key_tolerance_max_joint_error_cm": result.keys.max_joint_error_cm,
+            "seconds": result.seconds,
+            "frames_per_second": result.n_frames / total if total > 0 else None,
+        }
+    )
 
 
 def write_map_outputs(
@@ -92,8 +94,9 @@ def write_map_outputs(
         world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
         rest_pose = rig.pose(rig.controls.defaults[None])
         rest = (np.asarray(rest_pose.positions) + np.asarray(rest_pose.cog)[:, None, :])[0]
-        write_joint_bvh(staging / "result.bvh", rig.joint_names, rig.parents, world, rest,
-                        result.fps)  # fmt: skip
+        write_joint_bvh(
+            staging / "result.bvh", rig.joint_names, rig.parents, world, rest, result.fps
+        )
         write_json_atomic(staging / "summary.json", summary(result, rig))
         if extra is not None:
             extra(staging)

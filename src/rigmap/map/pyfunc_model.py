@@ -23,6 +23,7 @@ code is the installed rigmap: ``MLmodel`` names this module as ``loader_module``
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -134,14 +135,21 @@ class MapClipModel(PythonModel):
                 settings = dataclasses.replace(settings, refine_iterations=iterations)
             positions = request_positions(model_input, joints, fps)
             targets = MappedTargets(self._rig.name, joints, positions, fps, REQUEST, 1.0, (), ())
-            result = map_clip(self._rig, targets, self._mapping, settings,
-                              control_std=self._std, hold_values=self._hold)  # fmt: skip
+            result = map_clip(
+                self._rig,
+                targets,
+                self._mapping,
+                settings,
+                control_std=self._std,
+                hold_values=self._hold,
+            )
         except MlflowException:
             raise
         except RigmapError as error:  # bad settings, frames without a heading ...: the request's
             raise MapModelInputError(f"map model: {error}") from None
-        return pd.DataFrame(result.controls, columns=self._rig.control_names,
-                            index=model_input.index)  # fmt: skip
+        return pd.DataFrame(
+            result.controls, columns=self._rig.control_names, index=model_input.index
+        )
 
 
 def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarray:
@@ -166,8 +174,9 @@ def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarr
             f"{REQUEST}: joint columns are not all numbers ({error})"
         ) from None
     try:  # JointTracks names the joint, axis and row of a NaN or inf, or an empty clip
-        tracks = JointTracks(tuple(joints), values.reshape(len(table), len(joints), 3), fps,
-                             "cm", REQUEST)  # fmt: skip
+        tracks = JointTracks(
+            tuple(joints), values.reshape(len(table), len(joints), 3), fps, "cm", REQUEST
+        )
     except TracksError as error:
         raise MapModelInputError(str(error)) from None
     return tracks.positions
@@ -175,8 +184,9 @@ def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarr
 
 # --------------------------------------------------------------------------- the spec file
 def settings_to_dict(settings: MapSettings) -> dict:
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in
-            dataclasses.asdict(settings).items()}  # fmt: skip
+    return {
+        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(settings).items()
+    }
 
 
 def settings_from_dict(data: Any, where: str | os.PathLike) -> MapSettings:
@@ -264,13 +274,21 @@ def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignatur
     )
 
 
-def _model_arguments(scratch, rig, mapping, settings, control_std, hold_values, fps,
-                     input_example) -> dict:  # fmt: skip
-    """What ``save_model`` and ``log_model`` both take."""
-    data = _write_artifacts(Path(scratch), rig, mapping, settings, control_std, hold_values, fps)
-    return {"loader_module": LOADER_MODULE, "data_path": data,
-            "signature": _signature(rig, mapping, settings, fps), "input_example": input_example,
-            "pip_requirements": pinned_requirements(SubsetMapping)}  # fmt: skip
+@contextlib.contextmanager
+def _model_arguments(rig, mapping, settings, control_std, hold_values, fps, input_example):
+    """What ``save_model`` and ``log_model`` both take, its artifacts in a scratch folder
+    that lasts as long as the ``with`` block."""
+    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
+        data = _write_artifacts(
+            Path(scratch), rig, mapping, settings, control_std, hold_values, fps
+        )
+        yield {
+            "loader_module": LOADER_MODULE,
+            "data_path": data,
+            "signature": _signature(rig, mapping, settings, fps),
+            "input_example": input_example,
+            "pip_requirements": pinned_requirements(SubsetMapping),
+        }
 
 
 def save_map_model(
@@ -290,9 +308,9 @@ def save_map_model(
     ``input_example`` (a few frames, :func:`input_frame`) is stored as the model's serving
     example, and MLflow maps it once while saving: a check that the saved model works.
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(scratch, rig, mapping, settings, control_std,
-                                     hold_values, fps, input_example)  # fmt: skip
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
         return write_folder_atomic(
             path, lambda staging: mlflow.pyfunc.save_model(str(staging), **arguments)
         )
@@ -314,11 +332,12 @@ def log_map_model(
 
     Registered as ``registered_model_name`` if given (e.g. ``rigmap-<rig>-map-<subset>``).
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(scratch, rig, mapping, settings, control_std,
-                                     hold_values, fps, input_example)  # fmt: skip
-        return mlflow.pyfunc.log_model(name=name, registered_model_name=registered_model_name,
-                                       **arguments)  # fmt: skip
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
+        return mlflow.pyfunc.log_model(
+            name=name, registered_model_name=registered_model_name, **arguments
+        )
 
 
 def export_map_model(
@@ -343,5 +362,12 @@ def export_map_model(
     rig = load(rig_name)
     mapping = SubsetMapping.load(mapping_folder, rig)
     Y = read_corpus_split(rig, layout or Layout(), "train").values()
-    return save_map_model(out, rig, mapping, settings or MapSettings(), control_std=control_std(Y),
-                          hold_values=np.median(Y, axis=0), fps=fps)  # fmt: skip
+    return save_map_model(
+        out,
+        rig,
+        mapping,
+        settings or MapSettings(),
+        control_std=control_std(Y),
+        hold_values=np.median(Y, axis=0),
+        fps=fps,
+    )

@@ -95,8 +95,18 @@ class RetargetMap:
     def from_mapping(cls, data, *, source_file: str = "<retarget map>") -> RetargetMap:
         if not isinstance(data, Mapping):
             raise RetargetMapError(f"{source_file}: expected a mapping, got {type(data).__name__}")
-        allowed = {"name", "rig", "joints", "up", "forward", "left", "scale",
-                   "preserve_lengths", "ground", "ignore"}  # fmt: skip
+        allowed = {
+            "name",
+            "rig",
+            "joints",
+            "up",
+            "forward",
+            "left",
+            "scale",
+            "preserve_lengths",
+            "ground",
+            "ignore",
+        }
         unknown = sorted(set(data) - allowed)
         if unknown:
             raise RetargetMapError(
@@ -114,8 +124,12 @@ class RetargetMap:
             )
         options = {k: v for k, v in data.items() if k not in ("joints", "ignore")}
         options.setdefault("name", Path(source_file).stem)
-        return cls(joints=joints, ignore=tuple(data.get("ignore") or ()), source_file=source_file,
-                   **options)  # fmt: skip
+        return cls(
+            joints=joints,
+            ignore=tuple(data.get("ignore") or ()),
+            source_file=source_file,
+            **options,
+        )
 
     # --- axes ----------------------------------------------------------------------------
     def _axes_matrix(self) -> np.ndarray:
@@ -166,8 +180,16 @@ class RetargetMap:
                 f"{self.source_file} (add them to 'joints', or to 'ignore' to silence this)",
                 stacklevel=2,
             )
-        return MappedTargets(rig.name, tuple(rig_names), positions, tracks.fps, tracks.source,
-                             scale, undriven, unused)  # fmt: skip
+        return MappedTargets(
+            rig.name,
+            tuple(rig_names),
+            positions,
+            tracks.fps,
+            tracks.source,
+            scale,
+            undriven,
+            unused,
+        )
 
     def _edges(self, rig) -> tuple[list[str], list[tuple[int, int]]]:
         """Mapped rig joints in hierarchy order and (parent, child) pairs between them."""
