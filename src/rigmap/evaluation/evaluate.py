@@ -89,6 +89,7 @@ def evaluate(
         gpr_kernel=gpr_kernel,
         catalog={name: configured.method for name, configured in catalog.items()},
         test_split=settings.test_split,
+        replicate=layout.replicate,
     )
     models = FittedModels(layout, rig)
     models.check(jobs)  # every folder exists before minutes of work start

@@ -32,7 +32,7 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
             raise EvaluationSetupError(f"evaluate stage config: no {group!r} group")
     settings = EvaluationSettings.from_mapping(config["evaluate"])
     catalog = method_catalog(config["method"])
-    layout = Layout.from_paths(config["paths"])
+    layout = Layout.from_paths(config["paths"], config.get("replicate"))
     rig = rig_from_mapping(config["rig"])
     if config.get("executor") is not None:
         from rigmap.stage.inputs import use_executor

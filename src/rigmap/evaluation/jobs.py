@@ -58,6 +58,7 @@ def evaluation_jobs(
     gpr_kernel: str = "multiquadric",
     catalog: Mapping[str, Method] = METHODS,
     test_split: str = "test",
+    replicate: int | None = None,
 ) -> list[EvaluationJob]:
     """The runs of one evaluate stage; ``catalog`` holds the methods by name.
 
@@ -73,7 +74,7 @@ def evaluation_jobs(
             f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
         )
     folder = set_folder(set_name, test_split)
-    root = Layout(metrics=Path(metrics_folder)).metrics_folder(rig, folder)
+    root = Layout(metrics=Path(metrics_folder), replicate=replicate).metrics_folder(rig, folder)
     jobs = []
     if set_name == "methods":
         for name in methods:

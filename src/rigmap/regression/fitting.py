@@ -55,6 +55,7 @@ from rigmap.regression.placement import Placement, find_placement
 from rigmap.sampling import sampler_name
 from rigmap.sampling.supersample import load_samples
 from rigmap.store import Layout, ModelId, json_ready, write_folder_atomic, write_json_atomic
+from rigmap.store.layout import REPLICATED_REGRESSORS
 
 FIT_FORMAT = "rigmap.fit/1"
 TRAIN_SPLIT = "train"
@@ -280,12 +281,31 @@ def fit_from_config(config: Mapping[str, Any], *, log: Log = _print) -> FitResul
         return _fit_with_rig(config, rig, started, log)
 
 
+def _replicate_of(config: Mapping[str, Any]) -> tuple[Layout, Regressor]:
+    """The layout and regressor of a fit; a ``replicate`` seed k (issue #36) re-fits a trained
+    network with only its training seed set to k, into the replicate's own folder."""
+    replicate = config.get("replicate")
+    try:
+        layout = Layout.from_paths(config["paths"], replicate)
+    except ValueError as error:
+        raise FitInputError(str(error)) from None
+    model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
+    if replicate is None:
+        return layout, model
+    if model.name not in REPLICATED_REGRESSORS:
+        raise FitInputError(
+            f"replicate={replicate}: only the trained networks "
+            f"({', '.join(REPLICATED_REGRESSORS)}) have replicate seeds, not {model.name}"
+        )
+    seeded = {**config["regressor"], "seed": replicate}
+    return layout, instantiate_as(seeded, Regressor, "regressor", FitInputError)
+
+
 def _fit_with_rig(config: Mapping[str, Any], rig, started: float, log: Log) -> FitResult:
     sampler = sampler_name(config["sampler"])
-    model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
+    layout, model = _replicate_of(config)
     regressor, kernel_label = model.name, model.kernel_name
     model_id = ModelId(regressor, sampler, kernel_label)
-    layout = Layout.from_paths(config["paths"])
     folder = layout.model(rig.name, model_id)
     log(f"fit {rig.name}: {regressor} (kernel {kernel_label}, sampler {sampler}) -> {folder}")
 

@@ -106,6 +106,8 @@ class RigMetrics:
     joint_space_sweep: dict[int, LoadedResult] = field(default_factory=dict)
     #: Table 1's rows scored on other splits (``heldout``, ``train``): split -> method -> result
     splits: dict[str, dict[str, LoadedResult]] = field(default_factory=dict)
+    #: Table 1's network rows re-trained with replicate seeds (issue #36): seed -> method -> result
+    replicates: dict[int, dict[str, LoadedResult]] = field(default_factory=dict)
 
     @property
     def length_unit(self) -> str:
@@ -321,8 +323,16 @@ def load_metrics(
             Path(metrics_root) / rig / JOINT_SPACE_SWEEP_FOLDER, rig, clips
         )
         metrics.splits = _read_splits(Path(metrics_root) / rig, rig)
+        metrics.replicates = read_replicates(Path(metrics_root) / rig, rig, clips)
         tree[rig] = metrics
     return tree
+
+
+def read_replicates(rig_folder: Path, rig: str, clips) -> dict[int, dict[str, LoadedResult]]:
+    """The rig's replicate seeds' network rows (:mod:`rigmap.reports.seed_spread`)."""
+    from rigmap.reports.seed_spread import read_replicates as read
+
+    return read(rig_folder, rig, clips)
 
 
 def _read_splits(rig_folder: Path, rig: str) -> dict[str, dict[str, LoadedResult]]:

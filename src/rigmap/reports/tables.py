@@ -20,6 +20,7 @@ from rigmap.reports import published
 from rigmap.reports.catalog import KERNELS, METHODS, SAMPLERS, find_row, rig_label
 from rigmap.reports.metrics_tree import LoadedResult, Numbers, ReportInputError, RigMetrics
 from rigmap.reports.rig_facts import RigFacts
+from rigmap.reports.seed_spread import Spread, compare, row_spread
 from rigmap.reports.settings import ReportSettings
 from rigmap.reports.table import MISSING, Column, Table, format_error, format_seconds
 
@@ -70,25 +71,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     }
     tree = {rig: metrics for rig, metrics in tree.items() if settings.methods_for(rig)}
     unit = _unit_label({r.length_unit for m in tree.values() for r in m.methods.values()})
-    distance = unit.removesuffix(SQUARE)
-    value_labels = [
-        f"Joint Error ({unit})",
-        f"Joint RMS ({distance})",
-        "Joint RMS (% of height)",
-        "Joint Error ÷ Mean Predictor's",
-        "Ground Truth Error",
-        "Total Time (s)",
-        "Frames per Sec",
-    ]
-    columns = [Column("Character/Motion", numeric=False), Column("Method", numeric=False)]
-    columns += [Column(label, OURS, short_group="") for label in value_labels]
-    columns += [
-        Column(label, published.LABEL, short_group="published")
-        for label in (
-            "Joint Error (unit not stated)", "Ground Truth Error", "Total Time (s)",
-            "Frames per Sec",
-        )
-    ]  # fmt: skip
+    columns = _methods_columns(unit)
 
     rows, classes, records, budget_notes = [], [], [], []
     for rig, metrics in tree.items():
@@ -105,7 +88,8 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                 row_kind = find_row(METHODS, method, "method")
                 paper = published.table1_value(rig, motion, method)
                 label = f"{rig_label(rig)} — {shown}" if index == 0 else ""
-                cells = [label, row_kind.display, *_method_cells(numbers, baseline)]
+                spreads = _row_spreads(metrics, result, motion)
+                cells = [label, row_kind.display, *_method_cells(numbers, baseline, spreads)]
                 rows.append(cells + _paper_cells(paper))
                 css = ["group-start" if index == 0 else ""]
                 css += ["average" if motion == published.AVERAGE else "", "extra" * row_kind.extra]
@@ -119,6 +103,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         "extra": row_kind.extra,
                         "sampler": result.sampler,
                         **_number_record(numbers),
+                        **_spread_record(numbers, spreads),
                         **_relative_record(numbers, baseline),
                         "novelty_error_spearman": result.novelty_spearman
                         if motion == published.AVERAGE
@@ -129,6 +114,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                     }
                 )
     notes = _methods_notes(settings) + budget_notes + _left_out_notes(tree, others, settings)
+    notes += seed_notes(tree)
     return Table(
         name="table1_methods",
         title="Table 1 — inverse rig mapping methods on the test clips",
@@ -138,6 +124,33 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
         notes=notes,
         row_classes=classes,
     )
+
+
+def _methods_columns(unit: str) -> list[Column]:
+    """Table 1's columns: ours (a network row's errors with their min–max over seeds), then
+    the published values."""
+    distance = unit.removesuffix(SQUARE)
+    value_labels = [
+        f"Joint Error ({unit})",
+        f"Joint RMS ({distance})",
+        "Joint RMS (% of height)",
+        "Joint Error ÷ Mean Predictor's",
+        "Ground Truth Error",
+        "Total Time (s)",
+        "Frames per Sec",
+    ]
+    columns = [Column("Character/Motion", numeric=False), Column("Method", numeric=False)]
+    columns += [Column(label, OURS, short_group="") for label in value_labels]
+    columns.insert(3, Column("Joint Error min–max (seeds)", OURS, numeric=False, short_group=""))
+    columns.insert(8, Column("Ground Truth min–max (seeds)", OURS, numeric=False, short_group=""))
+    columns += [
+        Column(label, published.LABEL, short_group="published")
+        for label in (
+            "Joint Error (unit not stated)", "Ground Truth Error", "Total Time (s)",
+            "Frames per Sec",
+        )
+    ]  # fmt: skip
+    return columns
 
 
 def _methods_notes(settings: ReportSettings) -> list[str]:
@@ -238,18 +251,103 @@ def _ratio(value: float, baseline: float | None) -> float | None:
     return None if baseline is None or baseline <= 0 else value / baseline
 
 
-def _method_cells(numbers: Numbers, baseline: Numbers | None) -> list[str]:
+def _method_cells(
+    numbers: Numbers, baseline: Numbers | None, spreads: dict[str, Spread | None]
+) -> list[str]:
+    """A row's cells: a network row's errors are the median over seeds, its min–max beside."""
     percent = numbers.joint_rms_percent_of_height
     relative = _ratio(numbers.joint_error, baseline and baseline.joint_error)
+    joint, truth = spreads["joint_error"], spreads["ground_truth_error"]
     return [
-        format_error(numbers.joint_error),
+        format_error(numbers.joint_error if joint is None else joint.median),
+        _range_cell(joint),
         format_error(numbers.joint_rms),
         MISSING if percent is None else format_seconds(percent),
         MISSING if relative is None else format_error(relative),
-        format_error(numbers.ground_truth_error),
+        format_error(numbers.ground_truth_error if truth is None else truth.median),
+        _range_cell(truth),
         format_seconds(numbers.total_time_s),
         format_seconds(numbers.fps),
     ]
+
+
+def _row_spreads(metrics: RigMetrics, result: LoadedResult, motion: str) -> dict:
+    """The row's joint and ground-truth errors over seeds (None: not a network row, or no
+    replicate seed was run)."""
+    clip = None if motion == published.AVERAGE else motion
+    return {
+        measure: row_spread(result, metrics.replicates, clip, measure)
+        for measure in ("joint_error", "ground_truth_error")
+    }
+
+
+def _range_cell(spread: Spread | None) -> str:
+    if spread is None:
+        return MISSING
+    return f"{format_error(spread.low)}–{format_error(spread.high)} ({spread.seeds})"
+
+
+def _spread_record(numbers: Numbers, spreads: dict[str, Spread | None]) -> dict:
+    """The csv's seed columns: median, min, max over seeds (seed 0 alone: 1 seed)."""
+    record: dict[str, Any] = {}
+    seeds = 1
+    for measure, spread in spreads.items():
+        if spread is None:
+            spread = Spread.of([getattr(numbers, measure)])
+        seeds = spread.seeds
+        record |= {
+            f"{measure}_median": spread.median,
+            f"{measure}_min": spread.low,
+            f"{measure}_max": spread.high,
+        }
+    return record | {"seeds": seeds}
+
+
+#: the comparisons the report states between Table 1 rows (ours): (row, other row or a bar)
+CLAIMS = (
+    ("nn_joint_space", "gpr_computed_jacobian"),
+    ("nn_joint_space_tuned", 0.5),  # the tuning's bar (docs/inverse-mappings.md, session 34)
+)
+
+
+def seed_notes(tree: Mapping[str, RigMetrics]) -> list[str]:
+    """Per rig run with replicate seeds: what its network cells show, then each claim of
+    ``CLAIMS`` on the Average joint error, judged by the spread (a note each)."""
+    notes = []
+    for rig, metrics in tree.items():
+        if not metrics.replicates:
+            continue
+        seeds = ", ".join(str(k) for k in (0, *metrics.replicates))
+        notes.append(
+            f"{rig_label(rig)}: network rows (trained guesses) were re-trained with seeds "
+            f"{seeds}; their Joint and Ground Truth Error cells give the median over the seeds "
+            "and the min–max beside (the csv: *_median, *_min, *_max and seeds, while "
+            "joint_error stays seed 0's); their other columns are seed 0's."
+        )
+        for row, other in CLAIMS:
+            claim = _claim(metrics, row, other) if row in metrics.methods else None
+            if claim:
+                notes.append(f"{rig_label(rig)}, Average joint error: {claim}.")
+    return notes
+
+
+def _claim(metrics: RigMetrics, row: str, other: str | float) -> str | None:
+    if isinstance(other, str) and other not in metrics.methods:
+        return None
+    unit = f"{metrics.methods[row].length_unit}{SQUARE}"
+    label = find_row(METHODS, row, "method").label
+    if isinstance(other, str):
+        other_label = find_row(METHODS, other, "method").label
+        return compare(
+            label, _average_spread(metrics, row), other_label, _average_spread(metrics, other), unit
+        )
+    return compare(label, _average_spread(metrics, row), "the bar", other, unit)
+
+
+def _average_spread(metrics: RigMetrics, method: str) -> Spread:
+    result = metrics.methods[method]
+    spread = row_spread(result, metrics.replicates, None, "joint_error")
+    return spread if spread is not None else Spread.of([result.average.joint_error])
 
 
 def _relative_record(numbers: Numbers, baseline: Numbers | None) -> dict:

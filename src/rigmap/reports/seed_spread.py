@@ -1,0 +1,129 @@
+"""Table 1's network rows over training seeds (issue #36): median, min–max and the count.
+
+Float32 training follows the rounding of the CPU's code path, so a network row moves on
+another host; seed 0 (``metrics/<rig>/methods/``) and each replicate seed k
+(``metrics/<rig>/methods_seed<k>/``, the ``*_seed`` DVC stages) give a row's spread. A
+comparison the report states between rows holds only by more than that spread.
+"""
+
+from __future__ import annotations
+
+import re
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from rigmap.reports.metrics_tree import LoadedResult, ReportInputError, read_result
+
+#: Table 1's rows whose guess is a trained network (re-fitted per replicate seed)
+NETWORK_METHODS = (
+    "nn",
+    "nn_computed_jacobian",
+    "nn_learned_jacobian",
+    "nn_autodiff_jacobian",
+    "nn_joint_space",
+    "nn_joint_space_computed_jacobian",
+    "nn_joint_space_tuned",
+)
+MEASURES = ("joint_error", "ground_truth_error")
+_SEED_FOLDER = re.compile(r"^methods_seed(?P<k>[1-9]\d*)$")
+
+
+@dataclass(frozen=True)
+class Spread:
+    """A value over seeds: its median, least and greatest, and how many seeds."""
+
+    median: float
+    low: float
+    high: float
+    seeds: int
+
+    @property
+    def width(self) -> float:
+        return self.high - self.low
+
+    @classmethod
+    def of(cls, values: Sequence[float]) -> Spread:
+        if not values:
+            raise ValueError("a spread needs at least one value")
+        values = [float(v) for v in values]
+        return cls(statistics.median(values), min(values), max(values), len(values))
+
+
+def read_replicates(
+    rig_folder: str | Path, rig: str, clips: Sequence[str] | None = None
+) -> dict[int, dict[str, LoadedResult]]:
+    """A rig's ``methods_seed<k>/<method>-<sampler>.json``: seed -> method -> result."""
+    folder = Path(rig_folder)
+    found: dict[int, dict[str, LoadedResult]] = {}
+    for seed_folder in sorted(folder.glob("methods_seed*")) if folder.is_dir() else ():
+        match = _SEED_FOLDER.match(seed_folder.name)
+        if match is None or not seed_folder.is_dir():
+            raise ReportInputError(f"{seed_folder}: expected a folder methods_seed<k> (k >= 1)")
+        results = {}
+        for path in sorted(seed_folder.glob("*.json")):
+            method, _, sampler = path.stem.partition("-")
+            if method not in NETWORK_METHODS or not sampler:
+                raise ReportInputError(
+                    f"{path}: unexpected file; a replicate seed holds network rows "
+                    f"<method>-<sampler>.json of {', '.join(NETWORK_METHODS)}"
+                )
+            results[method] = read_result(
+                path, rig=rig, method=method, sampler=sampler, clips=clips
+            )
+        found[int(match["k"])] = results
+    return dict(sorted(found.items()))
+
+
+def row_spread(
+    seed0: LoadedResult,
+    replicates: Mapping[int, Mapping[str, LoadedResult]],
+    motion: str | None,
+    measure: str,
+) -> Spread | None:
+    """``measure`` of one row (``motion`` None: the Average) over seed 0 and every replicate;
+    None for a row that is not a network's or when no replicate seed was run."""
+    if seed0.method not in NETWORK_METHODS or not replicates:
+        return None
+    results = [seed0]
+    for seed, methods in replicates.items():
+        if seed0.method not in methods:
+            raise ReportInputError(
+                f"replicate seed {seed} of rig {seed0.rig!r} has no {seed0.method!r} row "
+                f"(seed 0 has one): its evaluate_seed stage did not run it"
+            )
+        results.append(methods[seed0.method])
+    numbers = [r.average if motion is None else r.clips[motion] for r in results]
+    return Spread.of([getattr(n, measure) for n in numbers])
+
+
+def compare(name_a: str, a: Spread | float, name_b: str, b: Spread | float, unit: str = "") -> str:
+    """``a`` against ``b`` as a sentence: below / above only by more than the larger spread
+    (max - min over seeds), else "not significant"."""
+    a_spread, b_spread = _as_spread(a), _as_spread(b)
+    margin = max(a_spread.width, b_spread.width)
+    gap = b_spread.median - a_spread.median
+    if gap > margin:
+        verdict = "below by more than the spread"
+    elif -gap > margin:
+        verdict = "above by more than the spread"
+    else:
+        verdict = "not significant (the difference is within the spread over seeds)"
+    return (
+        f"{name_a} {describe(a_spread, unit)} against {name_b} {describe(b_spread, unit)}: "
+        f"{verdict}"
+    )
+
+
+def describe(spread: Spread, unit: str = "") -> str:
+    """``4.78 cm² (4.35–5.00 over 3 seeds)``, or the value alone for one seed."""
+    unit = f" {unit}" if unit else ""
+    if spread.seeds == 1:
+        return f"{spread.median:.3g}{unit}"
+    span = f"{spread.low:.3g}–{spread.high:.3g}"
+    return f"{spread.median:.3g}{unit} ({span} over {spread.seeds} seeds)"
+
+
+def _as_spread(value: Spread | float) -> Spread:
+    return value if isinstance(value, Spread) else Spread.of([value])
