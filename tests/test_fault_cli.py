@@ -60,28 +60,32 @@ def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
     )
 
 
-HOSTILE_SEEDS = ["0; touch X", "$(touch X)", "`touch X`"]
+HOSTILE_SEEDS = {
+    "seed_semicolon": "0; touch X",
+    "seed_dollar": "$(touch X)",
+    "seed_backticks": "`touch X`",
+}
 
 
+@pytest.mark.parametrize("seed", list(HOSTILE_SEEDS.values()), ids=list(HOSTILE_SEEDS))
 @pytest.mark.parametrize("flag", ["--single-item", "-s"])
-def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(tmp_path, flag):
+def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(
+    tmp_path, flag, seed
+):
     """Trial: seed "0; touch X" (and $(...), backticks) once data/params_checked.txt exists."""
-    for number, seed in enumerate(HOSTILE_SEEDS):
-        project = _project(tmp_path / f"{number}", seed=seed)
-        assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
-        (project / "data").mkdir()
-        (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
-        done = _dvc(project, "repro", flag, "animate@biped")
-        output = done.stdout + done.stderr
-        assert done.returncode != 0, output[-2000:]
-        assert not (project / "X").exists(), f"{seed!r} ran a shell command"
-        assert not (project / "data" / "biped").exists()  # the stage itself never started
-        message = (
-            f"error: animate: params.yaml: 1 bad value(s), the stage did not run: seed = {seed!r}"
-        )
-        assert message in output, output[-2000:]
-        assert "expected an integer (as in conf/), got a string" in output
-        assert "Traceback" not in output
+    project = _project(tmp_path, seed=seed)
+    assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
+    (project / "data").mkdir()
+    (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
+    done = _dvc(project, "repro", flag, "animate@biped")
+    output = done.stdout + done.stderr
+    assert done.returncode != 0, output[-2000:]
+    assert not (project / "X").exists(), f"{seed!r} ran a shell command"
+    assert not (project / "data" / "biped").exists()  # the stage itself never started
+    message = f"error: animate: params.yaml: 1 bad value(s), the stage did not run: seed = {seed!r}"
+    assert message in output, output[-2000:]
+    assert "expected an integer (as in conf/), got a string" in output
+    assert "Traceback" not in output
 
 
 def test_every_stage_command_is_a_fixed_string_whose_values_are_declared_params():
