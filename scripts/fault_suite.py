@@ -434,12 +434,15 @@ def messages(item) -> list[str]:
     }
     params = item.callspec.params if hasattr(item, "callspec") else {}
     scope = {"params": params, "assigned": assigned, "globals": vars(item.module)}
+    expressions = sorted(
+        (expression for node in ast.walk(tree) for expression in _asserted(node)),
+        key=lambda expression: (expression.lineno, expression.col_offset),
+    )
     found = []
-    for node in ast.walk(tree):
-        for expression in _asserted(node):
-            text = _text(expression, scope)
-            if text and len(text) > 3 and text not in found:
-                found.append(text)
+    for expression in expressions:
+        text = _text(expression, scope)
+        if text and len(text) > 3 and text not in found:
+            found.append(text)
     return found
 
 
@@ -499,6 +502,10 @@ def _trial_rows(items: list) -> list[str]:
 
 def render(items: list) -> str:
     """The page: counts, the issue's trials, then every case by category."""
+    names = {case_name(item) for item in items} | {item.originalname for item in items}
+    unused = sorted(set(TEST_CATEGORY) - names)
+    if unused:
+        raise SystemExit(f"fault_suite: TEST_CATEGORY names tests that do not exist: {unused}")
     by_category = {key: [item for item in items if category(item) == key] for key in CATEGORIES}
     bad = sum(len(cases) for key, cases in by_category.items() if key != CONTROL)
     files = Counter(item.path.name for item in items)
