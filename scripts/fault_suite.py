@@ -139,6 +139,7 @@ TEST_CATEGORY = {
     "test_a_corrupted_cached_rigify_blend_is_generated_again": "other",
     # tests/test_faults_kills.py, test_faults_model_folder.py, test_faults_models.py
     "test_kill_9_mid_stage_then_rerun_gives_identical_outputs": "kills",
+    "test_kill_9_mid_rigmap_map_then_rerun_gives_identical_outputs": "kills",
     "test_a_fit_folder_without_its_placement_is_refused": "other",
     "test_untouched_model_loads_and_predicts": "check",
     "test_tampered_interface_naming_a_module_is_refused_without_importing_it": "code",
@@ -343,8 +344,11 @@ TRIALS = [
     ),
     (
         "kills",
-        "kill -9 and rerun (the fit stage; a DVC stage: animate, pose)",
-        ["test_kill_9_mid_stage_then_rerun_gives_identical_outputs"],
+        "kill -9 and rerun of `rigmap map`, `rigmap fit` (the fit stage) and a DVC stage",
+        [
+            "test_kill_9_mid_rigmap_map_then_rerun_gives_identical_outputs",
+            "test_kill_9_mid_stage_then_rerun_gives_identical_outputs",
+        ],
     ),
 ]
 
