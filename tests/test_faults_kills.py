@@ -59,10 +59,10 @@ def _command(stage: str, folder: Path) -> list[str]:
 
 
 def _run(stage: str, folder: Path) -> None:
+    command = _command(stage, folder)
     done = subprocess.run(
-        _command(stage, folder), cwd=folder, env=_env(), capture_output=True, text=True,
-        timeout=600,
-    )  # fmt: skip
+        command, cwd=folder, env=_env(), capture_output=True, text=True, timeout=600
+    )
     assert done.returncode == 0, done.stderr[-3000:]
 
 
