@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pathlib
 import pickle
 import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -347,6 +349,43 @@ def test_regression_payload_path_outside_the_folder_is_refused(gpr_folder, tmp_p
     with pytest.raises(ModelFileError, match="payload") as error:
         load_regressor(folder)
     _one_line(error, "gpr.json")
+
+
+_OPENED: list[str] | None = None  # while a list, every file opened is recorded in it
+
+
+def _record_open(event: str, args: tuple) -> None:
+    if event == "open" and _OPENED is not None and isinstance(args[0], (str, bytes, os.PathLike)):
+        _OPENED.append(os.fsdecode(args[0]))
+
+
+_MODULE_FILES = (".py", ".pyc", ".so")  # a lazy import opens these: not model data
+sys.addaudithook(_record_open)  # audit hooks cannot be removed; this one records only on demand
+
+
+@pytest.mark.parametrize(
+    "outside", ["../../x.npz", "/etc/passwd"], ids=["payload_dot_dot_x_npz", "payload_etc_passwd"]
+)
+def test_regression_payload_outside_with_its_true_hash_is_never_read(gpr_folder, tmp_path, outside):
+    """Trial 4: ``"payload": "../../x.npz"`` or ``"/etc/passwd"`` signed with that file's
+    true hash is refused before it is opened (an audit hook records every open)."""
+    global _OPENED
+    folder = _gpr_copy(gpr_folder, tmp_path / "a" / "b")
+    target = (folder / outside).resolve()
+    if outside.startswith(".."):
+        shutil.copy(folder / "gpr.npz", target)
+    meta = json.loads((folder / "gpr.json").read_text())
+    meta.update(payload=outside, payload_sha256=hashlib.sha256(target.read_bytes()).digest().hex())
+    (folder / "gpr.json").write_text(json.dumps(meta))
+    _OPENED = []
+    try:
+        with pytest.raises(ModelFileError, match="outside the model folder") as error:
+            load_regressor(folder)
+        opened = [pathlib.Path(n).resolve() for n in _OPENED if not n.endswith(_MODULE_FILES)]
+    finally:
+        _OPENED = None
+    _one_line(error, "gpr.json", repr(outside))
+    assert opened and all(path.is_relative_to(folder.resolve()) for path in opened), opened
 
 
 def test_regression_payload_symlinked_out_of_the_folder_is_refused(gpr_folder, tmp_path):
