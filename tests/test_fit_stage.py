@@ -409,3 +409,19 @@ def test_sample_sweep_refuses_counts_it_cannot_draw():
         sweep.sample_counts([0.0], 100, 100)
     with pytest.raises(ValueError, match=r"holds 40 \(budget.samples = 100\)"):
         sweep.sample_counts([1.0], 100, 40)
+
+
+def test_joint_space_sweep_takes_the_experiments_own_fractions_unless_given():
+    """experiment=quick sweeps the joint-space draws at its 3 points, paper at all five;
+    sweep.fractions on the command line wins for both sweeps."""
+    sweep = _stage("sample_sweep")
+    conf = str(ROOT / "conf")
+    with initialize_config_dir(version_base=None, config_dir=conf):
+        quick = compose("config", overrides=["regressor=nn_joint_space"])
+        paper = compose("config", overrides=["regressor=nn_joint_space", "experiment=paper"])
+        given = compose("config", overrides=["+sweep.fractions=[0.5,1.0]"])
+    assert sweep.is_joint_space(quick) and not sweep.is_joint_space(given)
+    assert sweep.sweep_fractions(quick, joint_space=True) == [0.125, 0.5, 1.0]
+    assert sweep.sweep_fractions(quick, joint_space=False) == [0.0625, 0.125, 0.25, 0.5, 1.0]
+    assert sweep.sweep_fractions(paper, joint_space=True) == [0.0625, 0.125, 0.25, 0.5, 1.0]
+    assert sweep.sweep_fractions(given, joint_space=True) == [0.5, 1.0]
