@@ -544,6 +544,9 @@ def test_settings_label_an_uncatalogued_row_by_its_name_and_refuse_unknown_keys(
     )
     assert settings.method_sampler("nn_learned_jacobian") == "uniform"
     assert settings.method_sampler("gpr_computed_jacobian") == "none"
+    # the guess's regressor decides (rigmap.catalog), as the evaluate stage names its files
+    assert settings.method_sampler("nn_joint_space_tuned") == "none"
+    assert settings.method_sampler("nn_autodiff_jacobian") == "uniform"
     assert "script" not in settings.methods_for("face")
 
 

@@ -38,6 +38,7 @@ class Row:
     key: str
     label: str
     extra: bool = False  # a row the paper does not have
+    regressor: str | None = None  # a method's fitted mapping (its model folder's first part)
 
     @property
     def display(self) -> str:
@@ -142,8 +143,11 @@ def _row(kind: str, name: str, path: Path, folders: Sequence[Path]) -> Row:
     node = _load(path)
     if not isinstance(node, Mapping):
         raise CatalogueError(f"{path}: expected a mapping, got {type(node).__name__}")
+    regressor = None
     if kind == "method":
         title, extra = _method_title(path, node, folders), node.get("extra")
+        guess = node.get("guess")
+        regressor = guess.get("regressor") if isinstance(guess, Mapping) else None
     else:
         source = _target_class(path, node)
         title, extra = getattr(source, "title", None), getattr(source, "extra", None)
@@ -151,7 +155,7 @@ def _row(kind: str, name: str, path: Path, folders: Sequence[Path]) -> Row:
         raise CatalogueError(f"{path}: title must be a string, got {title!r}")
     if extra is not None and not isinstance(extra, bool):
         raise CatalogueError(f"{path}: extra must be true or false, got {extra!r}")
-    return Row(name, title or name, bool(extra))
+    return Row(name, title or name, bool(extra), regressor)
 
 
 def _method_title(path: Path, node: Mapping[str, Any], folders: Sequence[Path]) -> str | None:

@@ -19,8 +19,7 @@ from typing import Any
 from rigmap.catalog import Catalogue, default_catalogue
 from rigmap.reports.catalog import RIGS
 
-#: methods whose network trains through the rig: built-in rigs only, and they draw their own
-#: poses (their files are ``methods/<method>-none.json``)
+#: methods whose network trains through the rig: built-in rigs only (left out of Blender rigs')
 JOINT_SPACE_METHODS: tuple[str, ...] = (
     "nn_joint_space",
     "nn_joint_space_computed_jacobian",
@@ -138,11 +137,9 @@ class ReportSettings:
         return tuple(m for m in self.methods if m not in left_out)
 
     def method_sampler(self, method: str) -> str:
-        """The sampler in a method's file name: the network's for ``nn*`` (but the joint-space
-        network's, which draws its own poses), else ``none``."""
-        if method in JOINT_SPACE_METHODS:
-            return "none"
-        return self.nn_sampler if method.startswith("nn") else "none"
+        """The sampler in a method's file name: the network's for a method whose guess is the
+        ``nn`` regressor (as the evaluate stage names its files), else ``none``."""
+        return self.nn_sampler if self.catalogue.method(method).regressor == "nn" else "none"
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any] | None) -> ReportSettings:
