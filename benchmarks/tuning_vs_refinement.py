@@ -68,7 +68,7 @@ def measure(rig_name: str, layout: Layout, refine: dict, variants: list[str]) ->
         plain = {k: v for k, v in refine.items() if k != "_target_"}  # the class is ours
         settings = dict(plain, max_iterations=iterations) if iterations else None
         refiner = ComputedJacobianRefinement(**settings) if settings else NoRefinement()
-        method = Method(name, RegressorGuess(regressor, tune=tune), refiner)
+        method = Method(name, RegressorGuess(regressor), refiner, tune=tune)
         mapping = loaded[regressor]
         if method.tune is not None:
             mapping = TunedOnTarget(mapping, rig, TuningSettings(**method.tune))

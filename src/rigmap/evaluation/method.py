@@ -30,7 +30,6 @@ class Guess:
     kind: ClassVar[str]  # what the metrics JSON calls it ("guess")
     uses_rig: ClassVar[bool]  # whether the guess itself evaluates the rig
     regressor: str | None = None  # the fitted mapping's name (its model folder), if any
-    tune: dict[str, Any] | None = None  # tuning on each target clip (regression.target_tuning)
     title: str  # the report's label of the method's row (a refiner adds its own)
 
     def __init__(self, title: str) -> None:
@@ -76,14 +75,11 @@ class RegressorGuess(Guess):
     kind = "regressor"
     uses_rig = False
 
-    def __init__(
-        self, regressor: str, title: str | None = None, tune: Mapping[str, Any] | None = None
-    ) -> None:
+    def __init__(self, regressor: str, title: str | None = None) -> None:
         if not isinstance(regressor, str) or not regressor:
             raise EvaluationSetupError(f"guess.regressor: expected a name, got {regressor!r}")
         super().__init__(regressor if title is None else title)
         self.regressor = regressor
-        self.tune = dict(tune) if tune is not None else None
 
     def check(self, method: str, regressor: Any) -> None:
         if regressor is None:
@@ -232,6 +228,7 @@ class Method:
         guess: Guess,
         refine: Refiner | None = None,
         extra: bool = False,
+        tune: Mapping[str, Any] | None = None,
     ) -> None:
         refine = NoRefinement() if refine is None else refine
         if not isinstance(guess, Guess):
@@ -249,6 +246,8 @@ class Method:
                 f"method {name!r}: extra must be true or false, got {extra!r}"
             )
         self.extra = extra  # a row the paper does not have (the report marks it)
+        # the regressor tuned on each target clip inside the clock (regression.target_tuning)
+        self.tune = dict(tune) if tune is not None else None
         self.config: dict[str, Any] = {}  # the plain config node it was built from (the record)
 
     @property
@@ -261,10 +260,6 @@ class Method:
     @property
     def regressor(self) -> str | None:
         return self.guess.regressor
-
-    @property
-    def tune(self) -> dict[str, Any] | None:
-        return self.guess.tune
 
     @property
     def refine(self) -> str:
