@@ -18,7 +18,7 @@ from hydra import compose, initialize_config_dir
 
 from rigmap.animation.corpus import Corpus
 from rigmap.cli import main as rigmap_main
-from rigmap.evaluation.methods import Method, TestSet, run_method
+from rigmap.evaluation.methods import TestSet, get_method, run_method
 from rigmap.evaluation.sample_sweep import fitted_model, joint_space_sweep
 from rigmap.refine import jacobian
 from rigmap.regression import (
@@ -351,7 +351,7 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
     # all the draws: the same seeded fit as the fit stage's, so the same scores
     fitted = _stage("fit").run(cfg)
     test_set = TestSet.load(biped, data_dir / "biped")
-    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    method = get_method("nn_joint_space")
     staged = run_method(biped, method, test_set, regressor=load_regressor(fitted.folder, rig=biped))
     assert results[1]["average"]["joint_error"] == pytest.approx(
         staged.result.average()["joint_error"], rel=1e-9

@@ -13,9 +13,9 @@ from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
+from rigmap.evaluation.checks import EvaluationSetupError
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate
-from rigmap.evaluation.method_config import method_catalog
-from rigmap.evaluation.methods import EvaluationSetupError
+from rigmap.evaluation.method import method_catalog
 from rigmap.sampling import sampler_name
 from rigmap.store import Layout
 

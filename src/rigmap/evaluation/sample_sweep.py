@@ -128,7 +128,7 @@ def joint_space_sweep(
     With ``reuse_fit`` a fraction whose network the fit stage already trained on these rows
     (:func:`fitted_model`) is scored from ``models/`` instead of being fitted again.
     """
-    from rigmap.evaluation.methods import Method, TestSet, run_method
+    from rigmap.evaluation.methods import Method, RegressorGuess, TestSet, run_method
     from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
 
     template = make_network()
@@ -152,7 +152,7 @@ def joint_space_sweep(
     data = load_training_data(rig, layout.data, "none")
     placement = placement_of(rig, data)
     test_set = TestSet.load(rig, layout.rig_data(rig.name))
-    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    method = Method("nn_joint_space", RegressorGuess("nn_joint_space", title="Joint-space NN"))
     fitted_folder = layout.model(rig.name, ModelId("nn_joint_space"))
     # the fit stage's network can only be the fraction with all the draws: read it once
     saved = fitted_model(fitted_folder, template, rig, data) if reuse_fit else None

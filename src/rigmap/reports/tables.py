@@ -12,12 +12,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import pandas as pd
 
 from rigmap.reports import published
-from rigmap.reports.catalog import KERNELS, METHODS, SAMPLERS, find_row, rig_label
+from rigmap.reports.catalog import rig_label
 from rigmap.reports.metrics_tree import LoadedResult, Numbers, ReportInputError, RigMetrics
 from rigmap.reports.rig_facts import RigFacts
 from rigmap.reports.seed_spread import Spread, compare, row_spread
@@ -85,7 +84,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                 result = metrics.methods[method]
                 numbers = _motion_numbers(result, motion)
                 baseline = _mean_predictor(metrics, motion)
-                row_kind = find_row(METHODS, method, "method")
+                row_kind = settings.catalogue.method(method)
                 paper = published.table1_value(rig, motion, method)
                 label = f"{rig_label(rig)} — {shown}" if index == 0 else ""
                 spreads = _row_spreads(metrics, result, motion)
@@ -155,7 +154,7 @@ def _methods_columns(unit: str) -> list[Column]:
 
 def _methods_notes(settings: ReportSettings) -> list[str]:
     """Table 1's first notes: the measures, the models behind the rows, the extra rows."""
-    extras = [m.label for m in METHODS if m.extra and m.key in settings.methods]
+    extras = [m.label for m in settings.catalogue.methods if m.extra and m.key in settings.methods]
     notes = [
         JOINT_ERROR_NOTE,
         SCALE_FREE_NOTE,
@@ -163,7 +162,7 @@ def _methods_notes(settings: ReportSettings) -> list[str]:
         TIME_NOTE,
         f"GPR rows use the GPR fitted on the train corpus (multiquadric kernel unless the "
         f"experiment says otherwise); NN rows use the network trained on the corpus plus "
-        f"'{find_row(SAMPLERS, settings.nn_sampler, 'sampler').label}' supersamples.",
+        f"'{settings.catalogue.sampler(settings.nn_sampler).label}' supersamples.",
         PUBLISHED_NOTE + " The paper's 'Maya Script' is our Script row.",
     ]
     if extras:
@@ -193,7 +192,7 @@ def _left_out_notes(tree, others: Mapping[str, str], settings: ReportSettings) -
         r: ms for r, ms in settings.excluded_methods.items() if r in settings.method_rigs and ms
     }
     for rig, left_out in excluded.items():
-        labels = ", ".join(find_row(METHODS, m, "method").label for m in left_out)
+        labels = ", ".join(settings.catalogue.method(m).label for m in left_out)
         notes.append(f"{rig_label(rig)}: not evaluated by this experiment: {labels}.")
     return notes
 
@@ -397,10 +396,10 @@ def _per_rig_table(
     """Rows = the ``spec``'s samplers or kernels; per rig of ``settings.sampler_rigs`` a group
     of Joint / Ground Truth Error; the spec's notes follow the two error notes."""
     tree = {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs}
-    keys, catalogue, attribute = getattr(settings, spec.attribute), spec.catalogue, spec.attribute
+    keys, attribute = getattr(settings, spec.attribute), spec.attribute
     name, title, what, paper = spec.name, spec.title, spec.what, spec.paper
     notes = [JOINT_ERROR_NOTE, GROUND_TRUTH_NOTE, *spec.notes]
-    first_column = "Method" if catalogue is SAMPLERS else "Kernel"
+    first_column = "Method" if what == "sampler" else "Kernel"
     columns = [Column(first_column, numeric=False)]
     for rig, metrics in tree.items():
         unit = _unit_label({r.length_unit for r in getattr(metrics, attribute).values()})
@@ -413,7 +412,7 @@ def _per_rig_table(
         ]
     rows, records = [], []
     for key in keys:
-        row_kind = find_row(catalogue, key, what)
+        row_kind = settings.catalogue.row(what, key)
         cells = [row_kind.display]
         for rig, metrics in tree.items():
             result: LoadedResult = getattr(metrics, attribute)[key]
@@ -426,16 +425,16 @@ def _per_rig_table(
                 **_number_record(numbers),
                 "length_unit": result.length_unit,
             }
-            if paper is not None:
+            if paper is not None:  # a row the paper lacks (a new sampler) shows no number
                 record |= {
-                    "published_joint_error": paper[key][0],
-                    "published_ground_truth_error": paper[key][1],
+                    "published_joint_error": paper.get(key, (None, None))[0],
+                    "published_ground_truth_error": paper.get(key, (None, None))[1],
                     "published_source": f"{published.SOURCE}, Table 2 ({published.LABEL}; "
                     "character not stated)",
                 }
             records.append(record)
         if paper is not None:
-            cells += list(paper[key])
+            cells += list(paper.get(key, (MISSING, MISSING)))
         rows.append(cells)
     return Table(
         name=name,
@@ -452,8 +451,7 @@ class _PerRigSpec:
     """What a per-rig table compares: the settings list and metrics attribute it reads."""
 
     attribute: str  # "samplers" or "kernels": the ReportSettings list and RigMetrics field
-    catalogue: Any
-    what: str
+    what: str  # the catalogue's kind of row: sampler or kernel
     name: str
     title: str
     paper: Mapping[str, tuple[str, str]] | None
@@ -461,7 +459,7 @@ class _PerRigSpec:
 
 
 _SAMPLING = _PerRigSpec(
-    "samplers", SAMPLERS, "sampler", "table2_sampling",
+    "samplers", "sampler", "table2_sampling",
     "Table 2 — the network trained with each supersampling method (Average of the test clips)",
     published.TABLE2,
     ("'No Extra Samples' trains on the animator corpus alone; the others add the same "
@@ -469,7 +467,7 @@ _SAMPLING = _PerRigSpec(
      PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on."),
 )  # fmt: skip
 _KERNELS = _PerRigSpec(
-    "kernels", KERNELS, "kernel", "table_kernels",
+    "kernels", "kernel", "table_kernels",
     "GPR kernels (§7.1) — Average of the test clips", None,
     ("The paper reports no numbers for this comparison, only that the multiquadric "
      "kernel did best (§7.1).",),
@@ -591,7 +589,7 @@ def splits_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Ta
             numbers = [train[method].average, heldout[method].average]
             numbers.append(test.average if test is not None else None)
             ratio = _ratio(numbers[1].joint_error, numbers[0].joint_error)
-            label = find_row(METHODS, method, "method").display
+            label = settings.catalogue.method(method).display
             cells = [rig_label(rig), label]
             cells += [MISSING if n is None else format_error(n.joint_error) for n in numbers]
             cells += [MISSING if ratio is None else format_seconds(ratio)]
