@@ -1,4 +1,4 @@
-"""`rigmap map` / `rigmap pose` end to end (rigmap.map.app) on the CMU walk, and its bad inputs.
+"""`rigmap map` / `rigmap pose` end to end (rigmap.app.map) on the CMU walk, and its bad inputs.
 
 A small biped project is built in a temporary folder (the train corpus and its poses, as
 the animate and pose stages write them); the map model is fitted there with a small GPR.
@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from rigmap.app.map import MapConfigError, map_from_config, map_settings, pose_from_config
 from rigmap.cli import compose_config, find_config_dir, main
-from rigmap.map.app import MapConfigError, map_from_config, map_settings, pose_from_config
 from rigmap.map.subset_model import RECORD_FILE, SubsetModelError
 from rigmap.map.tracks import TracksError, tracks_from_bvh
 
@@ -296,7 +296,7 @@ def test_the_cli_prints_a_bad_input_as_one_message(tmp_path, capsys):
 
 
 def test_the_map_mocap_stage_scores_both_cmu_walks(project, tmp_path):
-    from rigmap.map.mocap_stage import map_mocap
+    from rigmap.app.map_stage import map_mocap
 
     config = map_config(project, f"paths.metrics={tmp_path / 'metrics'}",
                         "map.mocap_stage.frames=3", "map.settings.refine_iterations=0",
@@ -443,9 +443,9 @@ def test_an_npz_longer_than_the_cap_is_refused_before_its_frames_are_read(tmp_pa
 def test_a_long_clip_shows_its_progress_on_stderr(
     mapped, project, monkeypatch, capsys, threshold, shown
 ):
-    import rigmap.map.app
+    import rigmap.app.map
 
-    monkeypatch.setattr(rigmap.map.app, "PROGRESS_FRAMES", threshold)
+    monkeypatch.setattr(rigmap.app.map, "PROGRESS_FRAMES", threshold)
     config = map_config(
         project,
         f"input={WALK}",

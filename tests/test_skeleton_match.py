@@ -1,5 +1,5 @@
 """Skeleton matching (rigmap.map.skeleton_match) on both CMU conversions of ../shared/mocap,
-on renamed and broken skeletons, and `rigmap map`'s use of it (rigmap.map.app.read_clips)."""
+on renamed and broken skeletons, and `rigmap map`'s use of it (rigmap.app.map.read_clips)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from rigmap.animation.bvh import read_bvh
-from rigmap.map.app import read_clips
-from rigmap.map.retarget_map import RetargetMap
+from rigmap.app.map import read_clips
+from rigmap.map.joint_map import RetargetMap
 from rigmap.map.skeleton_match import (
     UNKNOWN,
     FrameCheck,

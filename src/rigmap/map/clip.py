@@ -35,10 +35,10 @@ from rigmap.map.contacts import (
     pin_contacts,
 )
 from rigmap.map.curves import count_flips, largest_jumps, smooth, unwrap_rotations
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.key_reduction import JointLimit, ReducedKeys, reduce_within_joint_tolerance
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
-from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
 from rigmap.torch_threads import blas_threads, torch_threads

@@ -1,6 +1,6 @@
 """Skeleton matching: a source skeleton's joints found for the roles a retarget map needs.
 
-A retarget map (:mod:`rigmap.map.retarget_map`) names, per rig joint, the source joint
+A retarget map (:mod:`rigmap.map.joint_map`) names, per rig joint, the source joint
 that drives it; written by hand it fits one naming only. Here the source joints are
 found for anatomical roles (``hips``, ``spine``, ``chest``, ``neck``, ``head``, and per
 side ``upper_arm``, ``forearm``, ``hand``, ``fingers``, ``thigh``, ``shin``, ``foot``,
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rigmap.map.retarget_map import RetargetMap, RetargetMapError
+from rigmap.map.joint_map import RetargetMap, RetargetMapError
 from rigmap.store import write_text_atomic
 
 SIDES = ("l", "r")

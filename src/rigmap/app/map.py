@@ -37,9 +37,9 @@ from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
 from rigmap.map.clip import MAP_STEPS, MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
+from rigmap.map.joint_map import MappedTargets, RetargetMap, RetargetMapError
 from rigmap.map.outputs import write_map_outputs
 from rigmap.map.partial import JointSubset
-from rigmap.map.retarget_map import MappedTargets, RetargetMap, RetargetMapError
 from rigmap.map.skeleton_match import (
     Skeleton,
     check_frames,
