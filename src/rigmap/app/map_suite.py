@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from rigmap.app.map import Log
+from rigmap.app.map_job import Log
 from rigmap.app.map_stage import clip_metrics, map_stage_clip
 from rigmap.store import Layout, write_json_atomic, write_text_atomic
 

@@ -3,7 +3,7 @@
 A request is one clip: a DataFrame with one row per frame, in frame order, and the
 columns ``<joint>.x``, ``<joint>.y``, ``<joint>.z`` of every joint of the model's
 :class:`~rigmap.map.partial.JointSubset` (world centimetres, the rig's axes: +Y up, the
-character's left +X; i.e. what a :class:`~rigmap.map.RetargetMap` gives). Extra columns
+character's left +X; i.e. what a :class:`~rigmap.map.JointMap` gives). Extra columns
 (``frame``, other joints) are ignored. The answer has one row per frame and one column
 per rig control, unused controls at their defaults: :func:`rigmap.map.clip.map_clip`'s
 ``controls`` — the subset mapping's guess, damped-least-squares refinement on the
