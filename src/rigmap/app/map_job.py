@@ -255,6 +255,16 @@ def read_clips(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # unused source joints: summarised below instead
             targets = retarget.apply(rig, tracks)
+        if path.suffix.lower() != ".npz":  # cut to the window (an npz was cut as it was read)
+            cut = window.slice(targets.fps)
+            if len(targets.positions[cut]) == 0:
+                raise MapConfigError(
+                    f"{path}: no frames left to map (the clip has {len(targets.positions)} "
+                    f"frames; {window.describe()})"
+                )
+            targets = dataclasses.replace(
+                targets, positions=targets.positions[cut], fps=targets.fps / cut.step
+            )
         if was_matched:
             height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
             log(
@@ -262,7 +272,7 @@ def read_clips(
                 f"lengths): the source's rest height {height:.4g} units is "
                 f"{height * targets.scale:.1f} cm on the rig"
             )
-        clips.append(targets if path.suffix.lower() == ".npz" else _cut(path, targets, window))
+        clips.append(targets)
     driven = {tuple(t.joint_names) for t in clips}
     if len(driven) > 1:
         raise MapConfigError(
@@ -354,19 +364,6 @@ def _option(options: Mapping, key: str, bound, expected: str):
     if not good:
         raise MapConfigError(f"map.{key}={value!r}: expected {expected}")
     return int(value) if isinstance(bound, int) else float(value)
-
-
-def _cut(path: Path, targets: MappedTargets, window: FrameWindow) -> MappedTargets:
-    """The targets resampled and cut as ``map`` says (an npz was cut as it was read, so its
-    retargeting saw the window only)."""
-    cut = window.slice(targets.fps)
-    positions = targets.positions[cut]
-    if len(positions) == 0:
-        raise MapConfigError(
-            f"{path}: no frames left to map (the clip has {len(targets.positions)} frames; "
-            f"{window.describe()})"
-        )
-    return dataclasses.replace(targets, positions=positions, fps=targets.fps / cut.step)
 
 
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
