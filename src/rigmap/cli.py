@@ -298,7 +298,7 @@ def _add_edits(commands) -> None:
 def _edits(verb: str, args) -> int:
     from omegaconf import OmegaConf
 
-    from rigmap.edits import runs
+    from rigmap.edits import steps
     from rigmap.store import Layout
 
     if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
@@ -311,7 +311,7 @@ def _edits(verb: str, args) -> int:
     cfg = compose_config(["+edits=default", *overrides], args.config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    for path in getattr(runs, f"run_{verb}")(config, layout):
+    for path in getattr(steps, f"run_{verb}")(config, layout):
         print(path)
     return 0
 
