@@ -89,10 +89,10 @@ def _latent_copy(latent, tmp_path) -> tuple[Layout, pathlib.Path]:
 
 
 def test_latent_models_load_with_the_fitted_numbers_bit_for_bit(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, fitted, table = latent
-    loaded, loaded_table = runs.load_fitted(layout, "face"), runs.load_table(layout, "face")
+    loaded, loaded_table = steps.load_fitted(layout, "face"), steps.load_table(layout, "face")
     for label, model in fitted.models.items():
         X = model.latent[:5] + 0.01
         again = loaded.models[label]
@@ -105,13 +105,13 @@ def test_latent_models_load_with_the_fitted_numbers_bit_for_bit(latent, tmp_path
 
 
 def test_latent_pickle_planted_as_the_models_payload_is_refused_and_not_run(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
     _plant(folder / "fit" / "models.npz", pickle.dumps(_Touch(marker)))
     with pytest.raises(ModelFileError, match="not an npz of plain arrays") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
     assert not marker.exists()
 
@@ -136,7 +136,7 @@ def test_latent_pickle_planted_for_synth_run_is_a_one_line_cli_error(latent, tmp
 
 
 def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
@@ -144,19 +144,19 @@ def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
         (folder / "fit" / name).unlink()
     (folder / "fit" / "models.pkl").write_bytes(pickle.dumps(_Touch(marker)))
     with pytest.raises(FileNotFoundError, match="run the latent_fit stage first") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
     assert not marker.exists()
 
 
 def test_latent_pickle_planted_as_the_transitions_payload_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
     _plant(folder / "match" / "transitions.npz", pickle.dumps(_Touch(marker)))
     with pytest.raises(ModelFileError, match="not an npz of plain arrays") as error:
-        runs.load_table(layout, "face")
+        steps.load_table(layout, "face")
     _one_line(error, "transitions.json")
     assert not marker.exists()
 
@@ -172,17 +172,17 @@ def _rewrite_npz(payload: pathlib.Path, change) -> None:
 
 
 def test_latent_model_missing_an_array_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     _rewrite_npz(folder / "fit" / "models.npz", lambda a: a.pop("model1.gplvm.alpha"))
     with pytest.raises(ModelFileError, match=r"\['model1.gplvm.alpha'\] are missing") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 
 def test_latent_model_with_a_wrong_shape_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
 
@@ -191,23 +191,23 @@ def test_latent_model_with_a_wrong_shape_is_refused(latent, tmp_path):
 
     _rewrite_npz(folder / "fit" / "models.npz", cut)
     with pytest.raises(ModelFileError, match=r"array 'gplvm.L' has shape") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json", "happy")
 
 
 def test_latent_model_of_another_format_version_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     meta_path = folder / "fit" / "models.json"
     meta_path.write_text(json.dumps({**json.loads(meta_path.read_text()), "format_version": 0}))
     with pytest.raises(ModelFileError, match="format_version 0, expected 1") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 
 def test_latent_payload_path_leaving_the_model_folder_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     shutil.copy(folder / "fit" / "models.npz", tmp_path / "x.npz")
@@ -216,7 +216,7 @@ def test_latent_payload_path_leaving_the_model_folder_is_refused(latent, tmp_pat
     depth = len(meta_path.parent.relative_to(tmp_path).parts)
     meta_path.write_text(json.dumps({**meta, "payload": "../" * depth + "x.npz"}))
     with pytest.raises(ModelFileError, match="outside the model folder") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 

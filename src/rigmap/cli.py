@@ -298,7 +298,7 @@ def _add_edits(commands) -> None:
 def _edits(verb: str, args) -> int:
     from omegaconf import OmegaConf
 
-    from rigmap.edits import runs
+    from rigmap.edits import steps
     from rigmap.store import Layout
 
     if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
@@ -311,18 +311,18 @@ def _edits(verb: str, args) -> int:
     cfg = compose_config(["+edits=default", *overrides], args.config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    for path in getattr(runs, f"run_{verb}")(config, layout):
+    for path in getattr(steps, f"run_{verb}")(config, layout):
         print(path)
     return 0
 
 
 def _add_map(commands) -> None:
-    """``rigmap map`` and ``rigmap pose`` (rigmap.map.app, config conf/map.yaml)."""
+    """``rigmap map`` and ``rigmap pose`` (rigmap.app.map_job, config conf/map.yaml)."""
     _add_stage_command(
         commands,
         "map",
         help="map motion (a BVH, a folder of BVHs, joint tracks) onto a rig's controls",
-        description="Maps each input clip onto the rig (rigmap.map.app): the retarget map "
+        description="Maps each input clip onto the rig (rigmap.app.map_job): the retarget map "
         "(map.retarget, default conf/retarget/cmu_<rig>.yaml) gives the rig joints it drives; "
         "a GPR on those joints, fitted on data/<rig>/corpus and poses and cached in "
         "models/<rig>/map-<subset>/ (refitted when the rig, subset, settings or data change), "
@@ -479,14 +479,14 @@ def _map_config(args) -> dict:
 
 
 def _map(args) -> int:
-    from rigmap.map.app import map_from_config
+    from rigmap.app.map_job import map_from_config
 
     map_from_config(_map_config(args), config_dir=find_config_dir(args.config_dir))
     return 0
 
 
 def _pose(args) -> int:
-    from rigmap.map.app import pose_from_config
+    from rigmap.app.map_job import pose_from_config
 
     pose_from_config(_map_config(args))
     return 0

@@ -1,7 +1,7 @@
 """Map one clip: targets → guess → refinement → editable curves → sparse keys (§6.3, Fig. 8).
 
 :func:`map_clip` takes a clip's targets (world positions of the rig joints a source
-drives, from :class:`rigmap.map.RetargetMap` or given as effectors) and a
+drives, from :class:`rigmap.map.JointMap` or given as effectors) and a
 :class:`rigmap.map.partial.SubsetMapping` trained on those joints, and returns every
 control per frame plus what a user checks: per-frame joint error, foot skate, the
 largest frame-to-frame jump, and keys reduced within a tolerance in cm.
@@ -35,10 +35,10 @@ from rigmap.map.contacts import (
     pin_contacts,
 )
 from rigmap.map.curves import count_flips, largest_jumps, smooth, unwrap_rotations
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.key_reduction import JointLimit, ReducedKeys, reduce_within_joint_tolerance
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
-from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
 from rigmap.torch_threads import blas_threads, torch_threads
@@ -166,10 +166,19 @@ def map_clip(
     on_step("refine")
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
+    limits = []  # with pinning, the planted joints held, then kept near the held pose
     with torch_threads(1), blas_threads(1):  # as the refinement: many small rig batches
-        keys = _hold_and_reduce(
-            rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds
+        if contacts is not None and settings.pin_feet:
+            Y = _hold(rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds)
+            limits = [
+                JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
+                for k, f in enumerate(contacts.feet)
+            ]
+        started = time.perf_counter()
+        keys = reduce_within_joint_tolerance(
+            rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
         )
+        seconds["keys_s"] = time.perf_counter() - started
     on_step("keys")
     controls = rig.expand_used(keys.values())
     achieved = np.asarray(WorldSubsetRig(rig, joints).evaluate(controls), dtype=np.float64)
@@ -196,24 +205,6 @@ def map_clip(
 
 
 CONTACT_TOLERANCE_CM = 0.05  # key reduction keeps planted joints this close (ours)
-
-
-def _hold_and_reduce(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds):
-    """With pinning, the planted joints held (:func:`_hold`); then the keys, the planted
-    joints within :data:`CONTACT_TOLERANCE_CM` of the held pose."""
-    limits = []
-    if contacts is not None and settings.pin_feet:
-        Y = _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds)
-        limits = [
-            JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
-            for k, f in enumerate(contacts.feet)
-        ]
-    started = time.perf_counter()
-    keys = reduce_within_joint_tolerance(
-        rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
-    )
-    seconds["keys_s"] = time.perf_counter() - started
-    return keys
 
 
 def _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds) -> np.ndarray:

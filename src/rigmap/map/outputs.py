@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,14 @@ from rigmap.map.clip import MapResult
 from rigmap.store import json_ready, write_folder_atomic, write_json_atomic
 
 SUMMARY_FORMAT = "rigmap.map_summary/1"
+
+
+@dataclass(frozen=True)
+class MappedClip:
+    """One clip's output folder and its headline numbers (``summary.json``, as written)."""
+
+    folder: Path
+    summary: dict
 
 
 def summary(result: MapResult, rig) -> dict:
@@ -70,8 +79,9 @@ def write_map_outputs(
     *,
     confidence: np.ndarray | None = None,
     extra: Callable[[Path], None] | None = None,
-) -> Path:
-    """Write the clip's folder (see the module docstring); returns its path.
+) -> MappedClip:
+    """Write the clip's folder (see the module docstring); returns its path and its summary
+    (the numbers of ``summary.json``, so no caller reads back what was just written).
 
     ``confidence`` (per frame) becomes a column of ``frames.parquet``; ``extra(staging)``
     writes more files (previews, a ``.blend``) into the folder before it appears.
@@ -97,11 +107,12 @@ def write_map_outputs(
         write_joint_bvh(
             staging / "result.bvh", rig.joint_names, rig.parents, world, rest, result.fps
         )
-        write_json_atomic(staging / "summary.json", summary(result, rig))
+        write_json_atomic(staging / "summary.json", headline)
         if extra is not None:
             extra(staging)
 
-    return write_folder_atomic(folder, fill)
+    headline = summary(result, rig)
+    return MappedClip(write_folder_atomic(folder, fill), headline)
 
 
 def _keys(result: MapResult) -> dict:

@@ -3,7 +3,7 @@
 A mapping's input is joint positions (§3.2), so every source — a BVH file, another
 tool's export, a few effector targets — becomes one :class:`JointTracks`: ``(F, J, 3)``
 positions of ``J`` named joints over ``F`` frames at ``fps``, in a stated length unit.
-Axes stay the source's own here; :class:`rigmap.map.RetargetMap` converts them.
+Axes stay the source's own here; :class:`rigmap.map.JointMap` converts them.
 
 Files (one clip each):
 - ``.bvh``: forward kinematics of the file's channels; end sites become ``<parent>_end``;

@@ -1,6 +1,6 @@
 """``mlflow models serve`` of a saved model folder, as a context manager that always stops it.
 
-Used by the tests and benchmarks of the map model (:mod:`rigmap.map.pyfunc_model`) and by
+Used by the tests and benchmarks of the map model (:mod:`rigmap.tracking.map_model`) and by
 anyone who wants the REST answer on this machine: the server runs in the current Python
 environment (``--env-manager local``, so no virtualenv is built) on 127.0.0.1, in its own
 process group, and the whole group (uvicorn and its worker) is stopped on exit.

@@ -3,7 +3,7 @@
 A request is one clip: a DataFrame with one row per frame, in frame order, and the
 columns ``<joint>.x``, ``<joint>.y``, ``<joint>.z`` of every joint of the model's
 :class:`~rigmap.map.partial.JointSubset` (world centimetres, the rig's axes: +Y up, the
-character's left +X; i.e. what a :class:`~rigmap.map.RetargetMap` gives). Extra columns
+character's left +X; i.e. what a :class:`~rigmap.map.JointMap` gives). Extra columns
 (``frame``, other joints) are ignored. The answer has one row per frame and one column
 per rig control, unused controls at their defaults: :func:`rigmap.map.clip.map_clip`'s
 ``controls`` — the subset mapping's guess, damped-least-squares refinement on the
@@ -17,8 +17,9 @@ Stored with the model (``data/map_model/``): the :class:`SubsetMapping` folder (
 Models are data, not code (as in :mod:`rigmap.tracking.pyfunc_model`, whose checks this
 reuses): the rig is built only from a registered rig name, regressors only from
 rigmap's own classes, and every data path must stay inside the model folder. The model's
-code is the installed rigmap: ``MLmodel`` names this module as ``loader_module``
-(:func:`_load_pyfunc`), no code file is copied into the folder, and nothing is pickled.
+code is the installed rigmap: ``MLmodel`` names :mod:`rigmap.tracking.pyfunc_model` as
+``loader_module`` (its one ``_load_pyfunc`` builds :class:`MapClipModel` for a
+``data/map_model`` folder), no code file is copied into the folder, and nothing is pickled.
 """
 
 from __future__ import annotations
@@ -43,23 +44,21 @@ from mlflow.types import ColSpec, ParamSchema, ParamSpec, Schema
 
 from rigmap.errors import RigmapError
 from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.partial import SubsetMapping
-from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.tracks import JointTracks, TracksError
 from rigmap.store import write_folder_atomic, write_json_atomic
 from rigmap.tracking.pyfunc_model import (
-    RIGMAP_LOADERS,
-    LoadedPyfunc,
+    LOADER_MODULE,
+    MAP_DATA_FOLDER,
     UntrustedModelError,
     check_payload,
-    checked_data_folder,
     inside_folder,
     joint_columns,
     pinned_requirements,
 )
 
-LOADER_MODULE = __name__  # what MLmodel names as the model's code: the installed rigmap
-DATA_FOLDER = RIGMAP_LOADERS[LOADER_MODULE]  # the model's data folder, ``data/map_model``
+DATA_FOLDER = MAP_DATA_FOLDER  # the model's data folder, ``data/map_model``
 MAPPING_ARTIFACT = "subset_mapping"
 SPEC_ARTIFACT = "map_model"
 SPEC_FORMAT = "rigmap.map_pyfunc/1"
@@ -86,14 +85,6 @@ def input_frame(world: np.ndarray, joints: Sequence[str]) -> pd.DataFrame:
     """A request: ``(F, K, 3)`` world positions of ``joints`` as the model's input columns."""
     world = np.asarray(world, dtype=np.float64)
     return pd.DataFrame(world.reshape(len(world), -1), columns=joint_columns(joints))
-
-
-def _load_pyfunc(data_path: str) -> LoadedPyfunc:
-    """MLflow's ``loader_module`` entry: the map model in ``data/map_model``."""
-    root = checked_data_folder(data_path, LOADER_MODULE, DATA_FOLDER)
-    model = MapClipModel(root)
-    model.load_folder(Path(data_path))
-    return LoadedPyfunc(model)
 
 
 class MapClipModel(PythonModel):

@@ -19,7 +19,7 @@ from typing import Any
 
 import pandas as pd
 
-from rigmap.map.app import Log, MappedClip, map_from_config
+from rigmap.app.map_job import Log, MappedClip, map_from_config
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic
 
 METRICS_SET = "map"

@@ -9,6 +9,8 @@ map's joints is obtained (:mod:`rigmap.map.subset_model`: cached in
 (:func:`rigmap.map.clip.map_clip`) into ``<out>/<clip>/``, written whole or not at all:
 controls, per-frame error and confidence, keys, a BVH of the result, a summary, a
 preview, and for a Blender rig a copy of its ``.blend`` with the reduced keys as an action.
+The input's path through these functions is listed in ``docs/architecture.md``
+("Following `rigmap map`") and checked by ``tests/test_map_app.py``.
 
 :func:`pose_from_config` poses the whole body from a few effector targets (paper Fig. 5;
 FaceIK from landmarks, Fig. 10) and draws the pose.
@@ -27,7 +29,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -37,9 +39,9 @@ from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
 from rigmap.map.clip import MAP_STEPS, MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
-from rigmap.map.outputs import write_map_outputs
+from rigmap.map.joint_map import JointMap, JointMapError, MappedTargets
+from rigmap.map.outputs import MappedClip, write_map_outputs
 from rigmap.map.partial import JointSubset
-from rigmap.map.retarget_map import MappedTargets, RetargetMap, RetargetMapError
 from rigmap.map.skeleton_match import (
     Skeleton,
     check_frames,
@@ -72,24 +74,19 @@ class MapConfigError(RigmapError, ValueError):
     """A map or pose config that names no input, an unknown subset, or an unusable value."""
 
 
-@dataclass(frozen=True)
-class MappedClip:
-    """One clip's output folder and its headline numbers (``summary.json``)."""
-
-    folder: Path
-    summary: dict
-
-
 # --------------------------------------------------------------------------- map
 def map_from_config(
     config: Mapping[str, Any], *, config_dir: str | os.PathLike, log: Log = print
 ) -> list[MappedClip]:
-    """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip."""
+    """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip, written
+    whole (:func:`write_map_outputs`, with the preview and a Blender rig's ``.blend``). A clip
+    of more than :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
     from rigmap.rigs import load
 
     options = config["map"]
     window = frame_window(options)  # options first: a bad one is named before any file is read
     sources = input_files(config.get("input"))
+    preview = bool(options.get("preview", True))
     with load(_rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
@@ -98,79 +95,41 @@ def map_from_config(
         settings = map_settings(options, rig.name)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
-            done.append(
-                map_one(
+            with _step_bar(targets) as bar:
+                result = map_clip(
                     rig,
                     targets,
-                    model,
+                    model.mapping,
                     settings,
-                    out / _stem(targets.source),
-                    preview=bool(options.get("preview", True)),
+                    control_std=model.control_std,
+                    hold_values=model.hold_values,
+                    on_step=partial(_advance, bar),
                 )
-            )
+                confidence = frame_confidence(model.mapping, result.targets)
+                _advance(bar, "confidence")
+                folder = out / _stem(targets.source)
+                extra = partial(_extra_outputs, rig, result, preview)
+                done.append(
+                    write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
+                )
+                _advance(bar, "outputs")
             log(f"{done[-1].folder}: {_headline(done[-1].summary)}")
         return done
 
 
-def map_one(
-    rig,
-    targets: MappedTargets,
-    model: SubsetModel,
-    settings: MapSettings,
-    folder: Path,
-    *,
-    preview: bool = True,
-) -> MappedClip:
-    """Map one clip's targets and write its folder (atomically); a clip of more than
-    :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
-    with _step_bar(targets) as bar:
-        result = map_clip(
-            rig,
-            targets,
-            model.mapping,
-            settings,
-            control_std=model.control_std,
-            hold_values=model.hold_values,
-            on_step=lambda name: _advance(bar, name),
-        )
-        world = result.targets
-        confidence = frame_confidence(model.mapping, world)
-        _advance(bar, "confidence")
-        written = _write_clip(folder, rig, result, confidence, preview=preview)
-        _advance(bar, "outputs")
-    return written
-
-
-def _write_clip(folder: Path, rig, result, confidence, *, preview: bool) -> MappedClip:
-    """The clip's folder, written whole (with its preview and, for a Blender rig, .blend)."""
-
-    def extra(staging: Path) -> None:
-        if preview:
-            from rigmap.map.preview import write_preview
-
-            write_preview(staging, rig, result)
-        if is_blender_rig(rig):
-            write_blend(rig, result.keys, result.fps, staging / "result.blend")
-
-    written = write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
-    import json
-
-    return MappedClip(written, json.loads((written / "summary.json").read_text()))
-
-
-def is_blender_rig(rig) -> bool:
-    """A rig evaluated by Blender workers (its animators work in a ``.blend``)."""
+def _extra_outputs(rig, result, preview: bool, staging: Path) -> None:
+    """The preview, and for a Blender rig (its animators work in a ``.blend``) a copy of its
+    file with the mapping's reduced keys (``keys.json``) as a new action on its control bones."""
     from rigmap.rigs.blender.rig import BlenderRig
 
-    return isinstance(rig, BlenderRig)
+    if preview:
+        from rigmap.map.preview import write_preview
 
+        write_preview(staging, rig, result)
+    if isinstance(rig, BlenderRig):
+        from rigmap.map.blend_output import write_mapped_keys_blend
 
-def write_blend(rig, keys, fps: float, path: Path) -> None:
-    """The one call site of the ``.blend`` writer: a copy of the rig's file with the
-    mapping's reduced keys (``keys.json``) as a new action on its control bones."""
-    from rigmap.map.blend_output import write_mapped_keys_blend
-
-    write_mapped_keys_blend(rig, keys, fps, path)
+        write_mapped_keys_blend(rig, result.keys, result.fps, staging / "result.blend")
 
 
 def input_files(value) -> list[Path]:
@@ -196,7 +155,7 @@ def input_files(value) -> list[Path]:
     return [path]
 
 
-def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
+def retarget_map(options: Mapping, rig_name: str, config_dir) -> JointMap:
     """``map.retarget`` (a path, or a name in ``conf/retarget/``), else the rig's default."""
     name = options.get("retarget") or _rig_section(options, rig_name).get("retarget")
     if name == MATCH:
@@ -209,13 +168,13 @@ def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
     path = Path(name)
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
         path = Path(config_dir) / "retarget" / f"{name}.yaml"
-    retarget = RetargetMap.from_yaml(path)
+    retarget = JointMap.from_yaml(path)
     if retarget.rig != rig_name:
         raise MapConfigError(f"{path}: retarget map for rig {retarget.rig!r}, not {rig_name!r}")
     return retarget
 
 
-def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -> JointSubset:
+def subset_for(options: Mapping, rig, retarget: JointMap | None, name: str) -> JointSubset:
     """The joint subset ``map.rigs.<rig>.subsets.<name>`` (``joints: retarget`` takes the
     retarget map's joints, and the map's name)."""
     subsets = _rig_section(options, rig.name).get("subsets") or {}
@@ -258,7 +217,7 @@ def read_clips(
     out: Path,
     log: Log,
     window: FrameWindow | None = None,
-) -> tuple[list[MappedTargets], RetargetMap]:
+) -> tuple[list[MappedTargets], JointMap]:
     """Every input as the rig's mapped joints, and the retarget map whose joints they are.
 
     ``map.retarget`` given: that map for every file. Otherwise the rig's default map for a
@@ -275,7 +234,15 @@ def read_clips(
         default = retarget_map(options, rig.name, config_dir)
     clips, maps, matched = [], [], {}
     for path in sources:
-        tracks, motion = _read_source(path, options, window)
+        motion = read_bvh(path) if path.suffix.lower() == ".bvh" else None
+        if motion is not None:
+            window.check_length(motion.n_frames, motion.fps, path)
+            tracks = tracks_from_motion(motion, str(path))
+        else:  # joint tracks; an npz is read (and checked) for the window's frames only
+            unit, fps = options.get("unit", "cm"), options.get("source_fps")
+            tracks = read_tracks(path, unit=unit, fps=fps, window=window)
+            if path.suffix.lower() != ".npz":
+                window.check_length(len(tracks.positions), tracks.fps, path)
         retarget = fixed or (default if default and _fits(default, tracks) else None)
         if retarget is None and motion is None:  # joint tracks: the default map says what lacks
             retarget = default or retarget_map(options, rig.name, config_dir)
@@ -285,14 +252,27 @@ def read_clips(
         if motion is not None:
             tracks = _clean_frames(tracks, motion, log)
         maps.append(retarget)
-        clips.append(_read_clip(path, tracks, retarget, rig, window))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # unused source joints: summarised below instead
+            targets = retarget.apply(rig, tracks)
+        if path.suffix.lower() != ".npz":  # cut to the window (an npz was cut as it was read)
+            cut = window.slice(targets.fps)
+            if len(targets.positions[cut]) == 0:
+                raise MapConfigError(
+                    f"{path}: no frames left to map (the clip has {len(targets.positions)} "
+                    f"frames; {window.describe()})"
+                )
+            targets = dataclasses.replace(
+                targets, positions=targets.positions[cut], fps=targets.fps / cut.step
+            )
         if was_matched:
             height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
             log(
-                f"{path}: scale {clips[-1].scale:.4g} rig cm per source unit (from the bone "
+                f"{path}: scale {targets.scale:.4g} rig cm per source unit (from the bone "
                 f"lengths): the source's rest height {height:.4g} units is "
-                f"{height * clips[-1].scale:.1f} cm on the rig"
+                f"{height * targets.scale:.1f} cm on the rig"
             )
+        clips.append(targets)
     driven = {tuple(t.joint_names) for t in clips}
     if len(driven) > 1:
         raise MapConfigError(
@@ -302,22 +282,7 @@ def read_clips(
     return clips, _subset_map(maps[0], default)
 
 
-def _read_source(path: Path, options: Mapping, window: FrameWindow):
-    """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching); an
-    npz is read for the ``window``'s frames only."""
-    suffix = path.suffix.lower()
-    if suffix != ".bvh":
-        unit, fps = options.get("unit", "cm"), options.get("source_fps")
-        tracks = read_tracks(path, unit=unit, fps=fps, window=window)
-        if suffix != ".npz":  # an npz was checked before its frames were read
-            window.check_length(len(tracks.positions), tracks.fps, path)
-        return tracks, None
-    motion = read_bvh(path)
-    window.check_length(motion.n_frames, motion.fps, path)
-    return tracks_from_motion(motion, str(path)), motion
-
-
-def _fits(retarget: RetargetMap, tracks) -> bool:
+def _fits(retarget: JointMap, tracks) -> bool:
     return all(name in tracks.joint_names for name in retarget.joints.values())
 
 
@@ -330,13 +295,13 @@ def _clean_frames(tracks, motion, log: Log):
     log(f"{tracks.source}: {frames.describe()}")
     try:
         return dataclasses.replace(tracks, positions=frames.apply(tracks.positions))
-    except RetargetMapError as error:
+    except JointMapError as error:
         raise MapConfigError(f"{tracks.source}: {error}") from None
 
 
 def _matched_map(
     path: Path, motion, tracks, rig_name: str, options: Mapping, out: Path, matched: dict, log: Log
-) -> RetargetMap:
+) -> JointMap:
     """The BVH's skeleton matched for the rig, saved beside the output (once per skeleton)."""
     skeleton = Skeleton.from_bvh(motion)
     key = (skeleton.names, skeleton.rest.round(9).tobytes())
@@ -353,13 +318,13 @@ def _matched_map(
             draft=out / f"{path.stem}.retarget.draft.yaml",
         )
         saved = write_text_atomic(out / f"{path.stem}.retarget.yaml", result.text)
-        retarget = RetargetMap.from_yaml(saved)
+        retarget = JointMap.from_yaml(saved)
         log(f"{path}: {result.describe()}; retarget map used: {saved}")
         matched[key] = retarget
     return matched[key]
 
 
-def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetMap:
+def _subset_map(retarget: JointMap, default: JointMap | None) -> JointMap:
     """The map that names the joint subset: a matched map driving the default map's rig
     joints shares its name (and so its cached model)."""
     if default is not None and set(retarget.joints) == set(default.joints):
@@ -401,26 +366,6 @@ def _option(options: Mapping, key: str, bound, expected: str):
     return int(value) if isinstance(bound, int) else float(value)
 
 
-def _read_clip(
-    path: Path, tracks, retarget: RetargetMap, rig, window: FrameWindow
-) -> MappedTargets:
-    """One input's tracks as the rig's mapped joints, resampled and cut as ``map`` says (an
-    npz was cut as it was read, so its retargeting saw the window only)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # unused source joints: summarised below instead
-        targets = retarget.apply(rig, tracks)
-    if path.suffix.lower() == ".npz":
-        return targets
-    cut = window.slice(targets.fps)
-    positions = targets.positions[cut]
-    if len(positions) == 0:
-        raise MapConfigError(
-            f"{path}: no frames left to map (the clip has {len(targets.positions)} frames; "
-            f"{window.describe()})"
-        )
-    return dataclasses.replace(targets, positions=positions, fps=targets.fps / cut.step)
-
-
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     layout = Layout.from_paths(config.get("paths"))
     return obtain_subset_model(
@@ -460,7 +405,7 @@ def _progress(items, show: bool, what: str):
     return tqdm(items, desc=what, unit="clip", disable=not show)
 
 
-# What :func:`map_one` reports after :func:`map_clip`'s own steps.
+# What :func:`map_from_config` reports of a clip after :func:`map_clip`'s own steps.
 ONE_CLIP_STEPS = (*MAP_STEPS, "confidence", "outputs")
 
 
