@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import pandas as pd
 
@@ -113,7 +114,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                     }
                 )
     notes = _methods_notes(settings) + budget_notes + _left_out_notes(tree, others, settings)
-    notes += seed_notes(tree)
+    notes += seed_notes(tree, settings)
     return Table(
         name="table1_methods",
         title="Table 1 — inverse rig mapping methods on the test clips",
@@ -309,7 +310,7 @@ CLAIMS = (
 )
 
 
-def seed_notes(tree: Mapping[str, RigMetrics]) -> list[str]:
+def seed_notes(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> list[str]:
     """Per rig run with replicate seeds: what its network cells show, then each claim of
     ``CLAIMS`` on the Average joint error, judged by the spread (a note each)."""
     notes = []
@@ -324,19 +325,21 @@ def seed_notes(tree: Mapping[str, RigMetrics]) -> list[str]:
             "joint_error stays seed 0's); their other columns are seed 0's."
         )
         for row, other in CLAIMS:
-            claim = _claim(metrics, row, other) if row in metrics.methods else None
+            claim = _claim(metrics, row, other, settings) if row in metrics.methods else None
             if claim:
                 notes.append(f"{rig_label(rig)}, Average joint error: {claim}.")
     return notes
 
 
-def _claim(metrics: RigMetrics, row: str, other: str | float) -> str | None:
+def _claim(
+    metrics: RigMetrics, row: str, other: str | float, settings: ReportSettings
+) -> str | None:
     if isinstance(other, str) and other not in metrics.methods:
         return None
     unit = f"{metrics.methods[row].length_unit}{SQUARE}"
-    label = find_row(METHODS, row, "method").label
+    label = settings.catalogue.method(row).label
     if isinstance(other, str):
-        other_label = find_row(METHODS, other, "method").label
+        other_label = settings.catalogue.method(other).label
         return compare(
             label, _average_spread(metrics, row), other_label, _average_spread(metrics, other), unit
         )
