@@ -132,8 +132,9 @@ def time_figure(
         "Frames per second of each method (log scale) with its total wall-clock seconds over "
         "all test clips."
     )
-    return _finished(fig, out, "Speed of each method: frames per second over all test frames",
-                     caption)  # fmt: skip
+    return _finished(
+        fig, out, "Speed of each method: frames per second over all test frames", caption
+    )
 
 
 def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile | None:
@@ -184,8 +185,9 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
         "supersampled poses it was trained with; the joint-space network's curve counts the "
         "poses it draws itself (around the corpus and wide over the soft ranges)."
     )
-    return _finished(fig, out, "The network's joint error against the number of supersamples",
-                     caption)  # fmt: skip
+    return _finished(
+        fig, out, "The network's joint error against the number of supersamples", caption
+    )
 
 
 def confidence_figure(
@@ -214,8 +216,12 @@ def confidence_figure(
         ax = axes[row][column]
         novelty, error = table["novelty"].to_numpy(float), table["joint_error"].to_numpy(float)
         rho = tree[rig].methods[method].novelty_spearman
-        ax.scatter(np.maximum(novelty, _positive_floor(novelty)),
-                   np.maximum(error, _positive_floor(error)), s=6, alpha=0.6)  # fmt: skip
+        ax.scatter(
+            np.maximum(novelty, _positive_floor(novelty)),
+            np.maximum(error, _positive_floor(error)),
+            s=6,
+            alpha=0.6,
+        )
         ax.set_xscale("log")
         ax.set_yscale("log")
         label = settings.catalogue.method(method).label

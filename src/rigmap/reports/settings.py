@@ -78,8 +78,10 @@ class ReportSettings:
         own = tuple(str(r) for r in self.blend_file_rigs)
         bad = [r for r in own if not r.startswith("blend_file:")]
         if bad:
-            raise ValueError(f"report settings: blend_file_rigs {bad} must be named "
-                             "blend_file:<file stem> (the rig=blend_file name)")  # fmt: skip
+            raise ValueError(
+                f"report settings: blend_file_rigs {bad} must be named "
+                "blend_file:<file stem> (the rig=blend_file name)"
+            )
         object.__setattr__(self, "blend_file_rigs", own)
         extra = [r for r in own if r not in self.rigs]
         object.__setattr__(self, "rigs", (*self.rigs, *extra))

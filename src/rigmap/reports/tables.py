@@ -146,10 +146,12 @@ def _methods_columns(unit: str) -> list[Column]:
     columns += [
         Column(label, published.LABEL, short_group="published")
         for label in (
-            "Joint Error (unit not stated)", "Ground Truth Error", "Total Time (s)",
+            "Joint Error (unit not stated)",
+            "Ground Truth Error",
+            "Total Time (s)",
             "Frames per Sec",
         )
-    ]  # fmt: skip
+    ]
     return columns
 
 
@@ -462,19 +464,28 @@ class _PerRigSpec:
 
 
 _SAMPLING = _PerRigSpec(
-    "samplers", "sampler", "table2_sampling",
+    "samplers",
+    "sampler",
+    "table2_sampling",
     "Table 2 — the network trained with each supersampling method (Average of the test clips)",
     published.TABLE2,
-    ("'No Extra Samples' trains on the animator corpus alone; the others add the same "
-     "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
-     PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on."),
-)  # fmt: skip
+    (
+        "'No Extra Samples' trains on the animator corpus alone; the others add the same "
+        "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
+        PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on.",
+    ),
+)
 _KERNELS = _PerRigSpec(
-    "kernels", "kernel", "table_kernels",
-    "GPR kernels (§7.1) — Average of the test clips", None,
-    ("The paper reports no numbers for this comparison, only that the multiquadric "
-     "kernel did best (§7.1).",),
-)  # fmt: skip
+    "kernels",
+    "kernel",
+    "table_kernels",
+    "GPR kernels (§7.1) — Average of the test clips",
+    None,
+    (
+        "The paper reports no numbers for this comparison, only that the multiquadric "
+        "kernel did best (§7.1).",
+    ),
+)
 
 
 def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
