@@ -23,7 +23,8 @@ import pandas as pd
 from scipy.stats import spearmanr
 from sklearn.neighbors import NearestNeighbors
 
-from rigmap.evaluation.methods import TestSet, _pose_rows
+from rigmap.evaluation.methods import TestSet
+from rigmap.evaluation.retargeter import pose_rows as _pose_rows
 from rigmap.regression import load_regressor
 from rigmap.rigs import load
 from rigmap.store import Layout
