@@ -65,3 +65,21 @@ def test_bad_parts_are_refused_naming_the_file(tmp_path):
         read_catalogue([tmp_path])
     with pytest.raises(CatalogueError, match="do not exist"):
         read_catalogue([tmp_path / "nowhere"])
+
+
+def test_methods_by_name_inside_a_running_hydra_app():
+    """A stage runs under @hydra.main, so GlobalHydra is initialised when the library asks for
+    a method by name (the samples sweep's "nn"): it must compose there, not re-initialise."""
+    from hydra import compose, initialize_config_dir
+
+    from rigmap.catalog import packaged_conf
+    from rigmap.evaluation.method import get_method, packaged_methods
+
+    packaged_methods.cache_clear()
+    try:
+        with initialize_config_dir(config_dir=str(packaged_conf()), version_base="1.3"):
+            compose(config_name="config")
+            method = get_method("nn")
+        assert method.name == "nn"
+    finally:
+        packaged_methods.cache_clear()

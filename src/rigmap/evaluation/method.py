@@ -328,12 +328,16 @@ def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, Method
 def packaged_methods() -> dict[str, Method]:
     """The package's methods as its own config composes them (for callers without a config)."""
     from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
     from omegaconf import OmegaConf
 
     from rigmap.catalog import packaged_conf
 
-    with initialize_config_dir(config_dir=str(packaged_conf()), version_base="1.3"):
+    if GlobalHydra.instance().is_initialized():  # inside a stage's @hydra.main: its own conf
         config = compose(config_name="config")
+    else:
+        with initialize_config_dir(config_dir=str(packaged_conf()), version_base="1.3"):
+            config = compose(config_name="config")
     return method_catalog(OmegaConf.to_container(config.method, resolve=True))
 
 
