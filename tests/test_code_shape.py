@@ -13,7 +13,28 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 # Packages (under src/) held to 0 `# fmt: skip` lines and 0 functions over 80 lines.
-CLEAN_PACKAGES = ("rigmap/map",)
+#: every package but evaluation/ (one squeezed call left in from_config.py, which the
+#: application-layer branch moves)
+CLEAN_PACKAGES = tuple(
+    f"rigmap/{name}"
+    for name in (
+        "animation",
+        "app",
+        "edits",
+        "latent",
+        "map",
+        "refine",
+        "regression",
+        "reports",
+        "retarget",
+        "rigs",
+        "sampling",
+        "stage",
+        "store",
+        "tracking",
+        "viz",
+    )
+)
 
 
 def _code_shape():
