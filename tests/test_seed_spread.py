@@ -166,3 +166,19 @@ def test_seed_spread_script_flags_rows_that_disagree(tmp_path):
     assert row["spread_a"] == pytest.approx(0.1 * value)
     assert row["median_b"] == pytest.approx(1.5 * value) and not row["agree"]
     assert _seed_spread(a, tmp_path / "nowhere").returncode == 2
+
+
+def test_replicate_rows_that_train_no_network_are_not_spread_rows(tmp_path):
+    """A Blender rig's replicate stage also scores GPR and the mean predictor (seed 0's
+    models): the report reads only the network rows from it, and refuses a malformed name."""
+    from rigmap.reports.metrics_tree import ReportInputError
+    from rigmap.reports.seed_spread import read_replicates
+
+    seed_folder = tmp_path / "rigify_wolf" / "methods_seed1"
+    seed_folder.mkdir(parents=True)
+    (seed_folder / "gpr-none.json").write_text("{}")
+    (seed_folder / "mean-none.json").write_text("{}")
+    assert read_replicates(tmp_path / "rigify_wolf", "rigify_wolf") == {1: {}}
+    (seed_folder / "stray.json").write_text("{}")
+    with pytest.raises(ReportInputError, match=r"stray\.json: unexpected file"):
+        read_replicates(tmp_path / "rigify_wolf", "rigify_wolf")

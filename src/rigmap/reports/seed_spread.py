@@ -64,11 +64,16 @@ def read_replicates(
         results = {}
         for path in sorted(seed_folder.glob("*.json")):
             method, _, sampler = path.stem.partition("-")
-            if method not in NETWORK_METHODS or not sampler:
+            if not sampler:
                 raise ReportInputError(
-                    f"{path}: unexpected file; a replicate seed holds network rows "
+                    f"{path}: unexpected file; a replicate seed holds rows "
                     f"<method>-<sampler>.json of {', '.join(NETWORK_METHODS)}"
                 )
+            if method not in NETWORK_METHODS:
+                # a row that trains no network (GPR, mean: seed 0's models) is no spread row;
+                # the Blender rigs' replicate stages score them too (their rig config's
+                # evaluate.methods wins over the stage's list)
+                continue
             results[method] = read_result(
                 path, rig=rig, method=method, sampler=sampler, clips=clips
             )
