@@ -29,8 +29,8 @@ import json
 import sys
 from pathlib import Path
 
-from rigmap.reports.metrics_tree import ReportInputError, read_result
-from rigmap.reports.seed_spread import MEASURES, NETWORK_METHODS, Spread, read_replicates
+from rigmap.reports.metrics_tree import ReportInputError, read_replicates, read_result
+from rigmap.reports.seed_spread import MEASURES, NETWORK_METHODS, Spread
 
 USAGE = "usage: python scripts/seed_spread.py METRICS_A METRICS_B"
 

@@ -171,8 +171,7 @@ def test_seed_spread_script_flags_rows_that_disagree(tmp_path):
 def test_replicate_rows_that_train_no_network_are_not_spread_rows(tmp_path):
     """A Blender rig's replicate stage also scores GPR and the mean predictor (seed 0's
     models): the report reads only the network rows from it, and refuses a malformed name."""
-    from rigmap.reports.metrics_tree import ReportInputError
-    from rigmap.reports.seed_spread import read_replicates
+    from rigmap.reports.metrics_tree import ReportInputError, read_replicates
 
     seed_folder = tmp_path / "rigify_wolf" / "methods_seed1"
     seed_folder.mkdir(parents=True)

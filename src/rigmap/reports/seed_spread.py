@@ -8,26 +8,17 @@ comparison the report states between rows holds only by more than that spread.
 
 from __future__ import annotations
 
-import re
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
-from rigmap.reports.metrics_tree import LoadedResult, ReportInputError, read_result
-
-#: Table 1's rows whose guess is a trained network (re-fitted per replicate seed)
-NETWORK_METHODS = (
-    "nn",
-    "nn_computed_jacobian",
-    "nn_learned_jacobian",
-    "nn_autodiff_jacobian",
-    "nn_joint_space",
-    "nn_joint_space_computed_jacobian",
-    "nn_joint_space_tuned",
+from rigmap.reports.metrics_tree import (  # read there with the rest of the tree
+    NETWORK_METHODS,
+    LoadedResult,
+    ReportInputError,
 )
+
 MEASURES = ("joint_error", "ground_truth_error")
-_SEED_FOLDER = re.compile(r"^methods_seed(?P<k>[1-9]\d*)$")
 
 
 @dataclass(frozen=True)
@@ -49,36 +40,6 @@ class Spread:
             raise ValueError("a spread needs at least one value")
         values = [float(v) for v in values]
         return cls(statistics.median(values), min(values), max(values), len(values))
-
-
-def read_replicates(
-    rig_folder: str | Path, rig: str, clips: Sequence[str] | None = None
-) -> dict[int, dict[str, LoadedResult]]:
-    """A rig's ``methods_seed<k>/<method>-<sampler>.json``: seed -> method -> result."""
-    folder = Path(rig_folder)
-    found: dict[int, dict[str, LoadedResult]] = {}
-    for seed_folder in sorted(folder.glob("methods_seed*")) if folder.is_dir() else ():
-        match = _SEED_FOLDER.match(seed_folder.name)
-        if match is None or not seed_folder.is_dir():
-            raise ReportInputError(f"{seed_folder}: expected a folder methods_seed<k> (k >= 1)")
-        results = {}
-        for path in sorted(seed_folder.glob("*.json")):
-            method, _, sampler = path.stem.partition("-")
-            if not sampler:
-                raise ReportInputError(
-                    f"{path}: unexpected file; a replicate seed holds rows "
-                    f"<method>-<sampler>.json of {', '.join(NETWORK_METHODS)}"
-                )
-            if method not in NETWORK_METHODS:
-                # a row that trains no network (GPR, mean: seed 0's models) is no spread row;
-                # the Blender rigs' replicate stages score them too (their rig config's
-                # evaluate.methods wins over the stage's list)
-                continue
-            results[method] = read_result(
-                path, rig=rig, method=method, sampler=sampler, clips=clips
-            )
-        found[int(match["k"])] = results
-    return dict(sorted(found.items()))
 
 
 def row_spread(
