@@ -15,8 +15,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.stage import run_stage
 from rigmap.map.partial_report import map_partial_from_config
-from rigmap.stage import run_stage
 
 
 def run(cfg: DictConfig) -> list[Path]:

@@ -20,11 +20,11 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from rigmap.app.evaluate import method_catalog
 from rigmap.evaluation import (
     METHODS,
     EvaluationSetupError,
     RefineSettings,
-    method_catalog,
 )
 from rigmap.evaluation.methods import CONFIG_ONLY_METHODS
 from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.config_compose import compose_config, find_config_dir
+from rigmap.app.config import compose_config, find_config_dir
 from rigmap.errors import RigmapError
 from rigmap.user_outputs import user_paths
 
@@ -89,7 +89,7 @@ def command_name(parser: argparse.ArgumentParser, argv: list[str]) -> str:
 
 
 def _debugging() -> bool:
-    from rigmap.stage.runner import debugging
+    from rigmap.app.stage import debugging
 
     return debugging()
 
@@ -114,7 +114,7 @@ def _parser() -> argparse.ArgumentParser:
     ):
         add(commands)
     add_learn_command(commands, compose_config, find_config_dir)
-    from rigmap.latent.cli import add_synth_command
+    from rigmap.app.synth import add_synth_command
 
     add_synth_command(commands, compose_config, find_config_dir)
     return parser
@@ -244,8 +244,8 @@ def _add_edits(commands) -> None:
     """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
     ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
     ``rigmap edits learn`` and ``apply --model``: an artist's own BVH pairs
-    (:mod:`rigmap.edits.artist_cli`)."""
-    from rigmap.edits import artist_cli
+    (:mod:`rigmap.app.edits`)."""
+    from rigmap.app import edits as artist_cli
 
     edits = commands.add_parser(
         "edits",
@@ -302,7 +302,7 @@ def _edits(verb: str, args) -> int:
     from rigmap.store import Layout
 
     if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
-        from rigmap.edits.artist_cli import run_apply
+        from rigmap.app.edits import run_apply
 
         return run_apply(args)
     if verb == "apply" and (args.input, args.out, args.fps) != (None, None, None):
@@ -443,8 +443,8 @@ def _add_reproduce(commands) -> None:
 def _fit(args) -> int:
     from omegaconf import OmegaConf
 
-    from rigmap.regression.fitting import fit_from_config
-    from rigmap.stage.runner import apply_rig_overrides
+    from rigmap.app.fit import fit_from_config
+    from rigmap.app.stage import apply_rig_overrides
 
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
     cfg = apply_rig_overrides(compose_config(overrides, args.config_dir))
@@ -457,7 +457,7 @@ def _evaluate(args) -> int:
     """The evaluate stage in this process: the same library call as pipelines/evaluate.py."""
     from omegaconf import OmegaConf
 
-    from rigmap.evaluation import evaluate_from_config
+    from rigmap.app.evaluate import evaluate_from_config
 
     overrides = [*user_paths(args.overrides, keys=("metrics", "reports")), *args.overrides]
     cfg = compose_config(overrides, args.config_dir, with_hydra=True)
@@ -470,7 +470,7 @@ def _evaluate(args) -> int:
 def _map_config(args) -> dict:
     from omegaconf import OmegaConf
 
-    from rigmap.stage.runner import stage_config
+    from rigmap.app.stage import stage_config
 
     # the map's model cache (paths.models) goes under outputs/; the corpus is read from data/
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]

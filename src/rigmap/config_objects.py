@@ -1,5 +1,11 @@
 """Objects built from config nodes: ``hydra.utils.instantiate``, then checked to be the kind
-the caller asked for, so a wrong ``_target_`` is one clear error naming the group."""
+the caller asked for, so a wrong ``_target_`` is one clear error naming the group.
+
+The one module outside :mod:`rigmap.app` that imports Hydra, because ``rigmap.map``'s
+``subset_model`` and ``partial_report`` still build their regressor from a config node
+(and ``rigmap.app`` imports ``rigmap.map`` through ``rigmap.edits``, so they cannot import
+the application layer without a cycle); it joins :mod:`rigmap.app.objects` once they take
+a built regressor. The application layer uses it through :mod:`rigmap.app.objects`."""
 
 from __future__ import annotations
 

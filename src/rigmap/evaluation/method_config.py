@@ -1,4 +1,5 @@
-"""A method built from its config group ``conf/method/<name>.yaml`` by ``hydra.utils.instantiate``.
+"""A method built from its config group ``conf/method/<name>.yaml`` (by the application layer's
+``hydra.utils.instantiate``, :func:`rigmap.app.evaluate.method_catalog`).
 
 Each yaml names the method's initial guess (``script`` or ``regressor`` with the
 regressor's name) and pulls its refinement from ``conf/refine/*`` through its
@@ -56,25 +57,3 @@ def configured_method(
     settings = None if method.refine == "none" else RefineSettings.from_config(refine, method)
     config = {"guess": guess, "regressor": regressor, "refine": refine, "tune": tune}
     return ConfiguredMethod(method, settings, config, dict(tune) if tune is not None else None)
-
-
-def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, ConfiguredMethod]:
-    """Every method of the ``method`` config node, by name, built by ``hydra.utils.instantiate``."""
-    import hydra.utils
-    from hydra.errors import InstantiationException
-
-    catalog = {}
-    for name, node in configs.items():
-        try:
-            built = hydra.utils.instantiate(dict(node), name=str(name), _convert_="all")
-        except InstantiationException as error:  # Hydra wraps the reason: name it plainly
-            cause = error.__cause__ if error.__cause__ is not None else error
-            where = f"method.{name} (conf/method/{name}.yaml)"
-            raise EvaluationSetupError(f"{where}: {cause}") from None
-        if not isinstance(built, ConfiguredMethod):
-            raise EvaluationSetupError(
-                f"method.{name}: its _target_ built a {type(built).__name__}, expected a "
-                "ConfiguredMethod (rigmap.evaluation.configured_method)"
-            )
-        catalog[str(name)] = built
-    return catalog

@@ -1,4 +1,4 @@
-"""The evaluate stage from its composed config: one call for ``pipelines/evaluate.py`` and the CLI.
+"""The evaluate job from its composed config: one call for ``pipelines/evaluate.py`` and the CLI.
 
 The config arrives as a plain, resolved mapping (``OmegaConf.to_container(cfg,
 resolve=True)``), never a ``DictConfig``: the rig, the methods (``method.<name>``,
@@ -13,10 +13,11 @@ from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
+from rigmap.app.objects import kernel_name, sampler_name
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate
-from rigmap.evaluation.method_config import method_catalog
+from rigmap.evaluation.method_config import ConfiguredMethod
 from rigmap.evaluation.methods import EvaluationSetupError
-from rigmap.sampling import sampler_name
+from rigmap.rigs import use_executor
 from rigmap.store import Layout
 
 
@@ -35,8 +36,6 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
     layout = Layout.from_paths(config["paths"])
     rig = rig_from_mapping(config["rig"])
     if config.get("executor") is not None:
-        from rigmap.stage.inputs import use_executor
-
         use_executor(rig, dict(config["executor"]))
     log = None
     if settings.log_to_mlflow:
@@ -68,8 +67,23 @@ def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     return load(options)
 
 
-def kernel_name(kernel_config: Mapping[str, Any]) -> str:
-    """The kernel's label in model ids (``multiquadric``, ``multiquadric_plus_linear`` …)."""
+def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, ConfiguredMethod]:
+    """Every method of the ``method`` config node, by name, built by ``hydra.utils.instantiate``."""
     import hydra.utils
+    from hydra.errors import InstantiationException
 
-    return str(hydra.utils.instantiate(dict(kernel_config)).label)
+    catalog = {}
+    for name, node in configs.items():
+        try:
+            built = hydra.utils.instantiate(dict(node), name=str(name), _convert_="all")
+        except InstantiationException as error:  # Hydra wraps the reason: name it plainly
+            cause = error.__cause__ if error.__cause__ is not None else error
+            where = f"method.{name} (conf/method/{name}.yaml)"
+            raise EvaluationSetupError(f"{where}: {cause}") from None
+        if not isinstance(built, ConfiguredMethod):
+            raise EvaluationSetupError(
+                f"method.{name}: its _target_ built a {type(built).__name__}, expected a "
+                "ConfiguredMethod (rigmap.evaluation.configured_method)"
+            )
+        catalog[str(name)] = built
+    return catalog
