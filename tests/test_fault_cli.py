@@ -146,7 +146,7 @@ def test_committed_params_yaml_is_what_conf_composes():
     from rigmap.app.params import stale_params
 
     assert stale_params(ROOT) == []
-    assert "python -m rigmap.app.params fresh" in (ROOT / ".ci" / "run").read_text()
+    assert "python -m rigmap.pipeline_params fresh" in (ROOT / ".ci" / "run").read_text()
 
 
 def test_stale_params_yaml_fails_the_check(tmp_path, monkeypatch, capsys):
@@ -453,7 +453,7 @@ def test_every_stage_gets_the_config_its_interpolated_command_gave(tmp_path):
         for name, stage in firsts.items():
             argv = shlex.split(stage.cmd)[1:]  # python <script> overrides...
             if not argv[0].startswith("pipelines/"):
-                continue  # check_params: python -m rigmap.app.params check params.yaml
+                continue  # check_params: python -m rigmap.pipeline_params check params.yaml
             resolved = resolve_argv(argv, project, stage.name)
             config = CONFIG_OF_SCRIPT.get(Path(argv[0]).stem, "config")
             pasted = [f"{k}={_hydra_value(v)}" for k, (_, v) in resolved.params.items()]

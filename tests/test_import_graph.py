@@ -35,6 +35,7 @@ APPLICATIONS = (
     "rigmap.reproduce",
     "rigmap.app",
     "rigmap.pipeline_params",
+    "rigmap.stage",  # the old name of rigmap.app.stage, a re-export
 )
 
 MAX_FUNCTION_LINES = 80
