@@ -52,11 +52,10 @@ def expected_failure(error: BaseException) -> bool:
     system refuses (every ``OSError``: a missing file, a folder where a file is expected,
     a full disk), ``MemoryError``, and a config Hydra cannot compose. Anything else is a bug.
     """
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
+    from rigmap.app.config import config_errors
 
-    expected = (RigmapError, ValueError, KeyError, OSError, MemoryError, HydraException)
-    return isinstance(error, (*expected, OmegaConfBaseException))
+    expected = (RigmapError, ValueError, KeyError, OSError, MemoryError)
+    return isinstance(error, (*expected, *config_errors()))
 
 
 def failure_message(error: BaseException) -> str:
@@ -296,10 +295,7 @@ def _add_edits(commands) -> None:
 
 
 def _edits(verb: str, args) -> int:
-    from omegaconf import OmegaConf
-
-    from rigmap.edits import runs
-    from rigmap.store import Layout
+    from rigmap.app.edits import run_edits_stage
 
     if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
         from rigmap.app.edits import run_apply
@@ -308,10 +304,7 @@ def _edits(verb: str, args) -> int:
     if verb == "apply" and (args.input, args.out, args.fps) != (None, None, None):
         raise ValueError("--input, --out and --fps go with --model (a rigmap edits learn folder)")
     overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
-    cfg = compose_config(["+edits=default", *overrides], args.config_dir)
-    config = OmegaConf.to_container(cfg.edits, resolve=True)
-    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    for path in getattr(runs, f"run_{verb}")(config, layout):
+    for path in run_edits_stage(verb, overrides, args.config_dir):
         print(path)
     return 0
 
@@ -441,41 +434,28 @@ def _add_reproduce(commands) -> None:
 
 
 def _fit(args) -> int:
-    from omegaconf import OmegaConf
-
-    from rigmap.app.fit import fit_from_config
-    from rigmap.app.stage import apply_rig_overrides
+    from rigmap.app.fit import fit_command
 
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
-    cfg = apply_rig_overrides(compose_config(overrides, args.config_dir))
-    result = fit_from_config(OmegaConf.to_container(cfg, resolve=True))
-    print(result.folder)
+    print(fit_command(overrides, args.config_dir).folder)
     return 0
 
 
 def _evaluate(args) -> int:
-    """The evaluate stage in this process: the same library call as pipelines/evaluate.py."""
-    from omegaconf import OmegaConf
-
-    from rigmap.app.evaluate import evaluate_from_config
+    """The evaluate stage in this process: the same call as pipelines/evaluate.py."""
+    from rigmap.app.evaluate import evaluate_command
 
     overrides = [*user_paths(args.overrides, keys=("metrics", "reports")), *args.overrides]
-    cfg = compose_config(overrides, args.config_dir, with_hydra=True)
-    experiment = cfg.hydra.runtime.choices.get("experiment")
-    stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
-    evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+    evaluate_command(overrides, args.config_dir)
     return 0
 
 
 def _map_config(args) -> dict:
-    from omegaconf import OmegaConf
-
-    from rigmap.app.stage import stage_config
+    from rigmap.app.map import map_config
 
     # the map's model cache (paths.models) goes under outputs/; the corpus is read from data/
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
-    cfg = stage_config(compose_config(overrides, args.config_dir, config_name="map"))
-    return OmegaConf.to_container(cfg, resolve=True)
+    return map_config(overrides, args.config_dir)
 
 
 def _map(args) -> int:

@@ -58,6 +58,19 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
         )
 
 
+def evaluate_command(overrides: list[str], config_dir=None) -> list[Path]:
+    """``rigmap evaluate``: ``conf/`` composed with ``overrides`` and evaluated as the stage
+    does, the experiment group's choice recorded."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.config import compose_config
+
+    cfg = compose_config(overrides, config_dir, with_hydra=True)
+    experiment = cfg.hydra.runtime.choices.get("experiment")
+    stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
+    return evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+
+
 def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     """The rig the ``rig`` group names (its ``corpus`` options are not the factory's)."""
     from rigmap.rigs import load
