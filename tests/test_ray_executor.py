@@ -131,8 +131,8 @@ def test_ray_not_installed_is_a_clear_error(monkeypatch):
 
 
 def test_executor_choice_is_checked_and_only_blender_rigs_take_ray(quadruped):
-    from rigmap.app.inputs import use_executor
     from rigmap.errors import RigmapError
+    from rigmap.rigs import use_executor
     from rigmap.rigs.base import RigInputError
     from rigmap.rigs.blender.rig import executor_options
 

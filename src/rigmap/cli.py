@@ -244,7 +244,7 @@ def _add_edits(commands) -> None:
     ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
     ``rigmap edits learn`` and ``apply --model``: an artist's own BVH pairs
     (:mod:`rigmap.app.edits`)."""
-    from rigmap.app import edits as artist_cli
+    from rigmap.app import edits as edits_app
 
     edits = commands.add_parser(
         "edits",
@@ -289,9 +289,9 @@ def _add_edits(commands) -> None:
             run=lambda args, verb=verb: _edits(verb, args),
         )
         if verb == "apply":
-            artist_cli.add_apply_options(command)
-    artist_cli.add_learn_command(verbs)
-    artist_cli.add_fix_command(verbs)
+            edits_app.add_apply_options(command)
+    edits_app.add_learn_command(verbs)
+    edits_app.add_fix_command(verbs)
 
 
 def _edits(verb: str, args) -> int:

@@ -1,7 +1,5 @@
 """The plain objects a stage builds from its composed config, so the library never sees one.
 
-``use_executor`` is re-exported from :mod:`rigmap.rigs` for the stages that switch a rig.
-
 A stage (``pipelines/*.py``) composes its config with Hydra, turns it into these objects
 — the :class:`~rigmap.store.Layout` of its files, the rig, the unfitted sampler and its
 seed — and hands them to one library function.
@@ -15,8 +13,6 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from rigmap.app.objects import instantiate_sampler, sampler_name
-from rigmap.rigs import load, use_executor
 from rigmap.store import Layout
 
 __all__ = [
@@ -26,7 +22,6 @@ __all__ = [
     "rig_from_config",
     "sampler_from_config",
     "sampler_seed",
-    "use_executor",
 ]
 
 DEFAULT_FPS = 24  # the frame rate a rig config without ``corpus.fps`` is played at
@@ -40,6 +35,8 @@ def layout_of(cfg: DictConfig) -> Layout:
 def rig_from_config(rig_cfg: DictConfig, executor: DictConfig | None = None):
     """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's),
     evaluated on the ``executor`` group's engine (``local`` or ``ray``)."""
+    from rigmap.rigs import load, use_executor
+
     options = OmegaConf.to_container(rig_cfg, resolve=True)
     options.pop("corpus", None)
     rig = load(options)
@@ -65,6 +62,8 @@ def corpus_settings(cfg: DictConfig) -> dict[str, Any]:
 
 def sampler_from_config(sampler_cfg: DictConfig, rig) -> Any:
     """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
+    from rigmap.app.objects import instantiate_sampler, sampler_name
+
     options = OmegaConf.to_container(sampler_cfg, resolve=True)
     overrides = {}
     if sampler_name(options) == "uniform" and options.get("range") == "soft":
