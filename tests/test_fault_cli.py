@@ -396,6 +396,7 @@ def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, k
     """Trials: ``rigmap edits``, ``synth``, ``map`` (its model cache), ``fit`` and ``evaluate``
     write under outputs/ unless a paths.* override names another folder; the data they only
     read stays the pipeline's; DVC stages keep conf/'s paths."""
+    import rigmap.app.config
     import rigmap.cli as cli
 
     seen = []
@@ -405,7 +406,8 @@ def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, k
         raise ValueError("composed")  # stop before any work
 
     monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
-    monkeypatch.setattr(cli, "compose_config", compose)
+    monkeypatch.setattr(cli, "compose_config", compose)  # the verbs handed it (synth)
+    monkeypatch.setattr(rigmap.app.config, "compose_config", compose)  # the application layer
     assert cli.main([*command, *tail]) == 2
     paths = [o for o in seen[0] if o.startswith("paths.")]
     assert paths == [f"paths.{k}=outputs/{k}" for k in keys]

@@ -8,7 +8,6 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-from rigmap.app.config import compose_config
 from rigmap.app.objects import instantiate_as, plain, sampler_name
 from rigmap.regression.base import Regressor
 from rigmap.regression.fitting import FitInputError, FitResult, Log, fit_model
@@ -34,6 +33,7 @@ def fit_from_config(config: Mapping[str, Any], *, log: Log | None = None) -> Fit
 def fit_command(overrides: list[str], config_dir=None) -> FitResult:
     """``rigmap fit``: ``conf/`` composed with ``overrides``, the rig's ``_overrides_``
     applied, then the fit the stage runs."""
+    from rigmap.app.config import compose_config
     from rigmap.app.stage import apply_rig_overrides
 
     return fit_from_config(apply_rig_overrides(compose_config(overrides, config_dir)))
