@@ -48,7 +48,7 @@ def _config(args, *overrides: str) -> dict:
 
 
 def _model(rig, config, subset_name, retarget=None):
-    from rigmap.map.app import subset_for
+    from rigmap.app.map_job import subset_for
     from rigmap.map.subset_model import obtain_subset_model
     from rigmap.store import Layout
 
@@ -58,12 +58,12 @@ def _model(rig, config, subset_name, retarget=None):
 
 
 def bench_map(rig, args) -> dict:
-    from rigmap.map.app import _read_clip, map_settings, retarget_map
+    from rigmap.app.map_job import map_settings, read_clips
     from rigmap.map.clip import map_clip
 
     config = _config(args, "map.first_frame=240", f"map.frames={args.frames}")
-    retarget = retarget_map(config["map"], rig.name, ROOT / "conf")
-    targets = _read_clip(WALK, retarget, rig, config["map"])
+    out = Path(args.models) / "bench_map_out"  # where a matched skeleton's map would go
+    (targets,), retarget = read_clips([WALK], rig, config["map"], ROOT / "conf", out, print)
     model = _model(rig, config, "mocap", retarget)
     out = {"clip": WALK.name, "frames": len(targets.positions), "fps_of_clip": targets.fps}
     for label, iterations in (("regression_only", 0), ("refined", args.iterations)):
@@ -103,7 +103,7 @@ def _drag_targets(rig, subset, n: int, data: str) -> np.ndarray:
 
 def bench_pose(rig, args) -> dict:
     """Every variant poses the same drag, one pose per call as an interactive tool calls it."""
-    from rigmap.map.app import map_settings
+    from rigmap.app.map_job import map_settings
 
     config = _config(args)
     model = _model(rig, config, "effectors")

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.animation.library import build_corpus
-from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map import JointMap, tracks_from_bvh
 from rigmap.map.clip import MapSettings, map_clip
 from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.regression import GaussianProcessRegressor
@@ -102,7 +102,7 @@ def main() -> int:
     args = parser.parse_args()
     seconds: dict = {}
     rig = load("rigify_human")
-    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_rigify_human.yaml")
+    retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_rigify_human.yaml")
     mapping, Y, n_train = fit_mapping(rig, retarget, args.gpr_points, seconds)
     targets = retarget.apply(rig, tracks_from_bvh(WALK))
     short = dataclasses.replace(

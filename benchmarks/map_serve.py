@@ -1,8 +1,8 @@
 """The served map model: start-up, request latency and agreement with map_clip; prints JSON.
 
 A subset mapping (effectors: pelvis, chest, head, hands, feet) is fitted on the biped's
-train corpus, saved as the map pyfunc model (:mod:`rigmap.map.pyfunc_model`) and served
-with ``mlflow models serve`` (:mod:`rigmap.map.model_server`). The request is the first
+train corpus, saved as the map pyfunc model (:mod:`rigmap.tracking.map_model`) and served
+with ``mlflow models serve`` (:mod:`rigmap.tracking.model_server`). The request is the first
 ``--frames`` frames of the biped's first test clip. Timed: map_clip in this process, the
 loaded pyfunc model, the served request (each ``--repeats`` times, best and median). The
 machine may be shared, so the numbers carry the 1-minute load average around them.
@@ -48,7 +48,7 @@ def fitted_effector_mapping(rig, points: int):
 
 def test_clip_targets(rig, subset, frames: int):
     from rigmap.animation.library import build_corpus
-    from rigmap.map.retarget_map import MappedTargets
+    from rigmap.map.joint_map import MappedTargets
 
     test = build_corpus(rig, "test", seed=0)
     clip = test.clip_table(test.clip_names[0]).iloc[:frames]
@@ -78,9 +78,9 @@ def main() -> None:
     import mlflow
 
     from rigmap.map.clip import MapSettings, map_clip
-    from rigmap.map.model_server import post_json, served_model
-    from rigmap.map.pyfunc_model import input_frame, save_map_model
     from rigmap.rigs import load
+    from rigmap.tracking.map_model import input_frame, save_map_model
+    from rigmap.tracking.model_server import post_json, served_model
 
     load_before = os.getloadavg()[0]
     rig = load("biped")

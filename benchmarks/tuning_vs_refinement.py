@@ -28,8 +28,14 @@ from pathlib import Path
 import torch
 import yaml
 
-from rigmap.evaluation.method_config import configured_method
-from rigmap.evaluation.methods import TestSet, run_method
+from rigmap.evaluation.methods import (
+    ComputedJacobianRefinement,
+    Method,
+    NoRefinement,
+    RegressorGuess,
+    TestSet,
+    run_method,
+)
 from rigmap.regression import load_regressor
 from rigmap.regression.target_tuning import TunedOnTarget, TuningSettings
 from rigmap.rigs import load
@@ -59,14 +65,14 @@ def measure(rig_name: str, layout: Layout, refine: dict, variants: list[str]) ->
         regressor, iterations, tune = VARIANTS[name]
         if regressor not in loaded:
             loaded[regressor] = load_regressor(layout.model(rig_name, MODELS[regressor]), rig=rig)
-        settings = dict(refine, max_iterations=iterations) if iterations else None
-        configured = configured_method(name, "regressor", regressor, refine=settings, tune=tune)
+        plain = {k: v for k, v in refine.items() if k != "_target_"}  # the class is ours
+        settings = dict(plain, max_iterations=iterations) if iterations else None
+        refiner = ComputedJacobianRefinement(**settings) if settings else NoRefinement()
+        method = Method(name, RegressorGuess(regressor), refiner, tune=tune)
         mapping = loaded[regressor]
-        if configured.tune is not None:
-            mapping = TunedOnTarget(mapping, rig, TuningSettings(**configured.tune))
-        evaluation = run_method(
-            rig, configured.method, test_set, regressor=mapping, refine=configured.refine
-        )
+        if method.tune is not None:
+            mapping = TunedOnTarget(mapping, rig, TuningSettings(**method.tune))
+        evaluation = run_method(rig, method, test_set, regressor=mapping)
         average = evaluation.result.average()
         row = {
             "rig": rig_name,

@@ -39,8 +39,10 @@ def run(cfg: DictConfig) -> Path:
     out = Path(layout_of(cfg).data) / FIXTURE
     with atomic_file(out, suffix=".blend") as temporary:
         info = write_actions_blend(rigify_blend("human"), clips, temporary, fps=FPS)
-    print(f"{out}: Rigify human with {info['actions']} actions {[c.name for c in clips]}, "
-          f"{info['keys']} keys at {FPS} fps")  # fmt: skip
+    print(
+        f"{out}: Rigify human with {info['actions']} actions {[c.name for c in clips]}, "
+        f"{info['keys']} keys at {FPS} fps"
+    )
     return out
 
 

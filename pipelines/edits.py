@@ -1,6 +1,6 @@
 """DVC stages ``edit_fit``, ``edit_apply``, ``edit_evaluate``: edit propagation (002).
 
-One script for the three steps of :mod:`rigmap.edits.runs` (``run_fit``, ``run_apply``,
+One script for the three steps of :mod:`rigmap.edits.steps` (``run_fit``, ``run_apply``,
 ``run_evaluate``), chosen by ``+edits_step``:
 
     python pipelines/edits.py +edits=default +edits_step=fit                    # both subjects
@@ -12,7 +12,7 @@ from __future__ import annotations
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.app.stage import run_stage
-from rigmap.edits import runs
+from rigmap.edits import steps
 from rigmap.edits.representation import TargetError
 from rigmap.store import Layout
 
@@ -27,7 +27,7 @@ def run(cfg: DictConfig):
         raise TargetError(f"+edits_step: expected one of {STEPS}, got {step!r}")
     config = OmegaConf.to_container(cfg.edits, resolve=True)
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    return getattr(runs, f"run_{step}")(config, layout)
+    return getattr(steps, f"run_{step}")(config, layout)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """DVC stages ``latent_fit``, ``latent_match``, ``latent_synthesize``, ``latent_evaluate``:
 latent synthesis (Bailey, Watt & O'Brien 2016; seed 003), one rig a run.
 
-One script for the four steps of :mod:`rigmap.latent.runs`, chosen by ``+latent_step``;
+One script for the four steps of :mod:`rigmap.latent.steps`, chosen by ``+latent_step``;
 settings in ``conf/latent/default.yaml`` (``latent.*``), and with ``latent.log_to_mlflow``
 a parent MLflow run per step in the rig's experiment:
 

@@ -5,7 +5,7 @@
         map.settings.refine_iterations=0,3
 
 Takes the same overrides as ``rigmap map`` (conf/map.yaml); the work is
-:func:`rigmap.map.app.map_from_config`.
+:func:`rigmap.app.map_job.map_from_config`.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.map_job import MappedClip, map_from_config
 from rigmap.app.stage import run_stage
-from rigmap.map.app import MappedClip, map_from_config
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "conf"
 

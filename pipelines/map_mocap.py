@@ -3,7 +3,7 @@
 Reads the clips named in ``map.mocap_stage`` and the rig's train corpus and poses; fits
 the map model into ``<paths.data>/<rig>/map/model/`` and writes, per clip,
 ``<paths.data>/<rig>/map/<clip>/`` (controls, keys, BVH, previews) and
-``<paths.metrics>/<rig>/map/<clip>.{json,csv}``. The work is :mod:`rigmap.map.mocap_stage`.
+``<paths.metrics>/<rig>/map/<clip>.{json,csv}``. The work is :mod:`rigmap.app.map_stage`.
 
     python pipelines/map_mocap.py rig=biped
 """
@@ -14,8 +14,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.map_stage import map_mocap
 from rigmap.app.stage import run_stage
-from rigmap.map.mocap_stage import map_mocap
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "conf"
 

@@ -4,7 +4,7 @@ Reads ``<paths.data>/<rig>/{corpus,poses}/{train,test}.parquet``; fits a subset 
 ``regressor`` group) per input of ``map_partial.input_joints`` plus the full joint set,
 scores them on the test clips and maps the motion-editing demo (paper §6.3, Figs 5-7);
 writes ``<paths.metrics>/<rig>/map_partial/{partial_inputs.json,partial_inputs.csv,
-motion_edit.json}`` (:mod:`rigmap.map.partial_report`).
+motion_edit.json}`` (:mod:`rigmap.app.map_partial`).
 
     python pipelines/map_partial.py rig=biped regressor=gpr kernel=multiquadric
 """
@@ -15,8 +15,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.map_partial import map_partial_from_config
 from rigmap.app.stage import run_stage
-from rigmap.map.partial_report import map_partial_from_config
 
 
 def run(cfg: DictConfig) -> list[Path]:

@@ -1,7 +1,7 @@
 """``make mocap-suite``: every clip of ``../shared/mocap/`` mapped whole onto a rig (issue #37).
 
 Writes ``<paths.data>/<rig>/map_suite/<clip>/``, ``<paths.metrics>/<rig>/map_suite/<clip>.json``
-and ``<paths.reports>/map_suite/<rig>.md``; the work is :mod:`rigmap.map.mocap_suite`.
+and ``<paths.reports>/map_suite/<rig>.md``; the work is :mod:`rigmap.app.map_suite`.
 It needs the rig's corpus and poses (the ``animate`` and ``pose`` stages).
 
     python pipelines/map_suite.py rig=biped
@@ -13,8 +13,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.map_suite import map_suite
 from rigmap.app.stage import run_stage
-from rigmap.map.mocap_suite import map_suite
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "conf"
 

@@ -26,14 +26,30 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 from rigmap.app.inputs import layout_of
 from rigmap.app.objects import sampler_name
 from rigmap.app.stage import run_stage
+from rigmap.catalog import Catalogue, packaged_conf, read_catalogue
 from rigmap.reports import ReportFiles, ReportSettings, build_report
 
 PARAMS_FILE = Path("params.yaml")  # DVC runs the stage at the repository root
 
 
+def report_catalogue() -> Catalogue:
+    """The labels of the rows: the package's config and every folder on Hydra's search path
+    (a part added in another config folder, e.g. a plugin's, is labelled as its class says)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    folders = [packaged_conf()]
+    sources = HydraConfig.get().runtime.config_sources if HydraConfig.initialized() else []
+    for source in sources:
+        folder = Path(source.path)
+        if source.schema == "file" and folder.is_dir():
+            if folder.resolve() not in [f.resolve() for f in folders]:
+                folders.append(folder)
+    return read_catalogue(folders)
+
+
 def report_settings(cfg: DictConfig) -> ReportSettings:
     """Expected rows: the ``evaluate`` lists, the network's sampler, then ``report``."""
-    values: dict = {}
+    values: dict = {"catalogue": report_catalogue()}
     evaluate = cfg.get("evaluate")
     if evaluate is not None:
         for key in ("methods", "samplers", "kernels", "clips"):

@@ -18,9 +18,11 @@ APPLICATION_LAYER = "rigmap.app"
 
 #: modules outside the application layer still allowed to import Hydra, with the reason (ours)
 KNOWN_EXCEPTIONS = {
-    "rigmap.config_objects": "rigmap.map.subset_model and rigmap.map.partial_report (helper "
-    "house-map's area) build their regressor from a config node with instantiate_as; it "
-    "moves into rigmap.app.objects when they take a built regressor",
+    "rigmap.config_objects": "rigmap.map.subset_model builds its regressor from a config node "
+    "(instantiate_as) and rigmap.evaluation.method its methods (instantiate_node; "
+    "packaged_methods composes the package's conf/method for the runner and the sample "
+    "sweep, which take a method by name); it moves into rigmap.app.objects when they take "
+    "built objects",
 }
 
 

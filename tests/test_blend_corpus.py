@@ -356,9 +356,9 @@ def test_rigmap_map_onto_the_users_file_writes_back_keys_that_replay_within_its_
     from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import pose_corpora
     from rigmap.app.inputs import rig_from_config
+    from rigmap.app.map_job import map_from_config
     from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config, find_config_dir
-    from rigmap.map.app import map_from_config
     from rigmap.rigs.blender.export import read_blend_animation
     from rigmap.store import Layout
 

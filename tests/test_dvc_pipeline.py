@@ -90,6 +90,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
     and the two map_partial stages (issue 14)."""
     rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
     map_only = params["pipeline"]["blender_map_rigs"]
+    table1, seeds = params["pipeline"]["table1_rigs"], len(params["pipeline"]["spread_seeds"])
     kinds: dict[str, int] = {}
     for name in stages:
         kind = name.split("@")[0].removesuffix("_blender")
@@ -124,11 +125,19 @@ def test_the_planned_work_per_stage_kind(stages, params):
         # a user's .blend (issue #19): the file, then its corpus to Table 1
         "blend_fixture": 1,
         **{f"{kind}_blend_file": 1 for kind in BLEND_FILE_STAGES},
+        # Table 1's networks per replicate training seed (issue #36): built-in rigs, the
+        # Blender rig and the user's .blend; only the network rows evaluated
+        "fit_nn_seed": (len(table1) + len(blender)) * seeds,
+        "evaluate_seed": (len(table1) + len(blender)) * seeds,
+        "fit_nn_joint_space_seed": len(table1) * seeds,
+        "fit_nn_seed_blend_file": seeds,
+        "evaluate_seed_blend_file": seeds,
     }
     assert len(stages) == (
         30 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
+        + (3 * len(table1) + 2 * len(blender) + 2) * seeds
     )  # fmt: skip
     assert len(blender) == 1
 

@@ -175,7 +175,7 @@ def test_the_cli_plays_refinement_rounds(tmp_path, capsys):
 
 
 def test_refinement_settings_are_checked_before_any_work():
-    from rigmap.edits.runs import REFINE_DEFAULTS, refine_settings
+    from rigmap.edits.steps import REFINE_DEFAULTS, refine_settings
 
     assert refine_settings({}) == REFINE_DEFAULTS
     assert refine_settings({"refine": {"rounds": 2}})["rounds"] == 2

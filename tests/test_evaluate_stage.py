@@ -21,12 +21,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from rigmap.app.evaluate import method_catalog
-from rigmap.evaluation import (
-    METHODS,
-    EvaluationSetupError,
-    RefineSettings,
-)
-from rigmap.evaluation.methods import CONFIG_ONLY_METHODS
+from rigmap.evaluation import EvaluationSetupError, RefineSettings
 from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor
 from rigmap.regression.features import feature_names, inverse_features
 from test_methods import build_rig_data, fit_tiny_models
@@ -153,14 +148,18 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
         cfg = compose(config_name="config", overrides=overrides)
     config = OmegaConf.to_container(cfg, resolve=True)
     catalog = method_catalog(config["method"])
-    built = {name: m.method for name, m in catalog.items() if name not in CONFIG_ONLY_METHODS}
-    assert built == METHODS  # the yamls are Table 1
     yamls = sorted(p.stem for p in (ROOT / "conf" / "method").glob("*.yaml"))
-    assert yamls == sorted([*METHODS, *CONFIG_ONLY_METHODS])
+    assert sorted(catalog) == yamls  # every yaml is composed, under its own name
+    kinds = {n: (m.guess.kind, m.regressor, m.refine_label) for n, m in catalog.items()}
+    assert kinds["script"] == ("script", None, "none")
+    assert kinds["gpr_learned_jacobian"] == ("regressor", "gpr", "learned_jacobian")
+    assert kinds["nn_computed_jacobian"] == ("regressor", "nn", "finite_difference")
+    assert kinds["nn_autodiff_jacobian"] == ("regressor", "nn", "autodiff")
+    assert kinds["mean"] == ("regressor", "mean", "none")
     tuned = catalog["nn_joint_space_tuned"]
-    assert tuned.method.regressor == "nn_joint_space" and tuned.tune["steps"] == 160
+    assert tuned.regressor == "nn_joint_space" and tuned.tune["steps"] == 160
     computed = catalog["gpr_computed_jacobian"]
-    assert computed.refine == RefineSettings(
+    assert computed.refine_settings == RefineSettings(
         damping=0.3,
         tolerance=1e-4,
         max_iterations=4,
@@ -169,11 +168,20 @@ def test_the_method_group_builds_every_method_of_table_1_once(face):
         solver="block_cholesky",
         traced=True,  # the refine config default (a Blender rig ignores it)
     )
-    assert catalog["nn_computed_jacobian"].refine.damping == "auto"  # only its own node moved
-    assert catalog["nn_autodiff_jacobian"].method.jacobian == "autodiff"
+    assert catalog["nn_computed_jacobian"].refine_settings.damping == "auto"  # its node only
     learned = catalog["nn_learned_jacobian"]
-    assert learned.method.refine == "learned_jacobian" and learned.refine.max_iterations == 4
-    assert catalog["gpr"].refine is None and catalog["script"].method.guess == "script"
+    assert learned.needs_learned_jacobian and learned.refine_settings.max_iterations == 4
+    assert catalog["gpr"].refine_settings is None and not catalog["gpr"].needs_learned_jacobian
+    # the report's labels are the built methods' own (rigmap.catalog reads the same yamls)
+    from rigmap.catalog import read_catalogue
+
+    rows = read_catalogue([ROOT / "conf"]).methods
+    assert [(r.key, r.label, r.extra) for r in rows] == [
+        (n, catalog[n].title, catalog[n].extra) for n in cfg.evaluate.methods
+    ]
+    assert catalog["nn_joint_space_computed_jacobian"].title == (
+        "Joint-space NN & Computed Jacobian"
+    )
     node = config["method"]["gpr_computed_jacobian"]
     negative = {**node, "refine": {**node["refine"], "damping": -1}}
     expected = r"method\.gpr_computed_jacobian .*refine\.damping: expected a number >= 0"
@@ -189,7 +197,8 @@ def test_a_method_is_one_yaml(face, tmp_path):
     shutil.copytree(ROOT / "conf", conf)
     (conf / "method" / "gpr_damped.yaml").write_text(
         "defaults:\n  - /refine@refine: computed_jacobian\n  - _self_\n"
-        "_target_: rigmap.evaluation.configured_method\nguess: regressor\nregressor: gpr\n"
+        "_target_: rigmap.evaluation.method.Method\n"
+        "guess:\n  _target_: rigmap.evaluation.method.RegressorGuess\n  regressor: gpr\n"
         "refine:\n  damping: 0.5\n"
     )
     defaults = conf / "evaluate" / "default.yaml"

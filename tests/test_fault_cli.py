@@ -60,28 +60,32 @@ def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
     )
 
 
-HOSTILE_SEEDS = ["0; touch X", "$(touch X)", "`touch X`"]
+HOSTILE_SEEDS = {
+    "seed_semicolon": "0; touch X",
+    "seed_dollar": "$(touch X)",
+    "seed_backticks": "`touch X`",
+}
 
 
+@pytest.mark.parametrize("seed", list(HOSTILE_SEEDS.values()), ids=list(HOSTILE_SEEDS))
 @pytest.mark.parametrize("flag", ["--single-item", "-s"])
-def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(tmp_path, flag):
+def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(
+    tmp_path, flag, seed
+):
     """Trial: seed "0; touch X" (and $(...), backticks) once data/params_checked.txt exists."""
-    for number, seed in enumerate(HOSTILE_SEEDS):
-        project = _project(tmp_path / f"{number}", seed=seed)
-        assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
-        (project / "data").mkdir()
-        (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
-        done = _dvc(project, "repro", flag, "animate@biped")
-        output = done.stdout + done.stderr
-        assert done.returncode != 0, output[-2000:]
-        assert not (project / "X").exists(), f"{seed!r} ran a shell command"
-        assert not (project / "data" / "biped").exists()  # the stage itself never started
-        message = (
-            f"error: animate: params.yaml: 1 bad value(s), the stage did not run: seed = {seed!r}"
-        )
-        assert message in output, output[-2000:]
-        assert "expected an integer (as in conf/), got a string" in output
-        assert "Traceback" not in output
+    project = _project(tmp_path, seed=seed)
+    assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
+    (project / "data").mkdir()
+    (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
+    done = _dvc(project, "repro", flag, "animate@biped")
+    output = done.stdout + done.stderr
+    assert done.returncode != 0, output[-2000:]
+    assert not (project / "X").exists(), f"{seed!r} ran a shell command"
+    assert not (project / "data" / "biped").exists()  # the stage itself never started
+    message = f"error: animate: params.yaml: 1 bad value(s), the stage did not run: seed = {seed!r}"
+    assert message in output, output[-2000:]
+    assert "expected an integer (as in conf/), got a string" in output
+    assert "Traceback" not in output
 
 
 def test_every_stage_command_is_a_fixed_string_whose_values_are_declared_params():
@@ -310,9 +314,10 @@ import sys
 from pathlib import Path
 
 args = dict(a.lstrip("+").split("=", 1) for a in sys.argv[1:] if "=" in a)
-name = Path(sys.argv[0]).stem
+script = Path(sys.argv[0]).stem
+name = f"fit_{args['regressor']}" if script == "fit" else script  # learn's stage name
 sys.stderr.write(f"{name}: progress 50%\\r{name}: progress 100%\\n")
-Path(args["paths.data"], "from_" + name).mkdir(parents=True, exist_ok=True)
+Path(args["paths.data"], "from_" + script).mkdir(parents=True, exist_ok=True)
 if args.get("fail") == name:
     sys.stderr.write(f"error: {name}: corpus file x.parquet does not exist\\n")
     raise SystemExit(2)
@@ -343,18 +348,30 @@ def _learn(project: Path, *args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_learn_stage_failure_is_one_line_error_not_runtime_error(tmp_path):
+LEARN_STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
+
+
+def test_learn_stages_are_the_ones_failed_below():
+    from rigmap.learn import STAGES
+
+    assert STAGES == LEARN_STAGES
+
+
+@pytest.mark.parametrize("stage", LEARN_STAGES, ids=[f"learn_fails_in_{s}" for s in LEARN_STAGES])
+def test_learn_stage_failure_is_one_line_error_not_runtime_error(tmp_path, stage):
     """Trial: a stage of ``rigmap learn`` fails with its clear message (was a RuntimeError
-    traceback): the message once, as learn's own, exit 2; the stage's progress still shown."""
+    traceback): the message once, as learn's own, exit 2; the stage's progress still shown;
+    the stages after it never start."""
     project = _learn_project(tmp_path)
-    done = _learn(project, str(project / "hero.blend"), "+fail=pose")
+    done = _learn(project, str(project / "hero.blend"), f"+fail={stage}")
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and "RuntimeError" not in done.stderr
     lines = [line for line in done.stderr.splitlines() if "error" in line]
-    assert lines == ["rigmap: error: learn: stage pose: corpus file x.parquet does not exist"], (
-        done.stderr
-    )
-    assert "pose: progress 100%" in done.stderr
+    message = f"rigmap: error: learn: stage {stage}: corpus file x.parquet does not exist"
+    assert lines == [message], done.stderr
+    assert f"{stage}: progress 100%" in done.stderr
+    later = LEARN_STAGES[LEARN_STAGES.index(stage) + 1 :]
+    assert not [s for s in later if f"{s}: progress" in done.stderr], done.stderr
 
 
 def test_learn_writes_under_outputs_never_into_tracked_folders(tmp_path):

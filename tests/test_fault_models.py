@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pathlib
 import pickle
 import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -87,10 +89,10 @@ def _latent_copy(latent, tmp_path) -> tuple[Layout, pathlib.Path]:
 
 
 def test_latent_models_load_with_the_fitted_numbers_bit_for_bit(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, fitted, table = latent
-    loaded, loaded_table = runs.load_fitted(layout, "face"), runs.load_table(layout, "face")
+    loaded, loaded_table = steps.load_fitted(layout, "face"), steps.load_table(layout, "face")
     for label, model in fitted.models.items():
         X = model.latent[:5] + 0.01
         again = loaded.models[label]
@@ -103,13 +105,13 @@ def test_latent_models_load_with_the_fitted_numbers_bit_for_bit(latent, tmp_path
 
 
 def test_latent_pickle_planted_as_the_models_payload_is_refused_and_not_run(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
     _plant(folder / "fit" / "models.npz", pickle.dumps(_Touch(marker)))
     with pytest.raises(ModelFileError, match="not an npz of plain arrays") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
     assert not marker.exists()
 
@@ -134,7 +136,7 @@ def test_latent_pickle_planted_for_synth_run_is_a_one_line_cli_error(latent, tmp
 
 
 def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
@@ -142,19 +144,19 @@ def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
         (folder / "fit" / name).unlink()
     (folder / "fit" / "models.pkl").write_bytes(pickle.dumps(_Touch(marker)))
     with pytest.raises(FileNotFoundError, match="run the latent_fit stage first") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
     assert not marker.exists()
 
 
 def test_latent_pickle_planted_as_the_transitions_payload_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     marker = tmp_path / "ran"
     _plant(folder / "match" / "transitions.npz", pickle.dumps(_Touch(marker)))
     with pytest.raises(ModelFileError, match="not an npz of plain arrays") as error:
-        runs.load_table(layout, "face")
+        steps.load_table(layout, "face")
     _one_line(error, "transitions.json")
     assert not marker.exists()
 
@@ -170,17 +172,17 @@ def _rewrite_npz(payload: pathlib.Path, change) -> None:
 
 
 def test_latent_model_missing_an_array_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     _rewrite_npz(folder / "fit" / "models.npz", lambda a: a.pop("model1.gplvm.alpha"))
     with pytest.raises(ModelFileError, match=r"\['model1.gplvm.alpha'\] are missing") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 
 def test_latent_model_with_a_wrong_shape_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
 
@@ -189,23 +191,23 @@ def test_latent_model_with_a_wrong_shape_is_refused(latent, tmp_path):
 
     _rewrite_npz(folder / "fit" / "models.npz", cut)
     with pytest.raises(ModelFileError, match=r"array 'gplvm.L' has shape") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json", "happy")
 
 
 def test_latent_model_of_another_format_version_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     meta_path = folder / "fit" / "models.json"
     meta_path.write_text(json.dumps({**json.loads(meta_path.read_text()), "format_version": 0}))
     with pytest.raises(ModelFileError, match="format_version 0, expected 1") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 
 def test_latent_payload_path_leaving_the_model_folder_is_refused(latent, tmp_path):
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     layout, folder = _latent_copy(latent, tmp_path)
     shutil.copy(folder / "fit" / "models.npz", tmp_path / "x.npz")
@@ -214,7 +216,7 @@ def test_latent_payload_path_leaving_the_model_folder_is_refused(latent, tmp_pat
     depth = len(meta_path.parent.relative_to(tmp_path).parts)
     meta_path.write_text(json.dumps({**meta, "payload": "../" * depth + "x.npz"}))
     with pytest.raises(ModelFileError, match="outside the model folder") as error:
-        runs.load_fitted(layout, "face")
+        steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
 
 
@@ -347,6 +349,43 @@ def test_regression_payload_path_outside_the_folder_is_refused(gpr_folder, tmp_p
     with pytest.raises(ModelFileError, match="payload") as error:
         load_regressor(folder)
     _one_line(error, "gpr.json")
+
+
+_OPENED: list[str] | None = None  # while a list, every file opened is recorded in it
+
+
+def _record_open(event: str, args: tuple) -> None:
+    if event == "open" and _OPENED is not None and isinstance(args[0], (str, bytes, os.PathLike)):
+        _OPENED.append(os.fsdecode(args[0]))
+
+
+_MODULE_FILES = (".py", ".pyc", ".so")  # a lazy import opens these: not model data
+sys.addaudithook(_record_open)  # audit hooks cannot be removed; this one records only on demand
+
+
+@pytest.mark.parametrize(
+    "outside", ["../../x.npz", "/etc/passwd"], ids=["payload_dot_dot_x_npz", "payload_etc_passwd"]
+)
+def test_regression_payload_outside_with_its_true_hash_is_never_read(gpr_folder, tmp_path, outside):
+    """Trial 4: ``"payload": "../../x.npz"`` or ``"/etc/passwd"`` signed with that file's
+    true hash is refused before it is opened (an audit hook records every open)."""
+    global _OPENED
+    folder = _gpr_copy(gpr_folder, tmp_path / "a" / "b")
+    target = (folder / outside).resolve()
+    if outside.startswith(".."):
+        shutil.copy(folder / "gpr.npz", target)
+    meta = json.loads((folder / "gpr.json").read_text())
+    meta.update(payload=outside, payload_sha256=hashlib.sha256(target.read_bytes()).digest().hex())
+    (folder / "gpr.json").write_text(json.dumps(meta))
+    _OPENED = []
+    try:
+        with pytest.raises(ModelFileError, match="outside the model folder") as error:
+            load_regressor(folder)
+        opened = [pathlib.Path(n).resolve() for n in _OPENED if not n.endswith(_MODULE_FILES)]
+    finally:
+        _OPENED = None
+    _one_line(error, "gpr.json", repr(outside))
+    assert opened and all(path.is_relative_to(folder.resolve()) for path in opened), opened
 
 
 def test_regression_payload_symlinked_out_of_the_folder_is_refused(gpr_folder, tmp_path):

@@ -80,6 +80,22 @@ def test_map_option_refused(here, capsys, option, message):
     assert not out.exists()
 
 
+def test_map_non_ascii_path_unquoted_is_told_to_quote_it(here, capsys):
+    """The non-ASCII path trial: Hydra's lexer refuses ``input=/…/wälk.bvh``; the error names
+    the override and shows it quoted, and the quoted form gets past the grammar."""
+    (here / "ä").mkdir()
+    clip = here / "ä" / "wälk.bvh"
+    clip.write_bytes(WALK.read_bytes())
+    out = here / "out"
+    argv = ["map", f"input={clip}", "rig=biped", f"out={out}", *_paths(here), "--config-dir", CONF]
+    err = _refused(argv, here, capsys)
+    assert f"override 'input={clip}' is not valid Hydra override syntax" in err
+    assert f"must be quoted, e.g. input='{clip}'" in err
+    argv[1] = f"input='{clip}'"
+    err = _refused(argv, here, capsys)
+    assert "override syntax" not in err and "train corpus of rig 'biped' does not exist" in err
+
+
 def _write_npz(path: Path, frames: int = 5, **extra) -> Path:
     arrays = {"positions": np.zeros((frames, 2, 3)), "joint_names": np.array(["a", "b"])}
     np.savez(path, **{**arrays, **extra})

@@ -59,22 +59,22 @@ def _command(stage: str, folder: Path) -> list[str]:
 
 
 def _run(stage: str, folder: Path) -> None:
+    command = _command(stage, folder)
     done = subprocess.run(
-        _command(stage, folder), cwd=folder, env=_env(), capture_output=True, text=True,
-        timeout=600,
-    )  # fmt: skip
+        command, cwd=folder, env=_env(), capture_output=True, text=True, timeout=600
+    )
     assert done.returncode == 0, done.stderr[-3000:]
 
 
-def _kill_mid_way(stage: str, folder: Path) -> None:
+def _kill_mid_way(command: list[str], folder: Path, line: str) -> None:
+    """Run ``command`` and SIGKILL it once its output shows ``line``."""
     process = subprocess.Popen(
-        _command(stage, folder), cwd=folder, env=_env(),
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-    )  # fmt: skip
+        command, cwd=folder, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
     seen = bytearray()
     reader = threading.Thread(target=lambda: _drain(process, seen), daemon=True)
     reader.start()
-    marker = STAGES[stage][2].encode()
+    marker = line.encode()
     try:
         deadline = time.monotonic() + 300
         while marker not in seen:
@@ -122,7 +122,7 @@ def test_kill_9_mid_stage_then_rerun_gives_identical_outputs(stage, reference, t
     for output in outputs:
         (tmp_path / output).unlink()
 
-    _kill_mid_way(stage, tmp_path)
+    _kill_mid_way(_command(stage, tmp_path), tmp_path, STAGES[stage][2])
     for output in outputs:  # nothing half-written: each output absent or complete
         path = tmp_path / output
         assert not path.exists() or path.read_bytes() == whole[output]
@@ -133,3 +133,83 @@ def test_kill_9_mid_stage_then_rerun_gives_identical_outputs(stage, reference, t
         assert (tmp_path / output).read_bytes() == whole[output], output
     for folder in touched:  # no temporary file or staging folder is left behind
         assert not [p.name for p in folder.iterdir() if p.name.startswith(".")], folder
+
+
+# --------------------------------------------------------------------------- rigmap map
+WALK = REPO.parent / "shared" / "mocap" / "cmu_131_01_walk.bvh"
+MAP_ARGS = [
+    "rig=biped",
+    f"input={WALK}",
+    "map.first_frame=240",
+    "map.frames=8",
+    "map.settings.refine_iterations=1",
+    "budget.gpr_points=80",
+    "budget.length_scales=3",
+    "budget.cv_splits=2",
+]
+TIMINGS = ("frames_per_second", "seconds")  # summary.json's wall-clock fields differ run to run
+
+
+@pytest.fixture(scope="module")
+def biped_data(tmp_path_factory) -> Path:
+    """The biped's train corpus and poses, as the animate and pose stages write them."""
+    from rigmap.animation.corpus_files import pose_corpora, write_corpora
+    from rigmap.rigs import load
+    from rigmap.store import Layout
+
+    data = tmp_path_factory.mktemp("biped") / "data"
+    layout = Layout(data=data, models=data.parent / "models")
+    write_corpora(load("biped"), layout, seed=0, fps=24, variation=1.0)
+    pose_corpora(load("biped"), layout, batch_size=512, progress=False)
+    return data
+
+
+def _map_outputs(folder: Path) -> dict[str, bytes]:
+    """Every file ``rigmap map`` wrote (its clip folder and its map model), by relative path;
+    summary.json without its timings."""
+    import json
+
+    files = {}
+    for path in sorted((folder / "out").rglob("*")) + sorted((folder / "models").rglob("*")):
+        if path.is_file():
+            data = path.read_bytes()
+            if path.name == "summary.json":
+                summary = {k: v for k, v in json.loads(data).items() if k not in TIMINGS}
+                data = json.dumps(summary, sort_keys=True).encode()
+            files[str(path.relative_to(folder))] = data
+    return files
+
+
+@pytest.mark.slow
+def test_kill_9_mid_rigmap_map_then_rerun_gives_identical_outputs(biped_data, tmp_path):
+    """Trial: ``rigmap map`` killed with SIGKILL while it fits its map model, then re-run:
+    nothing half-written after the kill, and the re-run writes what an uninterrupted run does."""
+    import shutil
+
+    shutil.copytree(biped_data, tmp_path / "data")
+    paths = [
+        f"out={tmp_path / 'out'}",
+        f"paths.data={tmp_path / 'data'}",
+        f"paths.models={tmp_path / 'models'}",
+        "--config-dir",
+        str(REPO / "conf"),
+    ]
+    command = [sys.executable, "-m", "rigmap.cli", "map", *MAP_ARGS, *paths]
+    done = subprocess.run(
+        command, cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    whole = _map_outputs(tmp_path)
+    assert any(name.endswith("gpr.npz") for name in whole) and len(whole) > 8, sorted(whole)
+    shutil.rmtree(tmp_path / "out")
+    shutil.rmtree(tmp_path / "models")
+    _kill_mid_way(command, tmp_path, "fitting on")
+    for name, data in _map_outputs(tmp_path).items():  # each file absent or whole
+        assert whole.get(name) == data, name
+    done = subprocess.run(
+        command, cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert _map_outputs(tmp_path) == whole
+    hidden = [p for p in (tmp_path / "out").rglob(".*")] + list((tmp_path / "models").rglob(".*"))
+    assert not hidden, hidden  # no temporary file or staging folder is left behind

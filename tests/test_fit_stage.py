@@ -18,7 +18,7 @@ from hydra import compose, initialize_config_dir
 
 from rigmap.animation.corpus import Corpus
 from rigmap.cli import main as rigmap_main
-from rigmap.evaluation.methods import Method, TestSet, run_method
+from rigmap.evaluation.methods import TestSet, get_method, run_method
 from rigmap.evaluation.sample_sweep import fitted_model, joint_space_sweep
 from rigmap.refine import jacobian
 from rigmap.regression import (
@@ -351,7 +351,7 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
     # all the draws: the same seeded fit as the fit stage's, so the same scores
     fitted = _stage("fit").run(cfg)
     test_set = TestSet.load(biped, data_dir / "biped")
-    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    method = get_method("nn_joint_space")
     staged = run_method(biped, method, test_set, regressor=load_regressor(fitted.folder, rig=biped))
     assert results[1]["average"]["joint_error"] == pytest.approx(
         staged.result.average()["joint_error"], rel=1e-9
@@ -409,3 +409,19 @@ def test_sample_sweep_refuses_counts_it_cannot_draw():
         sweep.sample_counts([0.0], 100, 100)
     with pytest.raises(ValueError, match=r"holds 40 \(budget.samples = 100\)"):
         sweep.sample_counts([1.0], 100, 40)
+
+
+def test_joint_space_sweep_takes_the_experiments_own_fractions_unless_given():
+    """experiment=quick sweeps the joint-space draws at its 3 points, paper at all five;
+    sweep.fractions on the command line wins for both sweeps."""
+    sweep = _stage("sample_sweep")
+    conf = str(ROOT / "conf")
+    with initialize_config_dir(version_base=None, config_dir=conf):
+        quick = compose("config", overrides=["regressor=nn_joint_space"])
+        paper = compose("config", overrides=["regressor=nn_joint_space", "experiment=paper"])
+        given = compose("config", overrides=["+sweep.fractions=[0.5,1.0]"])
+    assert sweep.is_joint_space(quick) and not sweep.is_joint_space(given)
+    assert sweep.sweep_fractions(quick, joint_space=True) == [0.125, 0.5, 1.0]
+    assert sweep.sweep_fractions(quick, joint_space=False) == [0.0625, 0.125, 0.25, 0.5, 1.0]
+    assert sweep.sweep_fractions(paper, joint_space=True) == [0.0625, 0.125, 0.25, 0.5, 1.0]
+    assert sweep.sweep_fractions(given, joint_space=True) == [0.5, 1.0]

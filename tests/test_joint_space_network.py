@@ -9,8 +9,9 @@ import pytest
 import torch
 
 from rigmap.error_measures import MetricInputError
-from rigmap.evaluation.methods import TestSet, _novelty_of
+from rigmap.evaluation.clips import TestSet
 from rigmap.evaluation.novelty import Novelty
+from rigmap.evaluation.runner import _novelty_of
 from rigmap.regression import JointSpaceNetworkRegressor, load_regressor
 from rigmap.regression.errors import ModelFileError
 from rigmap.regression.features import inverse_features

@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 
 from rigmap.app.latent import run_step, step_metrics
 from rigmap.cli import main
-from rigmap.latent import runs
+from rigmap.latent import steps
 from rigmap.latent.errors import LatentInputError
 from rigmap.reports.latent_tables import latent_figures, latent_tables
 from rigmap.rigs import load
@@ -80,7 +80,7 @@ def test_fit_writes_a_model_per_label_at_the_configured_sizes(project):
     tmp, _ = project
     info = json.loads((tmp / "models/face/latent/fit/fit.json").read_text())
     assert sorted(info) == ["happy", "neutral"]
-    fitted = runs.load_fitted(layout(tmp), "face")
+    fitted = steps.load_fitted(layout(tmp), "face")
     for label, record in info.items():
         assert record["pca_dims"] == 4 and record["latent_dim"] == 2
         assert record["frames"] == fitted.sets[label].n_frames > 100
@@ -95,7 +95,7 @@ def test_match_finds_bridges_whose_poses_are_within_the_threshold(project):
     (pair,) = record["pairs"]
     assert pair["pair"] == "happy-neutral" and pair["points"] > 0
     assert 0 <= pair["distance_cm_median"] <= pair["distance_cm_max"] < 0.5
-    table = runs.load_table(layout(tmp), "face")
+    table = steps.load_table(layout(tmp), "face")
     assert table.route("happy", "neutral") == ["happy", "neutral"]
 
 
@@ -200,13 +200,13 @@ def test_synth_demo_plays_a_game_through_the_controller(project, tmp_path, capsy
 
 def test_missing_models_and_bad_steps_are_clear_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="run the latent_fit stage first"):
-        runs.load_fitted(layout(tmp_path), "face")
+        steps.load_fitted(layout(tmp_path), "face")
     with pytest.raises(LatentInputError, match=r"\+latent_step: expected one of"):
         run_step(compose(tmp_path, "+latent_step=bake"))
     with pytest.raises(LatentInputError, match="no command script 'nope'"):
-        runs.script_path("nope")
+        steps.script_path("nope")
     with pytest.raises(LatentInputError, match="no labelled sets"):
-        runs.sets_of(OmegaConf.to_container(compose(tmp_path).latent), load("biped"))
+        steps.sets_of(OmegaConf.to_container(compose(tmp_path).latent), load("biped"))
 
 
 def test_the_stage_script_reports_a_bad_step_as_one_line(tmp_path):

@@ -315,7 +315,7 @@ def test_a_script_past_the_frame_cap_is_refused_naming_the_file_command_and_rang
     ],
 )
 def test_the_frame_cap_itself_is_bounded(value, message):
-    from rigmap.latent.runs import max_script_frames
+    from rigmap.latent.steps import max_script_frames
 
     with pytest.raises(LatentInputError, match=rf"latent\.max_script_frames={value}: {message}"):
         max_script_frames({"max_script_frames": value})

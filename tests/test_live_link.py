@@ -276,7 +276,7 @@ def test_live_link_columns_of_a_rigs_controls():
 
 def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch):
     from rigmap.app import synth as cli
-    from rigmap.latent import runs
+    from rigmap.latent import steps
 
     rig = SimpleNamespace(name="arkit", used_controls=("jawOpen", "mouthSmileLeft"))
     P = np.random.default_rng(3).uniform(0, 1, (48, 2))
@@ -284,7 +284,7 @@ def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch
     monkeypatch.setattr(
         cli, "_loaded", lambda args, compose, script=None: (rig, config, None, None)
     )
-    monkeypatch.setattr(runs, "play_script", lambda *a, **k: (P, SimpleNamespace(log=[])))
+    monkeypatch.setattr(steps, "play_script", lambda *a, **k: (P, SimpleNamespace(log=[])))
     args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
     assert cli._run(args, None) == 0
     take = read_take(tmp_path / "shot.csv")
@@ -294,14 +294,14 @@ def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch
 
 def test_synth_run_refuses_a_csv_for_a_rig_without_arkit_controls(tmp_path, monkeypatch):
     from rigmap.app import synth as cli
-    from rigmap.latent import runs
+    from rigmap.latent import steps
     from rigmap.rigs import load
 
     rig = load("face")
     monkeypatch.setattr(
         cli, "_loaded", lambda args, compose, script=None: (rig, {"fps": 24}, None, None)
     )
-    monkeypatch.setattr(runs, "play_script", lambda *a, **k: pytest.fail("played"))
+    monkeypatch.setattr(steps, "play_script", lambda *a, **k: pytest.fail("played"))
     args = SimpleNamespace(out=tmp_path / "shot.csv", script="x.yaml", seed=0)
     with pytest.raises(LiveLinkError, match="is not an ARKit blendshape"):
         cli._run(args, None)

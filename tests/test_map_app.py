@@ -1,4 +1,4 @@
-"""`rigmap map` / `rigmap pose` end to end (rigmap.map.app) on the CMU walk, and its bad inputs.
+"""`rigmap map` / `rigmap pose` end to end (rigmap.app.map_job) on the CMU walk, and its bad inputs.
 
 A small biped project is built in a temporary folder (the train corpus and its poses, as
 the animate and pose stages write them); the map model is fitted there with a small GPR.
@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from rigmap.app.map_job import MapConfigError, map_from_config, map_settings, pose_from_config
 from rigmap.cli import compose_config, find_config_dir, main
-from rigmap.map.app import MapConfigError, map_from_config, map_settings, pose_from_config
 from rigmap.map.subset_model import RECORD_FILE, SubsetModelError
 from rigmap.map.tracks import TracksError, tracks_from_bvh
 
@@ -296,7 +296,7 @@ def test_the_cli_prints_a_bad_input_as_one_message(tmp_path, capsys):
 
 
 def test_the_map_mocap_stage_scores_both_cmu_walks(project, tmp_path):
-    from rigmap.map.mocap_stage import map_mocap
+    from rigmap.app.map_stage import map_mocap
 
     config = map_config(project, f"paths.metrics={tmp_path / 'metrics'}",
                         "map.mocap_stage.frames=3", "map.settings.refine_iterations=0",
@@ -384,3 +384,145 @@ def test_a_rigs_own_settings_go_over_the_map_settings():
     options["rigs"]["rigify_human"]["settings"]["no_such_setting"] = 1
     with pytest.raises(MapConfigError, match=r"map\.rigs\.rigify_human\.settings"):
         map_settings(options, "rigify_human")
+
+
+# ------------------------------------------------------------------ frame cap and progress
+def test_map_frames_over_the_cap_is_refused_before_anything_is_read(tmp_path):
+    out = tmp_path / "out"
+    config = map_config(
+        tmp_path, "input=nope.bvh", f"out={out}", "map.frames=200", "map.max_frames=100"
+    )
+    with pytest.raises(MapConfigError) as caught:  # the missing file is never reached
+        map_from_config(config, config_dir=CONF)
+    assert str(caught.value) == (
+        "map.frames=200: expected an integer in 1..100 (map.max_frames) or null (all)"
+    )
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("cap", ["0", "null", "2.5", "abc"])
+def test_a_bad_frame_cap_is_named(tmp_path, cap):
+    config = map_config(tmp_path, f"input={WALK}", f"map.max_frames={cap}")
+    with pytest.raises(MapConfigError, match=r"^map\.max_frames=.*: expected an integer >= 1"):
+        map_from_config(config, config_dir=CONF)
+
+
+def test_a_bvh_longer_than_the_cap_is_refused_before_it_is_mapped(tmp_path):
+    out = tmp_path / "out"
+    config = map_config(tmp_path, f"input={WALK}", f"out={out}", "map.max_frames=10")
+    with pytest.raises(TracksError) as caught:
+        map_from_config(config, config_dir=CONF)
+    frames = len(range(tracks_from_bvh(WALK).positions.shape[0])[::4])  # 120 fps at 30: every 4th
+    assert str(caught.value) == (
+        f"{WALK}: {frames} frames to map, more than map.max_frames=10; set map.frames to "
+        "1..10 (or raise map.max_frames)"
+    )
+    assert not out.exists()
+
+
+def test_an_npz_longer_than_the_cap_is_refused_before_its_frames_are_read(tmp_path, monkeypatch):
+    import rigmap.map.tracks
+
+    def no_allocation(*args):
+        raise AssertionError("the frames were sized for reading")
+
+    monkeypatch.setattr(rigmap.map.tracks, "check_memory", no_allocation)
+    path = tmp_path / "long.npz"
+    np.savez(path, positions=np.zeros((50, 2, 3)), joint_names=np.array(["a", "b"]), fps=30.0)
+    config = map_config(tmp_path, f"input={path}", "map.fps=null", "map.max_frames=10")
+    with pytest.raises(TracksError, match=r"long\.npz: 50 frames to map, more than map\.max_"):
+        map_from_config(config, config_dir=CONF)
+    # within the cap, the same window is read
+    window = rigmap.map.tracks.FrameWindow(count=10, max_frames=10)
+    monkeypatch.setattr(rigmap.map.tracks, "check_memory", lambda *args: None)
+    tracks = rigmap.map.tracks.read_tracks(path, unit="cm", window=window)
+    assert tracks.positions.shape == (10, 2, 3)
+
+
+@pytest.mark.parametrize(("threshold", "shown"), [(5, True), (8, False)])
+def test_a_long_clip_shows_its_progress_on_stderr(
+    mapped, project, monkeypatch, capsys, threshold, shown
+):
+    import rigmap.app.map_job
+
+    monkeypatch.setattr(rigmap.app.map_job, "PROGRESS_FRAMES", threshold)
+    config = map_config(
+        project,
+        f"input={WALK}",
+        f"out={project / 'progress'}",
+        "map.first_frame=240",
+        "map.frames=8",
+        "map.preview=false",
+        "map.settings.refine_iterations=1",
+    )
+    (clip,) = map_from_config(config, config_dir=CONF, log=lambda line: None)
+    err = capsys.readouterr().err
+    assert clip.summary["frames"] == 8
+    assert ("map cmu_131_01_walk (8 frames)" in err) is shown
+    assert ("6/6" in err and "outputs" in err) is shown
+
+
+ROOT = Path(__file__).resolve().parents[1]
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+
+
+def listed_places() -> list[str]:
+    """The numbered ``module:function`` places of architecture.md's "Following `rigmap map`"."""
+    import re
+
+    text = ARCHITECTURE.read_text().split("## Following `rigmap map`", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"^\d+\. `(rigmap[\w.]*:[\w.]+)`", text, flags=re.MULTILINE)
+
+
+def test_the_listed_path_of_rigmap_map_is_the_one_it_takes(mapped, project, tmp_path):
+    """`rigmap map input=<bvh>` enters every listed place once, in the listed order (calls
+    recorded with sys.setprofile), and the places are at most 10."""
+    import importlib
+    import sys
+
+    places = listed_places()
+    assert 5 <= len(places) <= 10 and len(set(places)) == len(places)
+    for place in places:  # each names a real function
+        module, _, qualname = place.partition(":")
+        target = importlib.import_module(module)
+        for part in qualname.split("."):
+            target = getattr(target, part)
+        assert callable(target), place
+    src, calls = str(ROOT / "src" / "rigmap"), []
+
+    def record(frame, event, arg):
+        if event == "call" and frame.f_code.co_filename.startswith(src):
+            calls.append(f"{frame.f_globals.get('__name__')}:{frame.f_code.co_qualname}")
+
+    args = [
+        "map",
+        f"input={WALK}",
+        "rig=biped",
+        f"out={tmp_path / 'out'}",
+        f"paths.data={project / 'data'}",
+        f"paths.models={project / 'models'}",
+        *SMALL_MODEL,
+        "map.first_frame=240",
+        "map.frames=8",
+        "map.preview=false",
+        "map.settings.refine_iterations=1",
+    ]
+    sys.setprofile(record)
+    try:
+        code = main(args)
+    finally:
+        sys.setprofile(None)
+    assert code == 0 and (tmp_path / "out" / WALK.stem / "keys.json").is_file()
+    assert [calls.count(p) for p in places] == [1] * len(places), places
+    firsts = [calls.index(p) for p in places]
+    assert firsts == sorted(firsts), [places[k] for k in np.argsort(firsts)]
+
+
+def test_the_map_job_never_reads_back_what_it_wrote():
+    """rigmap.app.map_job takes each clip's summary from the writer, not from summary.json."""
+    import ast
+
+    source = (ROOT / "src" / "rigmap" / "app" / "map_job.py").read_text()
+    strings = [n.value for n in ast.walk(ast.parse(source)) if isinstance(n, ast.Constant)]
+    assert not [s for s in strings if isinstance(s, str) and "summary.json" in s]
+    assert "read_text" not in source and "json.load" not in source

@@ -129,15 +129,15 @@ def test_bad_input_is_refused_and_nothing_is_written(human, tmp_path):
 
 
 def test_rigmap_map_on_rigify_human_writes_its_keys_into_a_blend(human, tmp_path):
-    """The CLI's library path (rigmap.map.app) end to end on a Blender rig: every output of
+    """The CLI's library path (rigmap.app.map_job) end to end on a Blender rig: every output of
     a clip, the .blend's F-curves holding controls.parquet, and Rigify's IK/FK switches held
     (map.rigs.rigify_human.settings.hold) at their corpus median."""
     from omegaconf import OmegaConf
 
     from rigmap.animation.corpus_files import pose_corpora, write_corpora
+    from rigmap.app.map_job import map_from_config
     from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config, find_config_dir
-    from rigmap.map.app import map_from_config
     from rigmap.store import Layout
 
     root = Path(__file__).resolve().parents[1]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rigmap.animation.library import build_corpus
-from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map import JointMap, tracks_from_bvh
 from rigmap.map.clip import MapError, MapSettings, held_controls, map_clip
 from rigmap.map.partial import JointSubset, SubsetMapping
 from rigmap.regression import GaussianProcessRegressor
@@ -29,7 +29,7 @@ def trained(biped):
     pose = biped.pose(biped.expand_used(Y))
     X = inverse_features(pose.positions, pose.cog, pose.cog_rotation, n_joints=biped.n_joints,
                          where="biped corpus")  # fmt: skip
-    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
     subset = JointSubset("cmu", "biped", tuple(retarget.joints), "pelvis", "thigh_l", "thigh_r")
     regressor = GaussianProcessRegressor(MultiquadricKernel(), n_points=150, n_length_scales=5,
                                          cv_splits=2, progress=False)  # fmt: skip
@@ -81,7 +81,7 @@ def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
     mapping, targets, std, median = trained
     result = map_clip(biped, targets, mapping, MapSettings(refine_iterations=0, feet=("foot_l",
                       "foot_r")), control_std=std, hold_values=median)  # fmt: skip
-    folder = write_map_outputs(tmp_path / "walk", result, biped)
+    folder = write_map_outputs(tmp_path / "walk", result, biped).folder
     controls = pd.read_parquet(folder / "controls.parquet")
     assert list(controls.columns) == ["frame", *biped.control_names]
     np.testing.assert_array_equal(controls[biped.control_names].to_numpy(), result.controls)
@@ -105,7 +105,7 @@ def test_outputs_folder_holds_what_the_result_says(biped, trained, tmp_path):
 @pytest.fixture(scope="module")
 def walk_2s(biped):
     """Two seconds of the walk at 30 fps (about two steps per foot)."""
-    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
     targets = retarget.apply(biped, tracks_from_bvh(WALK))
     return dataclasses.replace(targets, positions=targets.positions[240:480:4], fps=30.0)
 
@@ -192,9 +192,9 @@ def test_round_trip_bvh_map_bvh_of_the_rig(biped, trained, walk_2s, tmp_path):
     mapping, _, std, median = trained
     settings = MapSettings(refine_iterations=2, feet=FEET)
     first = map_clip(biped, walk_2s, mapping, settings, control_std=std, hold_values=median)
-    folder = write_map_outputs(tmp_path / "first", first, biped)
+    folder = write_map_outputs(tmp_path / "first", first, biped).folder
     joints = {j: j for j in mapping.subset.joints}
-    identity = RetargetMap.from_mapping({"rig": "biped", "joints": joints}, source_file="identity")
+    identity = JointMap.from_mapping({"rig": "biped", "joints": joints}, source_file="identity")
     with pytest.warns(UserWarning, match="drive no rig joint"):  # fingers: not in the subset
         again = identity.apply(biped, tracks_from_bvh(folder / "result.bvh"))
     assert again.scale == pytest.approx(1.0, rel=0.01)  # the rig's own bone lengths

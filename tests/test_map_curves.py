@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigmap.animation.keyframes import FCurve
-from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map import JointMap, tracks_from_bvh
 from rigmap.map.contacts import detect_contacts, foot_skate, pin_contacts
 from rigmap.map.curves import CurveError, largest_jumps, smooth, unwrap_rotations
 from rigmap.map.key_reduction import (
@@ -60,7 +60,7 @@ def test_smoothing_keeps_constants_and_calms_noise():
 
 
 def test_contacts_on_a_real_walk_and_pinning_removes_skate(biped):
-    mapped = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml").apply(
+    mapped = JointMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml").apply(
         biped, tracks_from_bvh(WALK)
     )
     feet = ("foot_l", "foot_r")

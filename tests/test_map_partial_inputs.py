@@ -10,17 +10,17 @@ import pandas as pd
 import pytest
 
 from rigmap.animation.corpus_files import pose_corpora, write_corpora
-from rigmap.map.clip import MapSettings
-from rigmap.map.motion_edit import MotionEdit, descendants, map_edit
-from rigmap.map.partial import JointSubset
-from rigmap.map.partial_evaluation import PartialInputSettings
-from rigmap.map.partial_report import (
+from rigmap.app.map_partial import (
     MapPartialConfigError,
     _subsets,
     clip_world,
     map_partial,
     read_training,
 )
+from rigmap.map.clip import MapSettings
+from rigmap.map.motion_edit import MotionEdit, descendants, map_edit
+from rigmap.map.partial import JointSubset
+from rigmap.map.partial_evaluation import PartialInputSettings
 from rigmap.regression import GaussianProcessRegressor
 from rigmap.regression.kernels import MultiquadricKernel
 from rigmap.store import Layout

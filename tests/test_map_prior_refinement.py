@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigmap.animation.library import build_corpus
-from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map import JointMap, tracks_from_bvh
 from rigmap.map.clip import MapError, MapSettings, solve_controls
 from rigmap.map.curves import largest_jumps, smooth, unwrap_rotations
 from rigmap.map.partial import JointSubset, SubsetMapping
@@ -29,7 +29,7 @@ def kick(biped):
     pose = biped.pose(biped.expand_used(Y))
     X = inverse_features(pose.positions, pose.cog, pose.cog_rotation, n_joints=biped.n_joints,
                          where="biped corpus")  # fmt: skip
-    retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
     subset = JointSubset("cmu", "biped", tuple(retarget.joints), "pelvis", "thigh_l", "thigh_r")
     regressor = GaussianProcessRegressor(MultiquadricKernel(), n_points=250, n_length_scales=9,
                                          cv_splits=4, progress=False)  # fmt: skip

@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.partial import JointSubset, SubsetMapping
-from rigmap.map.pyfunc_model import MapModelInputError, input_frame, save_map_model
-from rigmap.map.retarget_map import MappedTargets
+from rigmap.tracking.map_model import MapModelInputError, input_frame, save_map_model
 from rigmap.tracking.pyfunc_model import UntrustedModelError
 from test_map_partial import EFFECTORS, gpr, random_poses
 
@@ -133,8 +133,8 @@ def test_a_tampered_model_is_refused(fitted, tmp_path):
 def test_export_takes_std_and_held_values_from_the_train_corpus(biped, fitted, tmp_path):
     from rigmap.animation.library import build_corpus
     from rigmap.error_measures import control_std
-    from rigmap.map.pyfunc_model import export_map_model
     from rigmap.store import Layout
+    from rigmap.tracking.map_model import export_map_model
 
     layout = Layout(data=tmp_path / "data")
     corpus = build_corpus(biped, "train", seed=0)
@@ -152,7 +152,7 @@ def test_export_takes_std_and_held_values_from_the_train_corpus(biped, fitted, t
 
 @pytest.mark.slow
 def test_logged_model_is_registered_and_loads_by_name(biped, fitted, tmp_path):
-    from rigmap.map.pyfunc_model import log_map_model
+    from rigmap.tracking.map_model import log_map_model
 
     mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'mlruns.db'}")
     try:
@@ -176,7 +176,7 @@ def test_logged_model_is_registered_and_loads_by_name(biped, fitted, tmp_path):
 # --------------------------------------------------------------------------- mlflow models serve
 @pytest.mark.slow
 def test_served_model_answers_over_rest(fitted, loaded):
-    from rigmap.map.model_server import post_json, served_model
+    from rigmap.tracking.model_server import post_json, served_model
 
     request = fitted["request"]
     split = {"columns": list(request.columns), "data": request.to_numpy().tolist()}

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from rigmap.map import JointTracks, RetargetMap, RetargetMapError, TracksError, read_tracks
+from rigmap.map import JointMap, JointMapError, JointTracks, TracksError, read_tracks
 from rigmap.map.tracks import tracks_from_bvh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,9 +24,9 @@ def rig_world(rig, controls):
     return np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
 
 
-def identity_map(rig, **options) -> RetargetMap:
+def identity_map(rig, **options) -> JointMap:
     """Every rig joint driven by the source joint of the same name (source: Z up, metres)."""
-    return RetargetMap.from_mapping(
+    return JointMap.from_mapping(
         {
             "rig": rig.name,
             "joints": {n: n for n in rig.joint_names},
@@ -73,7 +73,7 @@ def cmu_tracks(request):
 
 
 def test_cmu_clip_gets_the_rigs_bone_lengths_and_floor(biped, cmu_tracks):
-    retarget = RetargetMap.from_yaml(CMU_BIPED)
+    retarget = JointMap.from_yaml(CMU_BIPED)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every CMU joint is mapped or ignored on purpose
         mapped = retarget.apply(biped, cmu_tracks)
@@ -103,7 +103,7 @@ def test_cmu_clip_gets_the_rigs_bone_lengths_and_floor(biped, cmu_tracks):
 def test_unused_source_joints_are_listed(biped, cmu_tracks):
     data = {"rig": "biped", "joints": {"pelvis": "Hips", "head": "Head"}}
     with pytest.warns(UserWarning, match="LeftKnee") as record:
-        mapped = RetargetMap.from_mapping(data).apply(biped, cmu_tracks)
+        mapped = JointMap.from_mapping(data).apply(biped, cmu_tracks)
     assert "LeftKnee" in mapped.unused and "Hips" not in mapped.unused
     assert len(record) == 1
 
@@ -126,9 +126,9 @@ def test_unused_source_joints_are_listed(biped, cmu_tracks):
 )  # fmt: skip
 def test_bad_maps_name_what_is_wrong(biped, cmu_tracks, change, message):
     data = {"rig": "biped", "joints": {"pelvis": "Hips", "head": "Head"}, **change}
-    with pytest.raises(RetargetMapError, match=re.escape(message)), warnings.catch_warnings():
+    with pytest.raises(JointMapError, match=re.escape(message)), warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        RetargetMap.from_mapping(data).apply(biped, cmu_tracks)
+        JointMap.from_mapping(data).apply(biped, cmu_tracks)
 
 
 def test_tracks_files_round_trip_and_bad_files_are_named(tmp_path):

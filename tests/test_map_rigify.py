@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rigmap.map import RetargetMap, tracks_from_bvh
+from rigmap.map import JointMap, tracks_from_bvh
 from rigmap.rigs.blender.rigify import build_rigify_human
 
 pytestmark = pytest.mark.blender
@@ -17,7 +17,7 @@ WALK = ROOT.parent / "shared" / "mocap" / "cmu_131_02_walk.bvh"
 
 def test_cmu_walk_on_rigify_human_keeps_its_bone_lengths():
     with build_rigify_human(workers=1) as rig:
-        retarget = RetargetMap.from_yaml(ROOT / "conf/retarget/cmu_rigify_human.yaml")
+        retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_rigify_human.yaml")
         mapped = retarget.apply(rig, tracks_from_bvh(WALK))
         pose = rig.pose(rig.controls.defaults[None])
         rest = (np.asarray(pose.positions) + np.asarray(pose.cog)[:, None])[0]

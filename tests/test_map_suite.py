@@ -1,4 +1,4 @@
-"""The real-mocap suite (rigmap.map.mocap_suite) on one short whole clip, and its page."""
+"""The real-mocap suite (rigmap.app.map_suite) on one short whole clip, and its page."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from rigmap.app.map_suite import SuiteError, map_suite, suite_clips, suite_page
 from rigmap.cli import compose_config, find_config_dir
-from rigmap.map.mocap_suite import SuiteError, map_suite, suite_clips, suite_page
 
 MOCAP = Path(__file__).resolve().parents[2] / "shared" / "mocap"
 CONF = find_config_dir(Path(__file__).resolve().parents[1] / "conf")

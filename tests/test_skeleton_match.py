@@ -1,5 +1,5 @@
 """Skeleton matching (rigmap.map.skeleton_match) on both CMU conversions of ../shared/mocap,
-on renamed and broken skeletons, and `rigmap map`'s use of it (rigmap.map.app.read_clips)."""
+on renamed and broken skeletons, and `rigmap map`'s use of it (rigmap.app.map_job.read_clips)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from rigmap.animation.bvh import read_bvh
-from rigmap.map.app import read_clips
-from rigmap.map.retarget_map import RetargetMap
+from rigmap.app.map_job import read_clips
+from rigmap.map.joint_map import JointMap
 from rigmap.map.skeleton_match import (
     UNKNOWN,
     FrameCheck,
@@ -97,7 +97,7 @@ def test_the_hahne_conversion_gives_the_shipped_map_under_its_own_names(rig, tmp
 @pytest.mark.parametrize("conversion", ["cmu_131", "cmu_hahne"])
 @pytest.mark.parametrize("rig", RIGS)
 def test_the_committed_matched_maps_are_current(conversion, rig, tmp_path):
-    committed = RetargetMap.from_yaml(CONF / "retarget" / "matched" / f"{conversion}_{rig}.yaml")
+    committed = JointMap.from_yaml(CONF / "retarget" / "matched" / f"{conversion}_{rig}.yaml")
     clip = CMU_131 if conversion == "cmu_131" else HAHNE
     fresh = matched(motion_of(clip), rig, tmp_path).retarget
     assert committed.joints == fresh.joints and set(committed.ignore) == set(fresh.ignore)
@@ -357,7 +357,7 @@ def test_map_matches_a_bvh_the_default_map_does_not_fit_and_saves_the_map(biped,
     saved = out / "cmu_07_01.retarget.yaml"
     assert any(str(saved) in line for line in log), log
     assert any("frame 0 is a T-pose (excluded)" in line for line in log), log
-    assert RetargetMap.from_yaml(saved).joints["thigh_l"] == "LeftUpLeg"
+    assert JointMap.from_yaml(saved).joints["thigh_l"] == "LeftUpLeg"
     assert retarget.name == "cmu_biped"  # same rig joints: the default's cached model
     assert clips[0].positions.shape == (4, 24, 3)
     assert sorted(p.name for p in out.iterdir()) == ["cmu_07_01.retarget.yaml"]

@@ -1,11 +1,12 @@
-"""Adding a part is one class plus one yaml: a toy sampler and a toy regressor, end to end.
+"""Adding a part is one class plus one yaml: a toy sampler, regressor and method, end to end.
 
 Each part is written into the test's temporary tree only — a Python module (on
-``sys.path``) and a yaml in a config folder added to Hydra's search path — and
-then runs through the real code paths: the supersample stage, the fit stage,
-loading the model folder, and the evaluation's method runner
-(:func:`rigmap.evaluation.methods.run_method`, as it is today) on a few test
-frames, scored with the evaluation's metric functions.
+``sys.path``) and a yaml in a config folder added to Hydra's search path, its name
+given in the evaluate lists by override — and then runs through the real code paths:
+the supersample stage, the fit stage, loading the model folder, the evaluate stage
+(and its method runner, :func:`rigmap.evaluation.runner.run_method`) on a few test
+frames, scored with the evaluation's metric functions, and the report's Table 1 and
+Table 2 builders with the labels :mod:`rigmap.catalog` reads from the toys' classes.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
 
@@ -45,6 +47,8 @@ from rigmap.sampling import Sampler
 
 class JitterSampler(Sampler):
     name = "jitter"
+    title = "Uniform Jitter"
+    extra = True
     min_corpus_frames = 2
 
     def __init__(self, width: float = 0.1):
@@ -90,15 +94,53 @@ class RidgeRegressor(Regressor):
 '''
 
 
+ROUND_MODULE = '''
+"""A toy refiner: the guess's controls rounded to ``decimals`` places (no rig evaluation)."""
+
+import numpy as np
+
+from rigmap.evaluation.method import Refiner
+
+
+class RoundedRefinement(Refiner):
+    kind = "rounded"
+    title = "Rounded"
+
+    def __init__(self, name: str = "rounded", decimals: int = 2):
+        super().__init__(name)
+        self.decimals = decimals
+
+    def __call__(self, rig, Y_used, positions, features, learned, train_std, settings):
+        return np.round(Y_used, self.decimals), None
+'''
+
+#: the toy method: the toy regressor's guess, then the toy refiner (one yaml, no defaults)
+ROUNDED_METHOD_YAML = """\
+_target_: rigmap.evaluation.method.Method
+extra: true
+guess:
+  _target_: rigmap.evaluation.method.RegressorGuess
+  regressor: ridge
+  title: Ridge
+refine:
+  _target_: toy_round.RoundedRefinement
+  name: rounded
+  decimals: 2
+"""
+
+
 @pytest.fixture(scope="module")
 def toy_tree(tmp_path_factory):
     """The two toy parts: modules on sys.path and yaml files in an extra config folder."""
     tree = tmp_path_factory.mktemp("toy_parts")
     (tree / "toy_jitter.py").write_text(textwrap.dedent(JITTER_MODULE))
     (tree / "toy_ridge.py").write_text(textwrap.dedent(RIDGE_MODULE))
+    (tree / "toy_round.py").write_text(textwrap.dedent(ROUND_MODULE))
     conf = tree / "conf"
     (conf / "sampler").mkdir(parents=True)
     (conf / "regressor").mkdir()
+    (conf / "method").mkdir()
+    (conf / "method" / "ridge_rounded.yaml").write_text(ROUNDED_METHOD_YAML)
     (conf / "sampler" / "jitter.yaml").write_text(
         "_target_: toy_jitter.JitterSampler\nwidth: 0.2\n"
     )
@@ -108,7 +150,7 @@ def toy_tree(tmp_path_factory):
     sys.path.insert(0, str(tree))
     yield tree
     sys.path.remove(str(tree))
-    for module in ("toy_jitter", "toy_ridge"):
+    for module in ("toy_jitter", "toy_ridge", "toy_round"):
         sys.modules.pop(module, None)
 
 
@@ -246,3 +288,102 @@ def _train_corpus(data: Path, rig) -> np.ndarray:
 
     path = data / rig.name / "corpus" / "train.parquet"
     return Corpus.read(path, control_names=rig.used_controls).values()
+
+
+def _evaluate(toy_tree, data, models, metrics, *overrides):
+    cfg = config(
+        toy_tree,
+        data,
+        models,
+        f"paths.metrics={metrics}",
+        "evaluate.log_to_mlflow=false",
+        f"evaluate.frames_per_clip={FRAMES}",
+        "evaluate.progress=false",
+        *overrides,
+    )
+    return _stage("evaluate").run(cfg)
+
+
+def _fitted(toy_tree, data, models, *overrides):
+    """The fit stage's model folder for ``overrides`` (fitted here unless already there)."""
+    cfg = config(toy_tree, data, models, *overrides)
+    if "sampler=jitter" in overrides:
+        _stage("supersample").run(cfg, progress=False)
+    return _stage("fit").run(cfg).folder
+
+
+def test_a_toy_method_and_sampler_reach_the_reports_tables(toy_tree, folders, quadruped, test_set):
+    from rigmap.catalog import packaged_conf, read_catalogue
+    from rigmap.reports import ReportSettings
+    from rigmap.reports.metrics_tree import load_metrics
+    from rigmap.reports.tables import methods_table, sampling_table
+
+    data, models = folders
+    metrics = data.parent / f"{data.name}_metrics"
+    ridge = _fitted(toy_tree, data, models, "regressor=ridge", "sampler=none")
+    _fitted(toy_tree, data, models, "regressor=nn", "sampler=jitter")
+    _fitted(toy_tree, data, models, "regressor=gpr", "sampler=none", "budget.gpr_points=40")
+    method = ["+method@method.ridge_rounded=ridge_rounded", "evaluate.methods=[ridge_rounded]"]
+    _evaluate(toy_tree, data, models, metrics, "evaluate.set=methods", *method)
+    _evaluate(
+        toy_tree, data, models, metrics, "evaluate.set=samplers", "evaluate.samplers=[jitter]"
+    )
+    _evaluate(
+        toy_tree, data, models, metrics, "evaluate.set=kernels", "evaluate.kernels=[multiquadric]"
+    )
+
+    # evaluate: the toy method's scores are the metric functions' on the rounded ridge guess
+    folder = metrics / "quadruped"
+    record = json.loads((folder / "methods" / "ridge_rounded-none.json").read_text())
+    assert record["extra"]["refine"] == "rounded" and record["extra"]["regressor"] == "ridge"
+    model = load_regressor(ridge, rig=quadruped)
+    rounded = type("Rounded", (), {"predict": lambda self, X: np.round(model.predict(X), 2)})()
+    per_frame = pd.read_csv(folder / "methods" / "ridge_rounded-none.csv")
+    expected = _per_frame_errors(quadruped, rounded, test_set)
+    np.testing.assert_allclose(per_frame["joint_error"], expected[0], rtol=1e-9)
+    np.testing.assert_allclose(per_frame["ground_truth_error"], expected[1], rtol=1e-9)
+    assert json.loads((folder / "samplers" / "nn-jitter.json").read_text())["sampler"] == "jitter"
+
+    # the report: its rows labelled from the toys' classes and yaml, read with the toy folder
+    settings = ReportSettings(
+        rigs=("quadruped",),
+        method_rigs=("quadruped",),
+        sampler_rigs=("quadruped",),
+        methods=("ridge_rounded",),
+        samplers=("jitter",),
+        kernels=("multiquadric",),
+        nn_sampler="jitter",
+        catalogue=read_catalogue([packaged_conf(), toy_tree / "conf"]),
+    )
+    tree = load_metrics(metrics, data, settings)
+    table1, table2 = methods_table(tree, settings), sampling_table(tree, settings)
+    assert [row[1] for row in table1.rows] == ["Ridge & Rounded (extra)"] * 4
+    average = table1.data[table1.data["motion"] == "Average"].iloc[0]
+    assert average["method_label"] == "Ridge & Rounded"
+    assert average["joint_error"] == pytest.approx(record["average"]["joint_error"])
+    assert [row[0] for row in table2.rows] == ["Uniform Jitter (extra)"]
+    assert list(table2.data["sampler_label"]) == ["Uniform Jitter"]
+    # a name the catalogue does not know prints as itself (no KeyError)
+    plain = ReportSettings(
+        rigs=("quadruped",), method_rigs=("quadruped",), methods=("ridge_rounded",)
+    )
+    assert plain.catalogue.method("ridge_rounded").display == "ridge_rounded"
+
+
+def _per_frame_errors(rig, model, test_set):
+    from rigmap.regression.features import inverse_features
+
+    joint, truth = [], []
+    for clip in test_set.clips:
+        features = inverse_features(
+            clip.positions, clip.cog, clip.cog_rotation, n_joints=rig.n_joints, where=clip.name
+        )
+        predicted = model.predict(features)
+        posed = rig.evaluate(rig.expand_used(predicted))
+        joint.append(joint_error(posed, clip.positions).per_frame)
+        truth.append(
+            ground_truth_error(
+                predicted, clip.controls, test_set.train_std, test_set.control_kinds
+            ).per_frame
+        )
+    return np.concatenate(joint), np.concatenate(truth)

@@ -310,12 +310,12 @@ def _edits(verb: str, args) -> int:
 
 
 def _add_map(commands) -> None:
-    """``rigmap map`` and ``rigmap pose`` (rigmap.map.app, config conf/map.yaml)."""
+    """``rigmap map`` and ``rigmap pose`` (rigmap.app.map_job, config conf/map.yaml)."""
     _add_stage_command(
         commands,
         "map",
         help="map motion (a BVH, a folder of BVHs, joint tracks) onto a rig's controls",
-        description="Maps each input clip onto the rig (rigmap.map.app): the retarget map "
+        description="Maps each input clip onto the rig (rigmap.app.map_job): the retarget map "
         "(map.retarget, default conf/retarget/cmu_<rig>.yaml) gives the rig joints it drives; "
         "a GPR on those joints, fitted on data/<rig>/corpus and poses and cached in "
         "models/<rig>/map-<subset>/ (refitted when the rig, subset, settings or data change), "
@@ -451,7 +451,7 @@ def _evaluate(args) -> int:
 
 
 def _map_config(args) -> dict:
-    from rigmap.app.map import map_config
+    from rigmap.app.map_job import map_config
 
     # the map's model cache (paths.models) goes under outputs/; the corpus is read from data/
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
@@ -459,14 +459,14 @@ def _map_config(args) -> dict:
 
 
 def _map(args) -> int:
-    from rigmap.map.app import map_from_config
+    from rigmap.app.map_job import map_from_config
 
     map_from_config(_map_config(args), config_dir=find_config_dir(args.config_dir))
     return 0
 
 
 def _pose(args) -> int:
-    from rigmap.map.app import pose_from_config
+    from rigmap.app.map_job import pose_from_config
 
     pose_from_config(_map_config(args))
     return 0

@@ -114,8 +114,11 @@ def run_learn(
     timings = []
     for name, argv in commands:
         # runnable as printed (--dry): the stages run in the project, as DVC runs them
-        print(f"rigmap learn: {name}: cd {shlex.quote(str(project))} && {shlex.join(argv)}",
-              file=out, flush=True)  # fmt: skip
+        print(
+            f"rigmap learn: {name}: cd {shlex.quote(str(project))} && {shlex.join(argv)}",
+            file=out,
+            flush=True,
+        )
         if dry:
             continue
         started = time.perf_counter()

@@ -49,6 +49,7 @@ def compose_config(
     from omegaconf.errors import OmegaConfBaseException
 
     folder = find_config_dir(config_dir)
+    _check_override_syntax(overrides)
     try:
         with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
             cfg = compose(
@@ -60,6 +61,28 @@ def compose_config(
         ) from None
     _check_ranges(cfg)
     return cfg
+
+
+def _check_override_syntax(overrides: list[str]) -> None:
+    """Each override parsed alone, so the error names the one Hydra's grammar refuses and says
+    to quote it: its lexer message alone ("LexerNoViableAltException") gives no hint that a
+    path with spaces or non-ASCII letters must be quoted."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import OverrideParseException
+
+    parser = OverridesParser.create()
+    for override in overrides:
+        try:
+            parser.parse_overrides([override])
+        except OverrideParseException:
+            key, _, value = override.partition("=")
+            quote, shell = ("'", '"') if "'" not in value else ('"', "'")
+            hint = f"{key}={quote}{value}{quote}"
+            raise ValueError(
+                f"override {override!r} is not valid Hydra override syntax; a value with "
+                f"spaces, non-ASCII letters or other special characters must be quoted, e.g. "
+                f"{hint} (in a shell: {shell}{hint}{shell})"
+            ) from None
 
 
 def _check_ranges(cfg) -> None:

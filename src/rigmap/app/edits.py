@@ -22,17 +22,17 @@ def load_settings(config_dir=None) -> dict:
 
 
 def run_edits_stage(verb: str, overrides: list[str], config_dir=None) -> list[Path]:
-    """``rigmap edits <verb>``: the edits stage ``verb`` (``rigmap.edits.runs.run_<verb>``)
+    """``rigmap edits <verb>``: the edits stage ``verb`` (``rigmap.edits.steps.run_<verb>``)
     on ``conf/edits/default.yaml`` with ``overrides``."""
     from omegaconf import OmegaConf
 
     from rigmap.app.config import compose_config
-    from rigmap.edits import runs
+    from rigmap.edits import steps
 
     cfg = compose_config(["+edits=default", *overrides], config_dir)
     config = OmegaConf.to_container(cfg.edits, resolve=True)
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    return list(getattr(runs, f"run_{verb}")(config, layout))
+    return list(getattr(steps, f"run_{verb}")(config, layout))
 
 
 GLITCH_HELP = (

@@ -1,9 +1,9 @@
 """The evaluate job from its composed config: one call for ``pipelines/evaluate.py`` and the CLI.
 
 The config arrives as a plain, resolved mapping (``OmegaConf.to_container(cfg,
-resolve=True)``), never a ``DictConfig``: the rig, the methods (``method.<name>``,
-built by ``hydra.utils.instantiate``), the paths, the settings and the tracking group
-become plain objects here, and :func:`rigmap.evaluation.evaluate.evaluate` does the work.
+resolve=True)``), never a ``DictConfig``: the rig, the methods (``method.<name>``, built
+from their ``_target_`` by :func:`method_catalog`), the paths, the settings and the tracking
+group become plain objects here, and :func:`rigmap.evaluation.evaluate.evaluate` does the work.
 """
 
 from __future__ import annotations
@@ -14,11 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from rigmap.app.objects import kernel_name, sampler_name
+from rigmap.evaluation.checks import EvaluationSetupError
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate
-from rigmap.evaluation.method_config import ConfiguredMethod
-from rigmap.evaluation.methods import EvaluationSetupError
+from rigmap.evaluation.method import method_catalog
 from rigmap.rigs import use_executor
 from rigmap.store import Layout
+
+__all__ = ["evaluate_command", "evaluate_from_config", "method_catalog", "rig_from_mapping"]
 
 
 def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = None) -> list[Path]:
@@ -33,7 +35,7 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
             raise EvaluationSetupError(f"evaluate stage config: no {group!r} group")
     settings = EvaluationSettings.from_mapping(config["evaluate"])
     catalog = method_catalog(config["method"])
-    layout = Layout.from_paths(config["paths"])
+    layout = Layout.from_paths(config["paths"], config.get("replicate"))
     rig = rig_from_mapping(config["rig"])
     if config.get("executor") is not None:
         use_executor(rig, dict(config["executor"]))
@@ -78,25 +80,3 @@ def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     options = dict(rig_config)
     options.pop("corpus", None)
     return load(options)
-
-
-def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, ConfiguredMethod]:
-    """Every method of the ``method`` config node, by name, built by ``hydra.utils.instantiate``."""
-    import hydra.utils
-    from hydra.errors import InstantiationException
-
-    catalog = {}
-    for name, node in configs.items():
-        try:
-            built = hydra.utils.instantiate(dict(node), name=str(name), _convert_="all")
-        except InstantiationException as error:  # Hydra wraps the reason: name it plainly
-            cause = error.__cause__ if error.__cause__ is not None else error
-            where = f"method.{name} (conf/method/{name}.yaml)"
-            raise EvaluationSetupError(f"{where}: {cause}") from None
-        if not isinstance(built, ConfiguredMethod):
-            raise EvaluationSetupError(
-                f"method.{name}: its _target_ built a {type(built).__name__}, expected a "
-                "ConfiguredMethod (rigmap.evaluation.configured_method)"
-            )
-        catalog[str(name)] = built
-    return catalog

@@ -13,6 +13,7 @@ from rigmap.regression.base import Regressor
 from rigmap.regression.fitting import FitInputError, FitResult, Log, fit_model
 from rigmap.rigs import load
 from rigmap.store import Layout
+from rigmap.store.layout import REPLICATED_REGRESSORS
 
 
 def fit_from_config(config: Mapping[str, Any], *, log: Log | None = None) -> FitResult:
@@ -25,9 +26,28 @@ def fit_from_config(config: Mapping[str, Any], *, log: Log | None = None) -> Fit
     rig_options = {k: v for k, v in dict(config["rig"]).items() if k != "corpus"}
     with load(rig_options) as rig:  # a DCC rig's worker processes end with the fit
         sampler = sampler_name(config["sampler"])
-        model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
-        layout = Layout.from_paths(config["paths"])
+        layout, model = _replicate_of(config)
         return fit_model(rig, model, sampler, layout, config, started=started, **options)
+
+
+def _replicate_of(config: Mapping[str, Any]) -> tuple[Layout, Regressor]:
+    """The layout and regressor of a fit; a ``replicate`` seed k (issue #36) re-fits a trained
+    network with only its training seed set to k, into the replicate's own folder."""
+    replicate = config.get("replicate")
+    try:
+        layout = Layout.from_paths(config["paths"], replicate)
+    except ValueError as error:
+        raise FitInputError(str(error)) from None
+    model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
+    if replicate is None:
+        return layout, model
+    if model.name not in REPLICATED_REGRESSORS:
+        raise FitInputError(
+            f"replicate={replicate}: only the trained networks "
+            f"({', '.join(REPLICATED_REGRESSORS)}) have replicate seeds, not {model.name}"
+        )
+    seeded = {**config["regressor"], "seed": replicate}
+    return layout, instantiate_as(seeded, Regressor, "regressor", FitInputError)
 
 
 def fit_command(overrides: list[str], config_dir=None) -> FitResult:

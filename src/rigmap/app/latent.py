@@ -2,7 +2,7 @@
 
 ``run_step(cfg)`` is what ``pipelines/latent.py`` and ``rigmap synth fit|match`` call:
 ``cfg.latent_step`` (fit, match, synthesize, evaluate) picks the function of
-:mod:`rigmap.latent.runs`; with ``latent.log_to_mlflow`` the step is a parent run
+:mod:`rigmap.latent.steps`; with ``latent.log_to_mlflow`` the step is a parent run
 ``latent-<step>`` in the rig's experiment (:mod:`rigmap.tracking`) with the latent
 config as params, the step's numbers as metrics and its JSON as an artifact.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from rigmap.latent import runs
+from rigmap.latent import steps
 from rigmap.latent.errors import LatentInputError
 
 STEPS = ("fit", "match", "synthesize", "evaluate")
@@ -44,7 +44,7 @@ def run_step(cfg) -> Path:
     layout = layout_of(cfg)
     rig = rig_from_config(cfg.rig)
     started = time.perf_counter()
-    path = getattr(runs, f"run_{step}")(config, rig, layout)
+    path = getattr(steps, f"run_{step}")(config, rig, layout)
     seconds = time.perf_counter() - started
     print(f"latent_{step} ({rig.name}): {path} in {seconds:.1f} s", flush=True)
     if config.get("log_to_mlflow", False) and step in config.get("mlflow_steps", STEPS):
@@ -83,8 +83,8 @@ def earlier_records(config: dict, rig: str, step: str, layout) -> dict[str, Path
     (``latent.mlflow_steps``), so the run that is logged carries them too."""
     own = set(config.get("mlflow_steps", STEPS))
     paths = {
-        "fit": runs.fit_folder(layout, rig) / "fit.json",
-        "match": runs.match_folder(layout, rig) / "match.json",
+        "fit": steps.fit_folder(layout, rig) / "fit.json",
+        "match": steps.match_folder(layout, rig) / "match.json",
         "synthesize": layout.latent_data(rig) / "log.json",
     }
     before = STEPS[: STEPS.index(step)]

@@ -124,9 +124,12 @@ def _item_value(item: Mapping[str, Any], key: str, arg: str) -> str:
     if key not in item:
         raise PlaceholderError(f"{arg}: the matrix entry has no {key!r} (it has {sorted(item)})")
     value = item[key]
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)  # a matrix of seeds (pipeline.spread_seeds): digits, nothing to quote
     if not isinstance(value, str) or not SAFE_NAME.fullmatch(value):
         raise PlaceholderError(
-            f"{arg}: matrix value {value!r} is not a plain name (letters, digits, _ . : + -)"
+            f"{arg}: matrix value {value!r} is not a plain name or an integer (letters, "
+            "digits, _ . : + -)"
         )
     return value
 

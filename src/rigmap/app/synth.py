@@ -126,7 +126,7 @@ def _loaded(args, compose_config, script: str | None = None):
     before the models load."""
     from rigmap.app.inputs import layout_of, rig_from_config
     from rigmap.app.latent import latent_config
-    from rigmap.latent import runs
+    from rigmap.latent import steps
     from rigmap.store import Layout
     from rigmap.user_outputs import USER_OUTPUTS, user_paths
 
@@ -134,37 +134,37 @@ def _loaded(args, compose_config, script: str | None = None):
     # outputs/ when there, else the pipeline's (models/), unless paths.models=DIR names them
     cfg = compose_config(list(args.overrides), args.config_dir)
     own = user_paths(args.overrides, keys=("models",))
-    if own and runs.fit_folder(Layout(models=USER_OUTPUTS / "models"), str(cfg.rig.name)).is_dir():
+    if own and steps.fit_folder(Layout(models=USER_OUTPUTS / "models"), str(cfg.rig.name)).is_dir():
         cfg = compose_config([*own, *args.overrides], args.config_dir)
     config = latent_config(cfg)
     if script is not None:
-        runs.read_script(runs.script_path(script), max_frames=runs.max_script_frames(config))
+        steps.read_script(steps.script_path(script), max_frames=steps.max_script_frames(config))
     rig, layout = rig_from_config(cfg.rig), layout_of(cfg)
-    return rig, config, runs.load_fitted(layout, rig.name), runs.load_table(layout, rig.name)
+    return rig, config, steps.load_fitted(layout, rig.name), steps.load_table(layout, rig.name)
 
 
 def _run(args, compose_config) -> int:
-    from rigmap.latent import runs
+    from rigmap.latent import steps
     from rigmap.latent.live_link import live_link_columns, write_take
 
     rig, config, fitted, table = _loaded(args, compose_config, script=args.script)
     as_csv = args.out.suffix.lower() == ".csv"
     columns = live_link_columns(rig.used_controls) if as_csv else None  # before playing
-    P, controller = runs.play_script(
+    P, controller = steps.play_script(
         fitted,
         table,
-        runs.script_path(args.script),
+        steps.script_path(args.script),
         seed=args.seed,
         blend_frames=int(config["blend_frames"]),
-        max_frames=runs.max_script_frames(config),
+        max_frames=steps.max_script_frames(config),
         progress=True,
     )
     meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": config["fps"]}
     if as_csv:  # a Live Link Face CSV: plays on any ARKit-driven face
         write_take(args.out, P, columns, fps=float(config["fps"]))
     else:
-        runs.write_controls(args.out, rig, P, meta)
-    for row in runs.log_rows(controller):
+        steps.write_controls(args.out, rig, P, meta)
+    for row in steps.log_rows(controller):
         state = "ok" if row["success"] else "not met"
         print(f"  {row['command']:<10} {row['model']:<10} {row['frames']:>4} frames  {state}")
     print(f"{args.out}: {len(P)} frames ({len(P) / float(config['fps']):.1f} s)")
@@ -203,7 +203,7 @@ def emotion_commands(fitted, model_now: str, emotion: str, rng) -> list:
 
 
 def _demo(args, compose_config) -> int:
-    from rigmap.latent import runs
+    from rigmap.latent import steps
     from rigmap.latent.synthesis import Controller
 
     rig, _, fitted, table = _loaded(args, compose_config)
@@ -235,6 +235,6 @@ def _demo(args, compose_config) -> int:
     )
     if args.out is not None:
         meta = {"rig": rig.name, "demo": "noughts and crosses", "seed": args.seed}
-        runs.write_controls(args.out, rig, np.array(frames), meta)
+        steps.write_controls(args.out, rig, np.array(frames), meta)
         print(args.out)
     return 0

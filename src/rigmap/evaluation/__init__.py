@@ -2,8 +2,11 @@
 
 - :mod:`~rigmap.evaluation.metrics`: joint and ground-truth errors, a method's result file;
 - :mod:`~rigmap.evaluation.timing`: the clock and the rig-evaluation counter;
-- :mod:`~rigmap.evaluation.methods`: the methods of Table 1, the test set, the runner;
-- :mod:`~rigmap.evaluation.method_config`: a method from its config group (conf/method);
+- :mod:`~rigmap.evaluation.method`: a method as a guess and a refiner, built from conf/method;
+- :mod:`~rigmap.evaluation.refine_settings`: the damped-least-squares settings (conf/refine);
+- :mod:`~rigmap.evaluation.clips`: a rig's test clips; :mod:`~rigmap.evaluation.checks`: checks;
+- :mod:`~rigmap.evaluation.runner` (and ``retargeter``): a method timed and scored on them;
+- :mod:`~rigmap.evaluation.methods`: all of these under the names callers import;
 - :mod:`~rigmap.evaluation.jobs`: the runs of an evaluation set and their files;
 - :mod:`~rigmap.evaluation.fitted_models`: the model folders an evaluation reads;
 - :mod:`~rigmap.evaluation.evaluate`: the evaluate stage's work on plain objects;
@@ -14,9 +17,7 @@
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate, evaluate_job
 from rigmap.evaluation.fitted_models import FittedModels
 from rigmap.evaluation.jobs import EVALUATION_SETS, EvaluationJob, evaluation_jobs
-from rigmap.evaluation.method_config import ConfiguredMethod, configured_method
 from rigmap.evaluation.methods import (
-    METHODS,
     EvaluationSetupError,
     Method,
     MethodEvaluation,
@@ -42,9 +43,7 @@ from rigmap.evaluation.timing import CountingRig, RigEvaluationCount, Stopwatch,
 
 __all__ = [
     "EVALUATION_SETS",
-    "METHODS",
     "ClipResult",
-    "ConfiguredMethod",
     "CountingRig",
     "EvaluationJob",
     "EvaluationSettings",
@@ -63,7 +62,6 @@ __all__ = [
     "TestClip",
     "TestSet",
     "Timing",
-    "configured_method",
     "control_std",
     "evaluate",
     "evaluate_job",

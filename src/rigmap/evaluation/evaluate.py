@@ -15,11 +15,13 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from rigmap.evaluation.checks import EvaluationSetupError
+from rigmap.evaluation.clips import TestSet
 from rigmap.evaluation.fitted_models import FittedModels
 from rigmap.evaluation.jobs import EVALUATION_SETS, EvaluationJob, evaluation_jobs
-from rigmap.evaluation.method_config import ConfiguredMethod
-from rigmap.evaluation.methods import EvaluationSetupError, MethodEvaluation, TestSet, run_method
+from rigmap.evaluation.method import Method
 from rigmap.evaluation.metrics import write_per_frame_csv
+from rigmap.evaluation.runner import MethodEvaluation, run_method
 from rigmap.store import Layout
 
 
@@ -63,7 +65,7 @@ class EvaluationSettings:
 
 def evaluate(
     rig: Any,
-    catalog: Mapping[str, ConfiguredMethod],
+    catalog: Mapping[str, Method],
     layout: Layout,
     settings: EvaluationSettings,
     *,
@@ -87,8 +89,9 @@ def evaluate(
         kernels=settings.kernels,
         nn_sampler=nn_sampler,
         gpr_kernel=gpr_kernel,
-        catalog={name: configured.method for name, configured in catalog.items()},
+        catalog=catalog,
         test_split=settings.test_split,
+        replicate=layout.replicate,
     )
     models = FittedModels(layout, rig)
     models.check(jobs)  # every folder exists before minutes of work start
@@ -113,7 +116,7 @@ def evaluate(
 
 def evaluate_job(
     job: EvaluationJob,
-    configured: ConfiguredMethod,
+    configured: Method,
     rig: Any,
     test_set: TestSet,
     models: FittedModels,
@@ -121,9 +124,9 @@ def evaluate_job(
     record: Mapping[str, Any] | None = None,
 ) -> MethodEvaluation:
     """One job: its models loaded (once per evaluation), the method run, timed and scored."""
-    method = job.method
+    method = configured  # the job's method, as the config built it
     print(f"{rig.name}: {method.name} (sampler {job.sampler}, kernel {job.kernel})", flush=True)
-    learned = models.learned_jacobian(job) if method.refine == "learned_jacobian" else None
+    learned = models.learned_jacobian(job) if method.needs_learned_jacobian else None
     regressor = models.regressor(job)
     if configured.tune is not None:  # tuned on each clip inside the clock (issue #15)
         from rigmap.regression.target_tuning import TunedOnTarget, TuningSettings
@@ -135,7 +138,6 @@ def evaluate_job(
         test_set,
         regressor=regressor,
         learned_jacobian=learned,
-        refine=configured.refine,
         sampler=job.sampler,
         kernel=job.kernel,
         warmup_frames=int(settings.warmup_frames),

@@ -48,8 +48,10 @@ class FittedModels:
         needed: dict[Path, list[str]] = {}
         commands: dict[str, None] = {}  # ordered, no repeats
         for job in jobs:
-            pairs = ((job.model_id, self.regressor_folder(job)),
-                     (job.jacobian_model_id, self.jacobian_folder(job)))  # fmt: skip
+            pairs = (
+                (job.model_id, self.regressor_folder(job)),
+                (job.jacobian_model_id, self.jacobian_folder(job)),
+            )
             for model_id, folder in pairs:
                 if folder is not None and not folder.is_dir():
                     needed.setdefault(folder, []).append(job.method.name)
@@ -64,8 +66,10 @@ class FittedModels:
 
     def _fit_command(self, model_id) -> str:
         """The ``pipelines/fit.py`` command that writes ``model_id``'s folder."""
-        command = (f"python pipelines/fit.py rig={self.rig.name} regressor={model_id.regressor} "
-                   f"sampler={model_id.sampler}")  # fmt: skip
+        command = (
+            f"python pipelines/fit.py rig={self.rig.name} regressor={model_id.regressor} "
+            f"sampler={model_id.sampler}"
+        )
         if model_id.kernel != "none":
             command += f" kernel={model_id.kernel}"
         for field in ("data", "models"):  # where this evaluation looks, if not the default

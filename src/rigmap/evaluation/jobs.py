@@ -12,7 +12,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from rigmap.evaluation.methods import METHODS, EvaluationSetupError, Method
+from rigmap.evaluation.checks import EvaluationSetupError
+from rigmap.evaluation.method import Method, packaged_methods
 from rigmap.store import Layout, ModelId
 
 EVALUATION_SETS = ("methods", "samplers", "kernels")
@@ -41,7 +42,7 @@ class EvaluationJob:
     @property
     def jacobian_model_id(self) -> ModelId | None:
         """The GPR whose ``learned_jacobian/`` refinement reads, if it needs one."""
-        if self.method.refine != "learned_jacobian":
+        if not self.method.needs_learned_jacobian:
             return None
         return ModelId("gpr", "none", self.jacobian_kernel)
 
@@ -51,15 +52,17 @@ def evaluation_jobs(
     rig: str,
     metrics_folder: str | Path,
     *,
-    methods: Sequence[str] = tuple(METHODS),
+    methods: Sequence[str] | None = None,
     samplers: Sequence[str] = (),
     kernels: Sequence[str] = (),
     nn_sampler: str = "pca_gaussian",
     gpr_kernel: str = "multiquadric",
-    catalog: Mapping[str, Method] = METHODS,
+    catalog: Mapping[str, Method] | None = None,
     test_split: str = "test",
+    replicate: int | None = None,
 ) -> list[EvaluationJob]:
-    """The runs of one evaluate stage; ``catalog`` holds the methods by name.
+    """The runs of one evaluate stage; ``catalog`` holds the methods by name (``None``: the
+    package's own, :func:`rigmap.evaluation.method.packaged_methods`; ``methods`` ``None``: all).
 
     - ``methods``: each method once; GPR methods read ``gpr-none-<gpr_kernel>``,
       network methods ``nn-<nn_sampler>-none``, learned-Jacobian refinement the
@@ -72,15 +75,17 @@ def evaluation_jobs(
         raise EvaluationSetupError(
             f"evaluate.set: expected one of {EVALUATION_SETS}, got {set_name!r}"
         )
+    catalog = packaged_methods() if catalog is None else catalog
+    methods = tuple(catalog) if methods is None else methods
     folder = set_folder(set_name, test_split)
-    root = Layout(metrics=Path(metrics_folder)).metrics_folder(rig, folder)
+    root = Layout(metrics=Path(metrics_folder), replicate=replicate).metrics_folder(rig, folder)
     jobs = []
     if set_name == "methods":
         for name in methods:
             method = _method(catalog, name)
             sampler = nn_sampler if method.regressor == "nn" else "none"
             kernel = gpr_kernel if method.regressor == "gpr" else None
-            jacobian_kernel = gpr_kernel if method.refine == "learned_jacobian" else None
+            jacobian_kernel = gpr_kernel if method.needs_learned_jacobian else None
             path = root / f"{name}-{sampler}.json"
             jobs.append(EvaluationJob(method, sampler, kernel, path, jacobian_kernel))
     elif set_name == "samplers":

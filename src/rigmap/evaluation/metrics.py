@@ -266,9 +266,14 @@ class MethodResult:
 
 
 SUMMARY_FIELDS = (
-    "frames", "joint_error", "ground_truth_error", "total_time_s", "fps", "rig_evaluations",
+    "frames",
+    "joint_error",
+    "ground_truth_error",
+    "total_time_s",
+    "fps",
+    "rig_evaluations",
     "rig_calls",
-)  # fmt: skip
+)
 
 
 def _summary(result) -> dict[str, float | int]:

@@ -107,9 +107,12 @@ def mapping_to_log(model: Any, regressor: str, rig: Any, test_set: Any):
     clip = test_set.clips[0]
     columns = feature_names(list(rig.joint_names))
     example = inverse_features(
-        clip.positions[:2], clip.cog[:2], clip.cog_rotation[:2], n_joints=rig.n_joints,
+        clip.positions[:2],
+        clip.cog[:2],
+        clip.cog_rotation[:2],
+        n_joints=rig.n_joints,
         where="input example",
-    )  # fmt: skip
+    )
     return MappingToLog(
         model,
         regressor,

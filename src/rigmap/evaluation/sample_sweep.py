@@ -99,9 +99,13 @@ def sample_sweep(
             )
             mapping = fit_regressor(make_network(), rig, subset, placement)
             evaluation = run_method(
-                rig, "nn", test_set, regressor=mapping, sampler=sampler,
+                rig,
+                "nn",
+                test_set,
+                regressor=mapping,
+                sampler=sampler,
                 extra={"samples": n, "training_rows": subset.rows},
-            )  # fmt: skip
+            )
             names.append(evaluation.result.write_json(staging / f"nn-{sampler}-{n}.json").name)
             average = evaluation.result.average()
             log(
@@ -128,31 +132,15 @@ def joint_space_sweep(
     With ``reuse_fit`` a fraction whose network the fit stage already trained on these rows
     (:func:`fitted_model`) is scored from ``models/`` instead of being fitted again.
     """
-    from rigmap.evaluation.methods import Method, TestSet, run_method
+    from rigmap.evaluation.methods import Method, RegressorGuess, TestSet, run_method
     from rigmap.regression.fitting import fit_regressor, load_training_data, placement_of
 
     template = make_network()
-    if getattr(template, "name", None) != "nn_joint_space":
-        raise SweepInputError(
-            "joint_space_sweep fits the joint-space network: expected regressor=nn_joint_space, "
-            f"got {getattr(template, 'name', None)!r}"
-        )
-    counts = (int(template.n_gaussian), int(template.n_local), int(template.n_wide))
-    if sum(counts) < 1:
-        raise SweepInputError(
-            "joint_space_sweep: the network draws no poses (regressor.n_gaussian, "
-            "regressor.n_local and regressor.n_wide are all 0), so there is nothing to sweep"
-        )
-    draws = []
-    for fraction in fractions:
-        if not 0 < float(fraction) <= 1:
-            raise SweepInputError(f"sweep.fractions: expected numbers in (0, 1], got {fraction!r}")
-        draws.append(tuple(round(float(fraction) * count) for count in counts))
-    draws = sorted(set(draws), key=sum)
+    counts, draws = _joint_space_draws(template, fractions)
     data = load_training_data(rig, layout.data, "none")
     placement = placement_of(rig, data)
     test_set = TestSet.load(rig, layout.rig_data(rig.name))
-    method = Method("nn_joint_space", "regressor", "nn_joint_space")
+    method = Method("nn_joint_space", RegressorGuess("nn_joint_space", title="Joint-space NN"))
     fitted_folder = layout.model(rig.name, ModelId("nn_joint_space"))
     # the fit stage's network can only be the fraction with all the draws: read it once
     saved = fitted_model(fitted_folder, template, rig, data) if reuse_fit else None
@@ -175,10 +163,19 @@ def joint_space_sweep(
                 mapping = fit_regressor(network, rig, data, placement, log=lambda line: None)
             n = sum(draw)
             evaluation = run_method(
-                rig, method, test_set, regressor=mapping, sampler="none",
-                extra={"samples": n, "n_gaussian": n_gaussian, "n_local": n_local,
-                       "n_wide": n_wide, "training_rows": data.rows + n},
-            )  # fmt: skip
+                rig,
+                method,
+                test_set,
+                regressor=mapping,
+                sampler="none",
+                extra={
+                    "samples": n,
+                    "n_gaussian": n_gaussian,
+                    "n_local": n_local,
+                    "n_wide": n_wide,
+                    "training_rows": data.rows + n,
+                },
+            )
             path = staging / f"nn_joint_space-draws-{n}.json"
             names.append(evaluation.result.write_json(path).name)
             average, unit = evaluation.result.average(), evaluation.result.length_unit
@@ -191,6 +188,30 @@ def joint_space_sweep(
 
     write_folder_atomic(folder, fill)
     return [folder / name for name in names]
+
+
+def _joint_space_draws(
+    template: Any, fractions: Sequence[float]
+) -> tuple[tuple[int, int, int], list[tuple[int, int, int]]]:
+    """The network's own draw counts (around the corpus, per control, wide) and each
+    fraction's, smallest first; a clear error for another regressor or bad fractions."""
+    if getattr(template, "name", None) != "nn_joint_space":
+        raise SweepInputError(
+            "joint_space_sweep fits the joint-space network: expected regressor=nn_joint_space, "
+            f"got {getattr(template, 'name', None)!r}"
+        )
+    counts = (int(template.n_gaussian), int(template.n_local), int(template.n_wide))
+    if sum(counts) < 1:
+        raise SweepInputError(
+            "joint_space_sweep: the network draws no poses (regressor.n_gaussian, "
+            "regressor.n_local and regressor.n_wide are all 0), so there is nothing to sweep"
+        )
+    draws = []
+    for fraction in fractions:
+        if not 0 < float(fraction) <= 1:
+            raise SweepInputError(f"sweep.fractions: expected numbers in (0, 1], got {fraction!r}")
+        draws.append(tuple(round(float(fraction) * count) for count in counts))
+    return counts, sorted(set(draws), key=sum)
 
 
 #: parameters that change what a fit prints, not what it learns

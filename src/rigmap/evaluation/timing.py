@@ -199,3 +199,18 @@ class CountingRig:
     def __repr__(self) -> str:
         count = self.count
         return f"<CountingRig {count.calls} calls, {count.poses} poses: {self._rig!r}>"
+
+
+class ScriptCountingRig(CountingRig):
+    """A ``CountingRig`` that also counts a script's read-backs and Blender constraint solves."""
+
+    def world_transforms(self, Y: Any) -> Any:
+        out = self.wrapped.world_transforms(Y)
+        self._record(Y)
+        return out
+
+    def constraint_retarget(self, positions: Any, cog: Any, cog_rotation: Any) -> Any:
+        """A Blender rig's constraint solve: one rig evaluation per target frame."""
+        out = self.wrapped.constraint_retarget(positions, cog, cog_rotation)
+        self._record(positions)
+        return out

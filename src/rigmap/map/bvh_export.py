@@ -36,8 +36,9 @@ def write_joint_bvh(
     parents = [int(p) for p in parents]
     n_joints = len(joint_names)
     if positions.ndim != 3 or positions.shape[1:] != (n_joints, 3) or len(positions) == 0:
-        raise BVHExportError(f"{path}: positions have shape {positions.shape}, expected "
-                             f"(F > 0, {n_joints}, 3)")  # fmt: skip
+        raise BVHExportError(
+            f"{path}: positions have shape {positions.shape}, expected (F > 0, {n_joints}, 3)"
+        )
     if not np.isfinite(positions).all():
         raise BVHExportError(f"{path}: positions are not all finite")
     if parents.count(-1) != 1 or any(not -1 <= p < n_joints for p in parents):
@@ -66,9 +67,12 @@ def write_joint_bvh(
 def _write_joint(lines, j, names, offsets, children, depth) -> None:
     pad = "\t" * depth
     kind = "ROOT" if depth == 0 else "JOINT"
-    lines += [f"{pad}{kind} {names[j]}", f"{pad}{{",
-              f"{pad}\tOFFSET {offsets[j, 0]:.6f} {offsets[j, 1]:.6f} {offsets[j, 2]:.6f}",
-              f"{pad}\tCHANNELS 3 Xposition Yposition Zposition"]  # fmt: skip
+    lines += [
+        f"{pad}{kind} {names[j]}",
+        f"{pad}{{",
+        f"{pad}\tOFFSET {offsets[j, 0]:.6f} {offsets[j, 1]:.6f} {offsets[j, 2]:.6f}",
+        f"{pad}\tCHANNELS 3 Xposition Yposition Zposition",
+    ]
     for child in children[j]:
         _write_joint(lines, child, names, offsets, children, depth + 1)
     if not children[j]:

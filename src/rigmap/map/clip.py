@@ -1,7 +1,7 @@
 """Map one clip: targets → guess → refinement → editable curves → sparse keys (§6.3, Fig. 8).
 
 :func:`map_clip` takes a clip's targets (world positions of the rig joints a source
-drives, from :class:`rigmap.map.RetargetMap` or given as effectors) and a
+drives, from :class:`rigmap.map.JointMap` or given as effectors) and a
 :class:`rigmap.map.partial.SubsetMapping` trained on those joints, and returns every
 control per frame plus what a user checks: per-frame joint error, foot skate, the
 largest frame-to-frame jump, and keys reduced within a tolerance in cm.
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import fnmatch
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,10 +35,10 @@ from rigmap.map.contacts import (
     pin_contacts,
 )
 from rigmap.map.curves import count_flips, largest_jumps, smooth, unwrap_rotations
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.key_reduction import JointLimit, ReducedKeys, reduce_within_joint_tolerance
 from rigmap.map.partial import SubsetMapping
 from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
-from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
 from rigmap.torch_threads import blas_threads, torch_threads
@@ -45,6 +46,14 @@ from rigmap.torch_threads import blas_threads, torch_threads
 
 class MapError(RigmapError, ValueError):
     """A clip that cannot be mapped with the given model or settings."""
+
+
+# The steps :func:`map_clip` reports as each ends (a long clip's progress bar counts them).
+MAP_STEPS = ("contacts", "refine", "keys", "score")
+
+
+def _no_step(name: str) -> None:
+    """Report nothing (the default of ``map_clip``'s ``on_step``)."""
 
 
 @dataclass(frozen=True)
@@ -133,9 +142,11 @@ def map_clip(
     *,
     control_std: np.ndarray,
     hold_values: np.ndarray,
+    on_step: Callable[[str], None] = _no_step,
 ) -> MapResult:
     """Map ``targets`` onto ``rig``; ``control_std`` and ``hold_values`` are per used control
-    (training-corpus std, and the value a held control keeps, e.g. its corpus median)."""
+    (training-corpus std, and the value a held control keeps, e.g. its corpus median).
+    ``on_step`` is called with each of :data:`MAP_STEPS` as it ends (for progress)."""
     joints = mapping.subset.joints
     missing = [j for j in joints if j not in targets.joint_names]
     if missing:
@@ -150,13 +161,25 @@ def map_clip(
     source = world
     if contacts is not None and settings.pin_feet:
         world = reachable_pins(rig, pin_contacts(world, contacts, joints), source, contacts, joints)
+    on_step("contacts")
     Y = solve_controls(rig, mapping, world, settings, control_std, hold_values, seconds)
+    on_step("refine")
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
+    limits = []  # with pinning, the planted joints held, then kept near the held pose
     with torch_threads(1), blas_threads(1):  # as the refinement: many small rig batches
-        keys = _hold_and_reduce(
-            rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds
+        if contacts is not None and settings.pin_feet:
+            Y = _hold(rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds)
+            limits = [
+                JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
+                for k, f in enumerate(contacts.feet)
+            ]
+        started = time.perf_counter()
+        keys = reduce_within_joint_tolerance(
+            rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
         )
+        seconds["keys_s"] = time.perf_counter() - started
+    on_step("keys")
     controls = rig.expand_used(keys.values())
     achieved = np.asarray(WorldSubsetRig(rig, joints).evaluate(controls), dtype=np.float64)
     result = MapResult(
@@ -177,28 +200,11 @@ def map_clip(
     )
     if contacts is not None:
         _score_contacts(result, source, settings.pin_feet)
+    on_step("score")
     return result
 
 
 CONTACT_TOLERANCE_CM = 0.05  # key reduction keeps planted joints this close (ours)
-
-
-def _hold_and_reduce(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds):
-    """With pinning, the planted joints held (:func:`_hold`); then the keys, the planted
-    joints within :data:`CONTACT_TOLERANCE_CM` of the held pose."""
-    limits = []
-    if contacts is not None and settings.pin_feet:
-        Y = _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds)
-        limits = [
-            JointLimit(f, contacts.planted[:, k], CONTACT_TOLERANCE_CM)
-            for k, f in enumerate(contacts.feet)
-        ]
-    started = time.perf_counter()
-    keys = reduce_within_joint_tolerance(
-        rig, rig.expand_used(Y), control_std, settings.key_tolerance_cm, limits=limits
-    )
-    seconds["keys_s"] = time.perf_counter() - started
-    return keys
 
 
 def _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds) -> np.ndarray:
@@ -245,17 +251,30 @@ def solve_controls(rig, mapping, world, settings, control_std, hold_values, seco
     scale[held] = 0.0  # a control with scale 0 does not move
     if settings.prior_weight > 0:
         result = refine_toward_guess(
-            rig, mapping.subset.joints, Y, world, prior_weight=settings.prior_weight,
-            control_scale=scale, damping=settings.damping, iterations=settings.refine_iterations,
-            joint_weights=[settings.foot_weight if j in settings.feet else 1.0
-                           for j in mapping.subset.joints],
-        )  # fmt: skip
+            rig,
+            mapping.subset.joints,
+            Y,
+            world,
+            prior_weight=settings.prior_weight,
+            control_scale=scale,
+            damping=settings.damping,
+            iterations=settings.refine_iterations,
+            joint_weights=[
+                settings.foot_weight if j in settings.feet else 1.0 for j in mapping.subset.joints
+            ],
+        )
     else:  # plain Eq. 13 on the mapped joints
         view = WorldSubsetRig(rig, mapping.subset.joints)
         result = damped_least_squares(
-            view, Y, world, ComputedJacobian(view), damping=settings.damping,
-            max_iterations=settings.refine_iterations, control_scale=scale, keep_in_range=True,
-        )  # fmt: skip
+            view,
+            Y,
+            world,
+            ComputedJacobian(view),
+            damping=settings.damping,
+            max_iterations=settings.refine_iterations,
+            control_scale=scale,
+            keep_in_range=True,
+        )
     seconds["refine_s"] = time.perf_counter() - started
     seconds["refine_rig_evaluations"] = float(result.rig_evaluations)
     return result.Y_used

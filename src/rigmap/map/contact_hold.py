@@ -15,6 +15,7 @@ lands or lifts. All values here are ours.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,19 +77,25 @@ def foot_controls(rig, row: np.ndarray, contacts: Contacts, origin: str, scale):
     return flags, moves & flags[:, None]
 
 
+def _chain(rig, joint: str) -> list[str]:
+    """``joint`` and its ancestors up to the root; ``[joint]`` for a rig without hierarchy."""
+    parents = getattr(rig, "parents", None)
+    if parents is None:
+        return [joint]
+    names = list(rig.joint_names)
+    j = names.index(joint)
+    chain = [names[j]]
+    while parents[j] >= 0:
+        j = int(parents[j])
+        chain.append(names[j])
+    return chain
+
+
 def _leg_root(rig, foot: str, origin: str) -> str:
     """The ancestor of ``foot`` whose parent is ``origin`` (the thigh); ``origin`` when the
     rig has no hierarchy or ``origin`` is not an ancestor of ``foot``."""
-    parents = getattr(rig, "parents", None)
-    if parents is None:
-        return origin
-    names = list(rig.joint_names)
-    j, top = names.index(foot), names.index(origin)
-    while parents[j] >= 0:
-        if parents[j] == top:
-            return names[j]
-        j = int(parents[j])
-    return origin
+    chain = _chain(rig, foot)
+    return next((c for c, p in itertools.pairwise(chain) if p == origin), origin)
 
 
 def hold_contacts(
@@ -162,16 +169,7 @@ def reachable_pins(rig, pinned, source, contacts: Contacts, joints) -> np.ndarra
 
 
 def _is_ancestor(rig, joint: str, of: str) -> bool:
-    parents = getattr(rig, "parents", None)
-    if parents is None:
-        return False
-    names = list(rig.joint_names)
-    j, top = names.index(of), names.index(joint)
-    while parents[j] >= 0:
-        j = int(parents[j])
-        if j == top:
-            return True
-    return False
+    return joint in _chain(rig, of)[1:]
 
 
 class _Solve:

@@ -57,8 +57,9 @@ def detect_contacts(
     if missing:
         raise ContactError(f"foot joints {missing} are not among the joints {list(joint_names)}")
     if positions.ndim != 3 or positions.shape[1] != len(joint_names) or len(positions) == 0:
-        raise ContactError(f"positions have shape {positions.shape}, expected (F>0, "
-                           f"{len(joint_names)}, 3)")  # fmt: skip
+        raise ContactError(
+            f"positions have shape {positions.shape}, expected (F>0, {len(joint_names)}, 3)"
+        )
     columns = [list(joint_names).index(f) for f in feet]
     foot = positions[:, columns]
     height = foot[:, :, UP]

@@ -79,8 +79,15 @@ def pose_from_effectors(
     """Full control rows ``(N, C)`` for effector targets ``(N, K, 3)``, the per-pose RMS
     distance (cm) to the targets, and the seconds it took."""
     seconds: dict[str, float] = {}
-    Y = solve_controls(rig, mapping, np.asarray(targets, dtype=np.float64), settings,
-                       control_std, hold_values, seconds)  # fmt: skip
+    Y = solve_controls(
+        rig,
+        mapping,
+        np.asarray(targets, dtype=np.float64),
+        settings,
+        control_std,
+        hold_values,
+        seconds,
+    )
     controls = rig.expand_used(Y)
     reached = np.asarray(WorldSubsetRig(rig, mapping.subset.joints).evaluate(controls))
     error = np.sqrt(((reached - targets) ** 2).sum(axis=2).mean(axis=1))

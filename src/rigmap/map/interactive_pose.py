@@ -77,8 +77,9 @@ class InteractivePoser:
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"interactive posing: steps must be an integer >= 1, got {steps!r}")
         if not isinstance(carry_jacobian, bool):
-            raise ValueError(f"interactive posing: carry_jacobian must be true or false, "
-                             f"got {carry_jacobian!r}")  # fmt: skip
+            raise ValueError(
+                f"interactive posing: carry_jacobian must be true or false, got {carry_jacobian!r}"
+            )
         self.rig, self.mapping, self.steps = rig, mapping, steps
         self.view = WorldSubsetRig(rig, mapping.subset.joints, traced=True)
         self.held = held_controls(rig, hold)
@@ -182,7 +183,8 @@ def moving_controls(view: WorldSubsetRig, candidates: np.ndarray, seed: int = 0)
     used = rig.controls.used_indices
     rng = np.random.default_rng(seed)
     Y = np.repeat(rig.controls.defaults[None], PROBE_POSES, axis=0)
-    Y[:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used],
-                             (PROBE_POSES, len(used)))  # fmt: skip
+    Y[:, used] = rng.uniform(
+        rig.controls.lower[used], rig.controls.upper[used], (PROBE_POSES, len(used))
+    )
     J = jacobian(view, Y, differences="central", chunk=None, columns=candidates)
     return candidates[np.abs(J[:, :, candidates]).max(axis=(0, 1)) > 0]

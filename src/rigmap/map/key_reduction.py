@@ -47,8 +47,9 @@ def reduce_curve(
     least at ``keys`` (frames that must hold their value exactly, e.g. a contact's)."""
     values = np.asarray(values, dtype=np.float64)
     if values.ndim != 1 or len(values) == 0:
-        raise KeyReductionError(f"{control or 'curve'}: expected one value per frame, got "
-                                f"shape {values.shape}")  # fmt: skip
+        raise KeyReductionError(
+            f"{control or 'curve'}: expected one value per frame, got shape {values.shape}"
+        )
     if not np.isfinite(values).all():
         raise KeyReductionError(f"{control or 'curve'}: values are not all finite")
     if not tolerance > 0:

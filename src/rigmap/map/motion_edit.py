@@ -95,19 +95,25 @@ class EditResult:
 
     def to_dict(self) -> dict:
         frames = len(self.edited)
-        return {"frames": frames, "foot_height_error_cm": self.foot_height_error_cm,
-                "foot_height_rms_cm": self.foot_height_rms_cm,
-                "hand_offset_error_cm": self.hand_offset_error_cm,
-                "body_error_cm": self.body_error_cm}  # fmt: skip
+        return {
+            "frames": frames,
+            "foot_height_error_cm": self.foot_height_error_cm,
+            "foot_height_rms_cm": self.foot_height_rms_cm,
+            "hand_offset_error_cm": self.hand_offset_error_cm,
+            "body_error_cm": self.body_error_cm,
+        }
 
 
-def map_edit(rig, mapping, world, edit: MotionEdit, settings: MapSettings, *, control_std,
-             hold_values) -> EditResult:  # fmt: skip
+def map_edit(
+    rig, mapping, world, edit: MotionEdit, settings: MapSettings, *, control_std, hold_values
+) -> EditResult:
     """Edit world joints ``(F, J, 3)`` (every rig joint) and map them back with ``mapping``
     (a full-input subset mapping) and ``settings``' refinement."""
     if tuple(mapping.subset.joints) != tuple(rig.joint_names):
-        raise ValueError(f"map_edit needs a mapping from every joint of {rig.name!r}, got "
-                         f"subset {mapping.subset.name!r}")  # fmt: skip
+        raise ValueError(
+            f"map_edit needs a mapping from every joint of {rig.name!r}, got "
+            f"subset {mapping.subset.name!r}"
+        )
     edited = edit.apply(world, rig)
     Y = solve_controls(rig, mapping, edited, settings, control_std, hold_values, {})
     controls = rig.expand_used(Y)
@@ -118,8 +124,12 @@ def map_edit(rig, mapping, world, edit: MotionEdit, settings: MapSettings, *, co
     hand = names.index(edit.hand)
     height = np.abs(mapped[:, feet, UP] - edited[:, feet, UP])
     return EditResult(
-        np.asarray(world, dtype=np.float64), edited, mapped, controls,
-        float(height.max()), float(np.sqrt((height**2).mean())),
+        np.asarray(world, dtype=np.float64),
+        edited,
+        mapped,
+        controls,
+        float(height.max()),
+        float(np.sqrt((height**2).mean())),
         float(np.linalg.norm(mapped[:, hand] - edited[:, hand], axis=1).max()),
         float(np.sqrt(((mapped - edited) ** 2).sum(axis=2).mean())),
-    )  # fmt: skip
+    )

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,36 +30,46 @@ from rigmap.store import json_ready, write_folder_atomic, write_json_atomic
 SUMMARY_FORMAT = "rigmap.map_summary/1"
 
 
+@dataclass(frozen=True)
+class MappedClip:
+    """One clip's output folder and its headline numbers (``summary.json``, as written)."""
+
+    folder: Path
+    summary: dict
+
+
 def summary(result: MapResult, rig) -> dict:
     """The clip's headline numbers (units in the keys)."""
     error = result.frame_error_cm
     height = rig.rest_height()
     total = sum(v for k, v in result.seconds.items() if k.endswith("_s"))
-    return json_ready({
-        "format": SUMMARY_FORMAT,
-        "rig": result.rig,
-        "source": result.source,
-        "frames": result.n_frames,
-        "fps": result.fps,
-        "mapped_joints": list(result.joint_names),
-        "joint_error_rms_cm": float(np.sqrt((error**2).mean())),
-        "joint_error_max_cm": float(error.max()),
-        "joint_error_rms_percent_of_height": float(100 * np.sqrt((error**2).mean()) / height),
-        "rig_height_cm": height,
-        "foot_skate_source_cm_per_frame": result.skate_source_cm,
-        "foot_skate_result_cm_per_frame": result.skate_result_cm,
-        "ground_penetration_source_cm": result.penetration_source_cm,
-        "ground_penetration_result_cm": result.penetration_result_cm,
-        "contact_slip_max_cm": result.contact_slip_cm,
-        "euler_flips": result.flips,
-        "largest_jump_training_std": result.largest_jump_std,
-        "keys": result.keys.key_count,
-        "keyed_controls": len(result.keys.curves),
-        "frames_times_controls": result.n_frames * len(result.keys.curves),
-        "key_tolerance_max_joint_error_cm": result.keys.max_joint_error_cm,
-        "seconds": result.seconds,
-        "frames_per_second": result.n_frames / total if total > 0 else None,
-    })  # fmt: skip
+    return json_ready(
+        {
+            "format": SUMMARY_FORMAT,
+            "rig": result.rig,
+            "source": result.source,
+            "frames": result.n_frames,
+            "fps": result.fps,
+            "mapped_joints": list(result.joint_names),
+            "joint_error_rms_cm": float(np.sqrt((error**2).mean())),
+            "joint_error_max_cm": float(error.max()),
+            "joint_error_rms_percent_of_height": float(100 * np.sqrt((error**2).mean()) / height),
+            "rig_height_cm": height,
+            "foot_skate_source_cm_per_frame": result.skate_source_cm,
+            "foot_skate_result_cm_per_frame": result.skate_result_cm,
+            "ground_penetration_source_cm": result.penetration_source_cm,
+            "ground_penetration_result_cm": result.penetration_result_cm,
+            "contact_slip_max_cm": result.contact_slip_cm,
+            "euler_flips": result.flips,
+            "largest_jump_training_std": result.largest_jump_std,
+            "keys": result.keys.key_count,
+            "keyed_controls": len(result.keys.curves),
+            "frames_times_controls": result.n_frames * len(result.keys.curves),
+            "key_tolerance_max_joint_error_cm": result.keys.max_joint_error_cm,
+            "seconds": result.seconds,
+            "frames_per_second": result.n_frames / total if total > 0 else None,
+        }
+    )
 
 
 def write_map_outputs(
@@ -68,8 +79,9 @@ def write_map_outputs(
     *,
     confidence: np.ndarray | None = None,
     extra: Callable[[Path], None] | None = None,
-) -> Path:
-    """Write the clip's folder (see the module docstring); returns its path.
+) -> MappedClip:
+    """Write the clip's folder (see the module docstring); returns its path and its summary
+    (the numbers of ``summary.json``, so no caller reads back what was just written).
 
     ``confidence`` (per frame) becomes a column of ``frames.parquet``; ``extra(staging)``
     writes more files (previews, a ``.blend``) into the folder before it appears.
@@ -92,13 +104,15 @@ def write_map_outputs(
         world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
         rest_pose = rig.pose(rig.controls.defaults[None])
         rest = (np.asarray(rest_pose.positions) + np.asarray(rest_pose.cog)[:, None, :])[0]
-        write_joint_bvh(staging / "result.bvh", rig.joint_names, rig.parents, world, rest,
-                        result.fps)  # fmt: skip
-        write_json_atomic(staging / "summary.json", summary(result, rig))
+        write_joint_bvh(
+            staging / "result.bvh", rig.joint_names, rig.parents, world, rest, result.fps
+        )
+        write_json_atomic(staging / "summary.json", headline)
         if extra is not None:
             extra(staging)
 
-    return write_folder_atomic(folder, fill)
+    headline = summary(result, rig)
+    return MappedClip(write_folder_atomic(folder, fill), headline)
 
 
 def _keys(result: MapResult) -> dict:

@@ -69,8 +69,9 @@ class JointSubset:
         missing = [k for k in ("joints", "origin", "left", "right") if k not in data]
         if missing:
             raise SubsetError(f"joint subset {name!r} for rig {rig.name!r} lacks {missing}")
-        subset = cls(name, rig.name, tuple(data["joints"]), data["origin"], data["left"],
-                     data["right"])  # fmt: skip
+        subset = cls(
+            name, rig.name, tuple(data["joints"]), data["origin"], data["left"], data["right"]
+        )
         subset.check_rig(rig)
         return subset
 
@@ -132,9 +133,15 @@ class JointSubset:
         return np.arctan2(forward_x, forward_z)
 
     def to_dict(self) -> dict:
-        return {"format": SUBSET_FORMAT, "name": self.name, "rig": self.rig,
-                "joints": list(self.joints), "origin": self.origin, "left": self.left,
-                "right": self.right}  # fmt: skip
+        return {
+            "format": SUBSET_FORMAT,
+            "name": self.name,
+            "rig": self.rig,
+            "joints": list(self.joints),
+            "origin": self.origin,
+            "left": self.left,
+            "right": self.right,
+        }
 
     @classmethod
     def from_dict(cls, data: Mapping, source: str = SUBSET_FILE) -> JointSubset:
@@ -142,8 +149,14 @@ class JointSubset:
             raise SubsetError(
                 f"{source}: format {data.get('format')!r}, expected {SUBSET_FORMAT!r}"
             )
-        return cls(data["name"], data["rig"], tuple(data["joints"]), data["origin"],
-                   data["left"], data["right"])  # fmt: skip
+        return cls(
+            data["name"],
+            data["rig"],
+            tuple(data["joints"]),
+            data["origin"],
+            data["left"],
+            data["right"],
+        )
 
 
 class SubsetMapping:
@@ -160,8 +173,15 @@ class SubsetMapping:
         rows = subset.pose_rows(subset.world_from_pose_rows(X_pose, rig))
         probes = np.asarray(Y_used, dtype=np.float64)[:: max(1, len(Y_used) // 4)][:4]
         full = find_placement(rig, probes)
-        placement = Placement(len(subset.joints), full.n_controls, full.ground, full.turn,
-                              full.pivot_rest, full.turn_range, full.notes)  # fmt: skip
+        placement = Placement(
+            len(subset.joints),
+            full.n_controls,
+            full.ground,
+            full.turn,
+            full.pivot_rest,
+            full.turn_range,
+            full.notes,
+        )
         mapping = InverseMapping(regressor, placement).fit(rows, Y_used, **options)
         return cls(subset, mapping)
 

@@ -57,16 +57,22 @@ class TrainingData:
 
 def training_data(rig, poses_table, Y_used: np.ndarray) -> TrainingData:
     """From the train split's :class:`rigmap.animation.posing.PoseTable` and controls."""
-    X = inverse_features(poses_table.positions(), poses_table.cog(), poses_table.cog_rotation(),
-                         n_joints=rig.n_joints, where=f"{rig.name} train poses")  # fmt: skip
+    X = inverse_features(
+        poses_table.positions(),
+        poses_table.cog(),
+        poses_table.cog_rotation(),
+        n_joints=rig.n_joints,
+        where=f"{rig.name} train poses",
+    )
     Y = np.asarray(Y_used, dtype=np.float64)
     return TrainingData(X, Y, Y.std(axis=0), np.median(Y, axis=0))
 
 
 def full_subset(rig, like: JointSubset) -> JointSubset:
     """Every rig joint as input, framed by the same origin and left/right joints as ``like``."""
-    return JointSubset(FULL_INPUT, rig.name, tuple(rig.joint_names), like.origin, like.left,
-                       like.right)  # fmt: skip
+    return JointSubset(
+        FULL_INPUT, rig.name, tuple(rig.joint_names), like.origin, like.left, like.right
+    )
 
 
 @dataclass(frozen=True)
@@ -88,16 +94,17 @@ class PartialInputRow:
 
 
 def fit_subset_mappings(
-    rig, subsets: Mapping[str, JointSubset], training: TrainingData,
+    rig,
+    subsets: Mapping[str, JointSubset],
+    training: TrainingData,
     make_regressor: Callable[[], object],
-) -> dict[str, tuple[SubsetMapping, float]]:  # fmt: skip
+) -> dict[str, tuple[SubsetMapping, float]]:
     """Per subset name (the full joint set first), its fitted mapping and the fit's seconds."""
     first = next(iter(subsets.values()))
     fitted = {}
     for subset in [full_subset(rig, first), *subsets.values()]:
         started = time.perf_counter()
-        mapping = SubsetMapping.fit(rig, subset, training.X_pose, training.Y_used,
-                                    make_regressor())  # fmt: skip
+        mapping = SubsetMapping.fit(rig, subset, training.X_pose, training.Y_used, make_regressor())
         fitted[subset.name] = (mapping, time.perf_counter() - started)
     return fitted
 
@@ -124,8 +131,19 @@ def _score_subset(rig, mapping, training, test_set, settings, fit_s) -> list[Par
     given = mapping.subset.columns(rig)
     started = time.perf_counter()
     guess = mapping.predict(world[:, given])
-    rows = [_row(rig, mapping.subset, "guess", guess, world, truth, training, test_set,
-                 fit_s + time.perf_counter() - started)]  # fmt: skip
+    rows = [
+        _row(
+            rig,
+            mapping.subset,
+            "guess",
+            guess,
+            world,
+            truth,
+            training,
+            test_set,
+            fit_s + time.perf_counter() - started,
+        )
+    ]
     if settings.refine_iterations == 0:
         return rows
     frames = np.arange(0, len(world), settings.refine_every)
@@ -135,10 +153,22 @@ def _score_subset(rig, mapping, training, test_set, settings, fit_s) -> list[Par
         prior_weight=settings.prior_weight,
     )
     started = time.perf_counter()
-    refined = solve_controls(rig, mapping, world[frames][:, given], map_settings,
-                             training.std, training.median, {})  # fmt: skip
-    rows.append(_row(rig, mapping.subset, "refined", refined, world[frames], truth[frames],
-                     training, test_set, time.perf_counter() - started))  # fmt: skip
+    refined = solve_controls(
+        rig, mapping, world[frames][:, given], map_settings, training.std, training.median, {}
+    )
+    rows.append(
+        _row(
+            rig,
+            mapping.subset,
+            "refined",
+            refined,
+            world[frames],
+            truth[frames],
+            training,
+            test_set,
+            time.perf_counter() - started,
+        )
+    )
     return rows
 
 
@@ -147,10 +177,17 @@ def _row(rig, subset, stage, Y_used, world, truth, training, test_set, seconds):
     reached = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
     distance = np.linalg.norm(reached - world, axis=2)  # (N, J) cm
     given = subset.columns(rig)
-    gt = ground_truth_error(Y_used, truth, test_set.train_std, test_set.control_kinds,
-                            names=test_set.control_names)  # fmt: skip
+    gt = ground_truth_error(
+        Y_used, truth, test_set.train_std, test_set.control_kinds, names=test_set.control_names
+    )
     return PartialInputRow(
-        rig.name, subset.name, len(given), stage, len(world),
-        float(np.sqrt((distance[:, given] ** 2).mean())), float(np.sqrt((distance**2).mean())),
-        gt.mean, float(seconds),
-    )  # fmt: skip
+        rig.name,
+        subset.name,
+        len(given),
+        stage,
+        len(world),
+        float(np.sqrt((distance[:, given] ** 2).mean())),
+        float(np.sqrt((distance**2).mean())),
+        gt.mean,
+        float(seconds),
+    )

@@ -16,8 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.store import atomic_file
-
 TARGET_COLOR = "black"
 GIF_MAX_FRAMES = 48  # frames of the GIF; a longer clip is played every k-th frame (ours)
 PANEL_INCHES = 2.4
@@ -39,17 +37,26 @@ def subset_parents(rig, joints) -> np.ndarray:
     return parents
 
 
-def write_preview(folder: str | os.PathLike, rig, result, *, panels: int = 8,
-                  columns: int = 4, view: str = "side") -> list[Path]:  # fmt: skip
+def write_preview(
+    folder: str | os.PathLike, rig, result, *, panels: int = 8, columns: int = 4, view: str = "side"
+) -> list[Path]:
     """Write ``preview.png`` and ``preview.gif`` of ``result`` (a MapResult) into ``folder``."""
     folder = Path(folder)
     pose = rig.pose(result.controls)
     world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
-    scene = _Scene(rig, world, result.targets, subset_parents(rig, result.joint_names),
-                   result.frame_error_cm, view)  # fmt: skip
+    scene = _Scene(
+        rig,
+        world,
+        result.targets,
+        subset_parents(rig, result.joint_names),
+        result.frame_error_cm,
+        view,
+    )
     title = f"{rig.name} <- {Path(result.source).name} (black: targets)"
-    return [_contact_sheet(scene, folder / "preview.png", panels, columns, title),
-            _gif(scene, folder / "preview.gif", result.fps, title)]  # fmt: skip
+    return [
+        _contact_sheet(scene, folder / "preview.png", panels, columns, title),
+        _gif(scene, folder / "preview.gif", result.fps, title),
+    ]
 
 
 class _Scene:
@@ -80,16 +87,38 @@ class _Scene:
         ax.clear()
         ax.set_axis_off()
         ax.axhline(0.0, color="0.6", lw=0.8, zorder=0)
-        draw_skeleton(ax, self.world[index], self.rig.parents, self.view,
-                      joint_names=self.rig.joint_names, joint_size=4.0, linewidth=1.4)  # fmt: skip
-        draw_skeleton(ax, self.targets[index], self.target_parents, self.view,
-                      color=TARGET_COLOR, alpha=0.75, joint_size=7.0, linewidth=0.9)  # fmt: skip
+        draw_skeleton(
+            ax,
+            self.world[index],
+            self.rig.parents,
+            self.view,
+            joint_names=self.rig.joint_names,
+            joint_size=4.0,
+            linewidth=1.4,
+        )
+        draw_skeleton(
+            ax,
+            self.targets[index],
+            self.target_parents,
+            self.view,
+            color=TARGET_COLOR,
+            alpha=0.75,
+            joint_size=7.0,
+            linewidth=0.9,
+        )
         center = self.centers[index]
         ax.set_xlim(center - self.half_width, center + self.half_width)
         ax.set_ylim(self.bottom, self.top)
         ax.set_aspect("equal")
-        ax.text(0.02, 0.97, f"{index}  {self.error_cm[index]:.1f} cm", transform=ax.transAxes,
-                va="top", fontsize=7, color="0.25")  # fmt: skip
+        ax.text(
+            0.02,
+            0.97,
+            f"{index}  {self.error_cm[index]:.1f} cm",
+            transform=ax.transAxes,
+            va="top",
+            fontsize=7,
+            color="0.25",
+        )
 
 
 def _pyplot():
@@ -109,9 +138,12 @@ def _contact_sheet(scene: _Scene, out: Path, panels: int, columns: int, title: s
     picks = np.unique(np.linspace(0, frames - 1, min(panels, frames)).round().astype(int))
     columns = min(columns, len(picks))
     rows = int(np.ceil(len(picks) / columns))
-    fig, axes = plt.subplots(rows, columns, squeeze=False,
-                             figsize=(PANEL_INCHES * columns * scene.aspect,
-                                      PANEL_INCHES * rows + 0.5))  # fmt: skip
+    fig, axes = plt.subplots(
+        rows,
+        columns,
+        squeeze=False,
+        figsize=(PANEL_INCHES * columns * scene.aspect, PANEL_INCHES * rows + 0.5),
+    )
     for ax in axes.ravel():
         ax.set_axis_off()
     for ax, index in zip(axes.ravel(), picks, strict=False):
@@ -125,29 +157,27 @@ def _contact_sheet(scene: _Scene, out: Path, panels: int, columns: int, title: s
 
 
 def _gif(scene: _Scene, out: Path, fps: float, title: str) -> Path:
-    from PIL import Image
+    from rigmap.viz.gif import write_figure_gif
 
     plt = _pyplot()
     step = max(1, int(np.ceil(len(scene.world) / GIF_MAX_FRAMES)))
     fig, ax = plt.subplots(figsize=(3.4 * scene.aspect, 3.4), dpi=72)
-    images = []
+
+    def draw(index: int) -> None:
+        scene.draw(ax, index)
+        ax.set_title(title, fontsize=7)
+
     try:
-        for index in range(0, len(scene.world), step):
-            scene.draw(ax, index)
-            ax.set_title(title, fontsize=7)
-            fig.canvas.draw()
-            rgba = np.asarray(fig.canvas.buffer_rgba())
-            images.append(Image.fromarray(rgba[..., :3].copy()).quantize(colors=64))
+        frames = range(0, len(scene.world), step)
+        duration = max(20, round(1000 * step / fps))
+        return write_figure_gif(fig, draw, frames, out, duration_ms=duration)
     finally:
         plt.close(fig)
-    with atomic_file(out, suffix=".gif") as temporary:
-        images[0].save(temporary, format="GIF", save_all=True, append_images=images[1:],
-                       duration=max(20, round(1000 * step / fps)), loop=0)  # fmt: skip
-    return out
 
 
-def render_pose(rig, controls: np.ndarray, targets: np.ndarray, subset, out: str | os.PathLike,
-                *, title: str) -> Path:  # fmt: skip
+def render_pose(
+    rig, controls: np.ndarray, targets: np.ndarray, subset, out: str | os.PathLike, *, title: str
+) -> Path:
     """One pose from front, side and top with its effector targets ringed in black; a mesh
     rig (the face) is drawn shaded instead (:func:`rigmap.viz.mesh.render_mesh_views`)."""
     if rig.parents is None:
@@ -164,8 +194,7 @@ def render_pose(rig, controls: np.ndarray, targets: np.ndarray, subset, out: str
     for ax, view in zip(axes, VIEWS, strict=True):
         draw_skeleton(ax, world, rig.parents, view, joint_names=rig.joint_names)
         x, y = project(np.asarray(targets), view)
-        ax.scatter(x, y, s=70, facecolors="none", edgecolors=TARGET_COLOR, linewidths=1.2,
-                   zorder=4)  # fmt: skip
+        ax.scatter(x, y, s=70, facecolors="none", edgecolors=TARGET_COLOR, linewidths=1.2, zorder=4)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_title(view)
         ax.grid(alpha=0.2)

@@ -46,8 +46,11 @@ class PriorRig(Rig):
     def __init__(self, view: WorldSubsetRig, weights: np.ndarray, joint_weights=None):
         weights = np.asarray(weights, dtype=np.float64)
         n_joints = len(view.joint_names)
-        self.joint_weights = (np.ones(n_joints) if joint_weights is None
-                              else np.asarray(joint_weights, dtype=np.float64))  # fmt: skip
+        self.joint_weights = (
+            np.ones(n_joints)
+            if joint_weights is None
+            else np.asarray(joint_weights, dtype=np.float64)
+        )
         if self.joint_weights.shape != (n_joints,) or not (self.joint_weights > 0).all():
             raise ValueError(f"joint weights must be {n_joints} numbers > 0")
         n_used = len(view.controls.used_indices)
@@ -107,6 +110,12 @@ def refine_toward_guess(
     world = np.asarray(world, dtype=np.float64) * view.joint_weights[:, None]
     targets = np.concatenate([world, view.prior_rows(guess)], axis=1)
     return damped_least_squares(
-        view, guess, targets, ComputedJacobian(view, differences="forward"), damping=damping,
-        max_iterations=iterations, control_scale=scale, keep_in_range=True,
-    )  # fmt: skip
+        view,
+        guess,
+        targets,
+        ComputedJacobian(view, differences="forward"),
+        damping=damping,
+        max_iterations=iterations,
+        control_scale=scale,
+        keep_in_range=True,
+    )

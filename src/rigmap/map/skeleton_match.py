@@ -1,6 +1,6 @@
 """Skeleton matching: a source skeleton's joints found for the roles a retarget map needs.
 
-A retarget map (:mod:`rigmap.map.retarget_map`) names, per rig joint, the source joint
+A retarget map (:mod:`rigmap.map.joint_map`) names, per rig joint, the source joint
 that drives it; written by hand it fits one naming only. Here the source joints are
 found for anatomical roles (``hips``, ``spine``, ``chest``, ``neck``, ``head``, and per
 side ``upper_arm``, ``forearm``, ``hand``, ``fingers``, ``thigh``, ``shin``, ``foot``,
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rigmap.map.retarget_map import RetargetMap, RetargetMapError
+from rigmap.map.joint_map import JointMap, JointMapError
 from rigmap.store import write_text_atomic
 
 SIDES = ("l", "r")
@@ -88,7 +88,7 @@ PART_START = re.compile(
 AXIS_LABELS = ("x", "y", "z")
 
 
-class SkeletonMatchError(RetargetMapError):
+class SkeletonMatchError(JointMapError):
     """A skeleton whose joints could not all be matched; names them and the draft map."""
 
 
@@ -468,7 +468,7 @@ class FrameCheck:
             bad[0] = True
         good = np.flatnonzero(~bad)
         if len(good) == 0:
-            raise RetargetMapError("every frame is a glitch (all channels zero) or a T-pose")
+            raise JointMapError("every frame is a glitch (all channels zero) or a T-pose")
         frames = np.arange(len(out))
         flat = out.reshape(len(out), -1)
         for column in range(flat.shape[1]):
@@ -525,13 +525,13 @@ def unit_guess(height: float) -> str:
 def check_roles(rig_name: str, roles: Mapping[str, str], where: str) -> dict[str, str]:
     """A rig's ``roles`` table (rig joint → role), checked against :data:`ROLES`."""
     if not isinstance(roles, Mapping) or not roles:
-        raise RetargetMapError(
+        raise JointMapError(
             f"{where}: rig {rig_name!r} has no roles table (rig joint: role) "
             "to match a skeleton to; pass map.retarget=<a retarget map>"
         )
     unknown = sorted({str(r) for r in roles.values()} - set(ROLES))
     if unknown:
-        raise RetargetMapError(f"{where}: unknown roles {unknown}; known: {list(ROLES)}")
+        raise JointMapError(f"{where}: unknown roles {unknown}; known: {list(ROLES)}")
     return {str(k): str(v) for k, v in roles.items()}
 
 
@@ -585,7 +585,7 @@ class MatchedSkeleton:
     """A BVH skeleton matched for a rig: the retarget map (and its YAML text), the match,
     the frames that are not captured motion."""
 
-    retarget: RetargetMap
+    retarget: JointMap
     text: str
     match: Match
     frames: FrameCheck
@@ -638,7 +638,7 @@ def match_bvh(
             + f"; draft retarget map written to {draft}: fix it and pass map.retarget={draft}"
         )
     text = map_text(mapping, header)
-    retarget = RetargetMap.from_mapping(mapping, source_file=f"<{Path(source).name} matched>")
+    retarget = JointMap.from_mapping(mapping, source_file=f"<{Path(source).name} matched>")
     return MatchedSkeleton(retarget, text, match, frames)
 
 

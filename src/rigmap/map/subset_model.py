@@ -111,8 +111,9 @@ def obtain_subset_model(
     cache = Path(cache) if cache is not None else model_folder(layout, rig.name, subset)
     stale = _stale_reason(cache, expected)
     if stale is None:
-        return SubsetModel(_load_checked(cache, rig, expected, explicit=False), std, median, cache,
-                           refitted=False)  # fmt: skip
+        return SubsetModel(
+            _load_checked(cache, rig, expected, explicit=False), std, median, cache, refitted=False
+        )
     log(f"map model {cache}: {stale}; fitting on {data.corpus_rows} corpus frames")
     mapping = _fit(rig, subset, data, regressor_config)
 
@@ -126,8 +127,11 @@ def obtain_subset_model(
 
 def _fit(rig, subset: JointSubset, data: TrainingData, regressor_config) -> SubsetMapping:
     regressor = instantiate_as(regressor_config, Regressor, "map.regressor", SubsetModelError)
-    options = {"rig_name": rig.name, "control_names": list(rig.used_controls),
-               **regressor.fit_options(rest_index=data.rest_index)}  # fmt: skip
+    options = {
+        "rig_name": rig.name,
+        "control_names": list(rig.used_controls),
+        **regressor.fit_options(rest_index=data.rest_index),
+    }
     return SubsetMapping.fit(rig, subset, data.features, data.controls, regressor, **options)
 
 
@@ -137,14 +141,16 @@ def _statistics(data: TrainingData) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _record(rig, subset, layout, regressor_config) -> dict:
-    return json_ready({
-        "format": RECORD_FORMAT,
-        "rig": rig.name,
-        "rig_fingerprint": rig_fingerprint(rig),
-        "subset": subset.to_dict(),
-        "regressor": dict(regressor_config),
-        "training_digest": training_digest(rig, layout.data),
-    })  # fmt: skip
+    return json_ready(
+        {
+            "format": RECORD_FORMAT,
+            "rig": rig.name,
+            "rig_fingerprint": rig_fingerprint(rig),
+            "subset": subset.to_dict(),
+            "regressor": dict(regressor_config),
+            "training_digest": training_digest(rig, layout.data),
+        }
+    )
 
 
 def _read_record(folder: Path) -> dict | None:
@@ -176,14 +182,24 @@ def _mismatch(record: dict, expected: dict) -> tuple[bool, str] | None:
     checks = [
         ("format", True, f"format {record.get('format')!r}, expected {RECORD_FORMAT!r}"),
         ("rig", True, f"fitted for rig {record.get('rig')!r}, not {expected['rig']!r}"),
-        ("rig_fingerprint", True,
-         f"fitted on another version of rig {expected['rig']!r} (its fingerprint differs)"),
-        ("subset", True, f"fitted on joint subset {theirs.get('name')!r} ({theirs.get('joints')}),"
-                         f" not {subset['name']!r} ({subset['joints']})"),
+        (
+            "rig_fingerprint",
+            True,
+            f"fitted on another version of rig {expected['rig']!r} (its fingerprint differs)",
+        ),
+        (
+            "subset",
+            True,
+            f"fitted on joint subset {theirs.get('name')!r} ({theirs.get('joints')}),"
+            f" not {subset['name']!r} ({subset['joints']})",
+        ),
         ("regressor", False, "fitted with other regressor settings"),
-        ("training_digest", False, "fitted on other training data (the train corpus or poses "
-                                   "changed)"),
-    ]  # fmt: skip
+        (
+            "training_digest",
+            False,
+            "fitted on other training data (the train corpus or poses changed)",
+        ),
+    ]
     for key, elsewhere, reason in checks:
         if record.get(key) != expected[key]:
             return elsewhere, reason
@@ -197,8 +213,10 @@ def _load_checked(folder: Path, rig, expected: dict, *, explicit: bool) -> Subse
         raise FileNotFoundError(f"map model folder {folder} does not exist")
     record = _read_record(folder)
     if record is None:
-        raise SubsetModelError(f"{folder}: no {RECORD_FILE}; not a map model folder "
-                               "(rigmap map writes one in models/<rig>/map-<subset>/)")  # fmt: skip
+        raise SubsetModelError(
+            f"{folder}: no {RECORD_FILE}; not a map model folder "
+            "(rigmap map writes one in models/<rig>/map-<subset>/)"
+        )
     found = _mismatch(record, expected)
     if explicit and found is not None and found[0]:
         raise SubsetModelError(f"map model {folder} cannot be used here: {found[1]}")

@@ -3,7 +3,7 @@
 A mapping's input is joint positions (§3.2), so every source — a BVH file, another
 tool's export, a few effector targets — becomes one :class:`JointTracks`: ``(F, J, 3)``
 positions of ``J`` named joints over ``F`` frames at ``fps``, in a stated length unit.
-Axes stay the source's own here; :class:`rigmap.map.RetargetMap` converts them.
+Axes stay the source's own here; :class:`rigmap.map.JointMap` converts them.
 
 Files (one clip each):
 - ``.bvh``: forward kinematics of the file's channels; end sites become ``<parent>_end``;
@@ -49,6 +49,8 @@ class FrameWindow:
     count: int | None = None
     fps: float | None = None
     options: str = "map.first_frame, map.frames, map.fps"
+    max_frames: int | None = None
+    max_option: str = "map.max_frames"
 
     def step(self, source_fps: float) -> int:
         return 1 if self.fps is None else max(1, round(source_fps / self.fps))
@@ -61,6 +63,20 @@ class FrameWindow:
     def describe(self) -> str:
         first, count, fps = self.options.split(", ")
         return f"{first}={self.first}, {count}={self.count}, {fps}={self.fps}"
+
+    def check_length(self, source_frames: int, source_fps: float, where) -> int:
+        """The frames the window takes from a clip of ``source_frames``; ``TracksError``
+        naming the cap when they are more than ``max_frames`` (checked before the work and
+        the arrays they would need exist)."""
+        frames = len(range(source_frames)[self.slice(source_fps)])
+        if self.max_frames is not None and frames > self.max_frames:
+            count = self.options.split(", ")[1]
+            raise TracksError(
+                f"{where}: {frames} frames to map, more than {self.max_option}="
+                f"{self.max_frames}; set {count} to 1..{self.max_frames} (or raise "
+                f"{self.max_option})"
+            )
+        return frames
 
 
 @dataclass(frozen=True)
@@ -173,8 +189,9 @@ def read_tracks(
         except Exception as error:  # pyarrow and pandas raise many kinds
             raise TracksError(f"{path}: not a readable {suffix[1:]} table ({error})") from None
         return _from_table(table, unit, _need_fps(fps, path, fps_option), str(path))
-    raise TracksError(f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, "
-                      ".csv or .npz")  # fmt: skip
+    raise TracksError(
+        f"{path}: unknown joint tracks format {suffix!r}; use .bvh, .parquet, .csv or .npz"
+    )
 
 
 def _need_fps(fps: float | None, path: Path, option: str) -> float:
@@ -251,6 +268,8 @@ def _npz_rows(archive, member: str, rate: float, window, path: Path) -> np.ndarr
                 "numbers of shape (F, J, 3)"
             )
         cut = range(shape[0])[window.slice(rate)] if window is not None else range(shape[0])
+        if window is not None:
+            window.check_length(shape[0], rate, path)
         if window is not None and len(cut) == 0:
             raise TracksError(
                 f"{path}: no frames left to map (the clip has {shape[0]} frames; "

@@ -96,8 +96,9 @@ def probe_pattern(rig, probes: int = PATTERN_PROBES, seed: int = 0) -> np.ndarra
     rng = np.random.default_rng(seed)
     Y = np.repeat(rig.controls.defaults[None], probes + 1, axis=0).astype(np.float64)
     step = 1e-3 if _coarse(rig) else PROBE_STEP
-    Y[1:, used] = rng.uniform(rig.controls.lower[used], rig.controls.upper[used],
-                              (probes, len(used)))  # fmt: skip
+    Y[1:, used] = rng.uniform(
+        rig.controls.lower[used], rig.controls.upper[used], (probes, len(used))
+    )
     J = np.abs(jacobian(rig, Y, differences="central", chunk=None, step=step))
     # a row that does not depend on a control can still differ in its last bits (batched
     # torch arithmetic): 1e-8 on the quadruped against 1e-4 for the smallest real entry, so

@@ -35,6 +35,10 @@ class Kernel(ABC):
     """``k(x, x')`` on rows of ``(N, D)`` arrays; subclasses are frozen dataclasses."""
 
     name: ClassVar[str]
+    #: the label reports print (rigmap.catalog); ``None``: the name
+    title: ClassVar[str | None] = None
+    #: a kernel the paper does not compare (the report marks its row)
+    extra: ClassVar[bool] = False
     # where the GPR's length-scale search looks unless told otherwise
     search_range: ClassVar[tuple[float, float]] = DEFAULT_SEARCH_RANGE
     # what ``statistic`` computes: "squared_distance", "inner_product" or "stacked" (sums)
@@ -160,6 +164,7 @@ class MultiquadricKernel(LengthScaleKernel):
     """
 
     name: ClassVar[str] = "multiquadric"
+    title: ClassVar[str | None] = "Multiquadric"  # §7.1's label
     search_range: ClassVar[tuple[float, float]] = (1e-4, 1e2)  # the paper's range (§4.1.1)
     statistic_kind: ClassVar[str] = "squared_distance"
 
@@ -178,6 +183,7 @@ class GaussianKernel(LengthScaleKernel):
     """Squared exponential ``exp(-||x - x'||^2 / (2 l^2))``; decays to the mean far away."""
 
     name: ClassVar[str] = "gaussian"
+    title: ClassVar[str | None] = "Gaussian"  # §7.1's label
     statistic_kind: ClassVar[str] = "squared_distance"
 
     def statistic(self, A, B):
@@ -225,6 +231,7 @@ class LinearKernel(DotProductKernel):
     """``x.x' / l^2 + offset``: Bayesian linear regression (affine with ``offset > 0``)."""
 
     name: ClassVar[str] = "linear"
+    title: ClassVar[str | None] = "Linear"  # §7.1's label
 
 
 @dataclasses.dataclass(frozen=True)
@@ -233,6 +240,7 @@ class PolynomialKernel(DotProductKernel):
 
     degree: int = 2  # type: ignore[assignment]  # a field here, fixed at 1 for the linear kernel
     name: ClassVar[str] = "polynomial"
+    title: ClassVar[str | None] = "Polynomial"  # §7.1's label
 
     def __post_init__(self) -> None:
         super().__post_init__()

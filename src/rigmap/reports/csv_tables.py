@@ -47,10 +47,12 @@ def tables_from_csvs(
         if not files:
             continue
         data = pd.concat(
-            [pd.read_csv(path).assign(**{character_column: path.parent.parent.name})
-             for path in files],
+            [
+                pd.read_csv(path).assign(**{character_column: path.parent.parent.name})
+                for path in files
+            ],
             ignore_index=True,
-        )  # fmt: skip
+        )
         rows = [
             [rig_label(r[character_column]), *(format_cell(r.get(c), fmt) for c, _, fmt in spec)]
             for r in data.to_dict("records")

@@ -24,23 +24,33 @@ TABLES = {
     "table_edits": (
         "edits.csv",
         "Edit propagation: each edit on the held-out clips (§7.2)",
-        [("edit", "Edit", "s"), ("edit_error_std", "Edit error", ".3g"),
-         ("source_error_std", "Source error", ".3g"), ("joint_rmse_cm", "Joint RMSE cm", ".2f"),
-         ("source_joint_rmse_cm", "Source joint RMSE cm", ".2f"), ("transfer", "ρ", ".2f"),
-         ("leak_cm", "Leak cm", ".2f")],
+        [
+            ("edit", "Edit", "s"),
+            ("edit_error_std", "Edit error", ".3g"),
+            ("source_error_std", "Source error", ".3g"),
+            ("joint_rmse_cm", "Joint RMSE cm", ".2f"),
+            ("source_joint_rmse_cm", "Source joint RMSE cm", ".2f"),
+            ("transfer", "ρ", ".2f"),
+            ("leak_cm", "Leak cm", ".2f"),
+        ],
         "Leak: RMS joint move on frames the edit leaves alone (— where it leaves none).",
     ),
     "table_edits_ablation": (
         "ablation.csv",
         "Edit propagation: both predictors against either alone (§1, §4)",
-        [("edit", "Edit", "s"), ("solve", "Solve", "s"), ("edit_error_std", "Edit error", ".3g"),
-         ("transfer", "ρ", ".2f"), ("jerk_ratio", "Jerk ratio", ".3f"),
-         ("drift_std", "Drift", ".3g")],
+        [
+            ("edit", "Edit", "s"),
+            ("solve", "Solve", "s"),
+            ("edit_error_std", "Edit error", ".3g"),
+            ("transfer", "ρ", ".2f"),
+            ("jerk_ratio", "Jerk ratio", ".3f"),
+            ("drift_std", "Drift", ".3g"),
+        ],
         "The same GP predictions solved with Eq. 12's weights (kinematic, its regulariser, "
         "acceleration, its regulariser) set to kinematic only, acceleration only (anchored), "
         "both without regularisers, and all four.",
     ),
-}  # fmt: skip
+}
 
 
 def edits_tables(metrics_root: str | Path) -> list[Table]:

@@ -18,7 +18,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from rigmap.reports.catalog import METHODS, SAMPLERS, find_row, rig_label
+from rigmap.catalog import default_catalogue
+from rigmap.reports.catalog import rig_label
 from rigmap.reports.metrics_tree import RigMetrics
 from rigmap.reports.settings import ReportSettings
 from rigmap.viz.atomic import save_figure
@@ -34,11 +35,13 @@ class FigureFile:
     caption: str
 
 
-def _method_colors(methods) -> dict[str, tuple]:
+def _method_colors(methods, catalogue) -> dict[str, tuple]:
+    """A colour per method, fixed by its place in the catalogue (uncatalogued ones after)."""
     from matplotlib import colormaps
 
     palette = colormaps["tab10"]
-    order = [m.key for m in METHODS]
+    order = [m.key for m in catalogue.methods]
+    order += [m for m in methods if m not in order]
     return {m: palette(order.index(m) % 10) for m in methods}
 
 
@@ -58,20 +61,20 @@ def per_frame_figure(metrics: RigMetrics, settings: ReportSettings, out: str | P
     axes = fig.subplots(rows, columns, squeeze=False)
     everything = np.concatenate([t["joint_error"].to_numpy(float) for t in tables.values()])
     floor = _positive_floor(everything)
-    colors = _method_colors(methods)
+    colors = _method_colors(methods, settings.catalogue)
     unit = metrics.length_unit
     for index, clip in enumerate(clips):
         ax = axes[index // columns][index % columns]
         for method in methods:
             rows_of_clip = tables[method][tables[method]["clip"] == clip]
-            label = find_row(METHODS, method, "method").display
+            label = settings.catalogue.method(method).display
             ax.plot(
                 rows_of_clip["frame"].to_numpy(),
                 np.maximum(rows_of_clip["joint_error"].to_numpy(float), floor),
                 label=label,
                 color=colors[method],
                 linewidth=1.2,
-                linestyle="--" if find_row(METHODS, method, "method").extra else "-",
+                linestyle="--" if settings.catalogue.method(method).extra else "-",
             )
         ax.set_yscale("log")
         ax.set_title(clip, fontsize=10)
@@ -98,14 +101,15 @@ def time_figure(
 ) -> FigureFile:
     """Frames per second of each method on each rig (log scale), total seconds annotated."""
     rigs = list(tree)
-    fig = Figure(figsize=(11, 1.0 + 0.42 * len(METHODS) * len(rigs)), dpi=DPI, layout="constrained")
+    height = 1.0 + 0.42 * len(settings.catalogue.methods) * len(rigs)
+    fig = Figure(figsize=(11, height), dpi=DPI, layout="constrained")
     axes = fig.subplots(len(rigs), 1, squeeze=False)[:, 0]
     for ax, rig in zip(axes, rigs, strict=True):
         methods = settings.methods_for(rig)
-        colors = _method_colors(methods)
+        colors = _method_colors(methods, settings.catalogue)
         fps = [tree[rig].methods[m].average.fps for m in methods]
         seconds = [tree[rig].methods[m].average.total_time_s for m in methods]
-        labels = [find_row(METHODS, m, "method").display for m in methods]
+        labels = [settings.catalogue.method(m).display for m in methods]
         positions = np.arange(len(methods))[::-1]
         ax.barh(positions, fps, color=[colors[m] for m in methods])
         ax.set_xscale("log")
@@ -128,8 +132,9 @@ def time_figure(
         "Frames per second of each method (log scale) with its total wall-clock seconds over "
         "all test clips."
     )
-    return _finished(fig, out, "Speed of each method: frames per second over all test frames",
-                     caption)  # fmt: skip
+    return _finished(
+        fig, out, "Speed of each method: frames per second over all test frames", caption
+    )
 
 
 def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile | None:
@@ -145,7 +150,7 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
         for sampler, points in metrics.sweep.items():
             counts = np.array([n for n in points if n > 0])
             errors = np.array([points[n].average.joint_error for n in counts])
-            label = find_row(SAMPLERS, sampler, "sampler").label
+            label = default_catalogue().sampler(sampler).label
             ax.plot(counts, errors, marker="o", label=label, color=palette.get(sampler))
         if metrics.joint_space_sweep:  # its own draws (issue #15), beside the samplers' curves
             draws = np.array(list(metrics.joint_space_sweep))
@@ -180,8 +185,9 @@ def sweep_figure(tree: Mapping[str, RigMetrics], out: str | Path) -> FigureFile 
         "supersampled poses it was trained with; the joint-space network's curve counts the "
         "poses it draws itself (around the corpus and wide over the soft ranges)."
     )
-    return _finished(fig, out, "The network's joint error against the number of supersamples",
-                     caption)  # fmt: skip
+    return _finished(
+        fig, out, "The network's joint error against the number of supersamples", caption
+    )
 
 
 def confidence_figure(
@@ -210,11 +216,15 @@ def confidence_figure(
         ax = axes[row][column]
         novelty, error = table["novelty"].to_numpy(float), table["joint_error"].to_numpy(float)
         rho = tree[rig].methods[method].novelty_spearman
-        ax.scatter(np.maximum(novelty, _positive_floor(novelty)),
-                   np.maximum(error, _positive_floor(error)), s=6, alpha=0.6)  # fmt: skip
+        ax.scatter(
+            np.maximum(novelty, _positive_floor(novelty)),
+            np.maximum(error, _positive_floor(error)),
+            s=6,
+            alpha=0.6,
+        )
         ax.set_xscale("log")
         ax.set_yscale("log")
-        label = find_row(METHODS, method, "method").label
+        label = settings.catalogue.method(method).label
         shown = "n/a" if rho is None else f"{rho:.2f}"
         ax.set_title(f"{rig_label(rig)} — {label} (Spearman ρ {shown})", fontsize=9)
         ax.set_xlabel(f"novelty ({tree[rig].length_unit}, RMS to the nearest learned frames)")
@@ -242,4 +252,4 @@ def _sampler_colors() -> dict[str, tuple]:
     from matplotlib import colormaps
 
     palette = colormaps["Dark2"]
-    return {row.key: palette(index) for index, row in enumerate(SAMPLERS)}
+    return {row.key: palette(index) for index, row in enumerate(default_catalogue().samplers)}

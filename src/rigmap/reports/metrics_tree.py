@@ -30,6 +30,18 @@ from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import RESULT_FORMAT
 from rigmap.reports.settings import ReportSettings
 
+#: Table 1's rows whose guess is a trained network (re-fitted per replicate seed)
+NETWORK_METHODS = (
+    "nn",
+    "nn_computed_jacobian",
+    "nn_learned_jacobian",
+    "nn_autodiff_jacobian",
+    "nn_joint_space",
+    "nn_joint_space_computed_jacobian",
+    "nn_joint_space_tuned",
+)
+_SEED_FOLDER = re.compile(r"^methods_seed(?P<k>[1-9]\d*)$")
+
 NUMBER_KEYS = ("frames", "joint_error", "ground_truth_error", "total_time_s", "fps")
 PER_FRAME_COLUMNS = ("clip", "frame", "joint_error", "ground_truth_error")
 SWEEP_FOLDER = "sample_sweep"
@@ -106,6 +118,8 @@ class RigMetrics:
     joint_space_sweep: dict[int, LoadedResult] = field(default_factory=dict)
     #: Table 1's rows scored on other splits (``heldout``, ``train``): split -> method -> result
     splits: dict[str, dict[str, LoadedResult]] = field(default_factory=dict)
+    #: Table 1's network rows re-trained with replicate seeds (issue #36): seed -> method -> result
+    replicates: dict[int, dict[str, LoadedResult]] = field(default_factory=dict)
 
     @property
     def length_unit(self) -> str:
@@ -321,8 +335,35 @@ def load_metrics(
             Path(metrics_root) / rig / JOINT_SPACE_SWEEP_FOLDER, rig, clips
         )
         metrics.splits = _read_splits(Path(metrics_root) / rig, rig)
+        metrics.replicates = read_replicates(Path(metrics_root) / rig, rig, clips)
         tree[rig] = metrics
     return tree
+
+
+def read_replicates(
+    rig_folder: str | Path, rig: str, clips: Sequence[str] | None = None
+) -> dict[int, dict[str, LoadedResult]]:
+    """A rig's ``methods_seed<k>/<method>-<sampler>.json``: seed -> method -> result (their
+    spread is :mod:`rigmap.reports.seed_spread`'s)."""
+    folder = Path(rig_folder)
+    found: dict[int, dict[str, LoadedResult]] = {}
+    for seed_folder in sorted(folder.glob("methods_seed*")) if folder.is_dir() else ():
+        match = _SEED_FOLDER.match(seed_folder.name)
+        if match is None or not seed_folder.is_dir():
+            raise ReportInputError(f"{seed_folder}: expected a folder methods_seed<k> (k >= 1)")
+        results = {}
+        for path in sorted(seed_folder.glob("*.json")):
+            method, _, sampler = path.stem.partition("-")
+            if method not in NETWORK_METHODS or not sampler:
+                raise ReportInputError(
+                    f"{path}: unexpected file; a replicate seed holds network rows "
+                    f"<method>-<sampler>.json of {', '.join(NETWORK_METHODS)}"
+                )
+            results[method] = read_result(
+                path, rig=rig, method=method, sampler=sampler, clips=clips
+            )
+        found[int(match["k"])] = results
+    return dict(sorted(found.items()))
 
 
 def _read_splits(rig_folder: Path, rig: str) -> dict[str, dict[str, LoadedResult]]:

@@ -16,10 +16,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from rigmap.reports.catalog import KERNELS, METHODS, RIGS, SAMPLERS, find_row
+from rigmap.catalog import Catalogue, default_catalogue
+from rigmap.reports.catalog import RIGS
 
-#: methods whose network trains through the rig: built-in rigs only, and they draw their own
-#: poses (their files are ``methods/<method>-none.json``)
+#: methods whose network trains through the rig: built-in rigs only (left out of Blender rigs')
 JOINT_SPACE_METHODS: tuple[str, ...] = (
     "nn_joint_space",
     "nn_joint_space_computed_jacobian",
@@ -55,28 +55,33 @@ class ReportSettings:
     ``clips`` restricts the expected test clips (``None``: every clip of the rig's
     test corpus). ``blend_file_rigs`` (``blend_file:<stem>``, from
     ``pipeline.blend_file_rigs``) are users' own files: added to ``rigs`` and
-    ``method_rigs``, with ``BLEND_FILE_EXCLUDED_METHODS`` left out.
+    ``method_rigs``, with ``BLEND_FILE_EXCLUDED_METHODS`` left out. ``catalogue`` labels
+    the rows; a method, sampler or kernel it does not know is labelled by its own name.
     """
 
     rigs: tuple[str, ...] = tuple(r.key for r in RIGS)
     method_rigs: tuple[str, ...] = ("quadruped", "biped", "rigify_wolf")
     sampler_rigs: tuple[str, ...] | None = None
-    methods: tuple[str, ...] = tuple(m.key for m in METHODS)
-    samplers: tuple[str, ...] = tuple(s.key for s in SAMPLERS)
-    kernels: tuple[str, ...] = tuple(k.key for k in KERNELS)
+    methods: tuple[str, ...] | None = None  # None: the catalogue's (the evaluate lists)
+    samplers: tuple[str, ...] | None = None
+    kernels: tuple[str, ...] | None = None
     nn_sampler: str = "pca_gaussian"
     excluded_methods: Mapping[str, tuple[str, ...]] = field(
         default_factory=lambda: dict(DEFAULT_EXCLUDED_METHODS)
     )
     clips: tuple[str, ...] | None = None
     blend_file_rigs: tuple[str, ...] = ()
+    #: the labels of the rows (rigmap.catalog); a name it does not know prints as itself
+    catalogue: Catalogue = field(default_factory=default_catalogue)
 
     def __post_init__(self) -> None:
         own = tuple(str(r) for r in self.blend_file_rigs)
         bad = [r for r in own if not r.startswith("blend_file:")]
         if bad:
-            raise ValueError(f"report settings: blend_file_rigs {bad} must be named "
-                             "blend_file:<file stem> (the rig=blend_file name)")  # fmt: skip
+            raise ValueError(
+                f"report settings: blend_file_rigs {bad} must be named "
+                "blend_file:<file stem> (the rig=blend_file name)"
+            )
         object.__setattr__(self, "blend_file_rigs", own)
         extra = [r for r in own if r not in self.rigs]
         object.__setattr__(self, "rigs", (*self.rigs, *extra))
@@ -86,6 +91,14 @@ class ReportSettings:
         for rig in own:
             excluded.setdefault(rig, BLEND_FILE_EXCLUDED_METHODS)
         object.__setattr__(self, "excluded_methods", excluded)
+        if not isinstance(self.catalogue, Catalogue):
+            raise ValueError(
+                f"report settings: catalogue must be a rigmap.catalog.Catalogue, got "
+                f"{type(self.catalogue).__name__}"
+            )
+        for name, kind in (("methods", "method"), ("samplers", "sampler"), ("kernels", "kernel")):
+            if getattr(self, name) is None:  # read here, not at import (it imports the classes)
+                object.__setattr__(self, name, self.catalogue.keys(kind))
         for name in ("rigs", "methods", "samplers", "kernels"):
             values = tuple(str(v) for v in getattr(self, name))
             if not values:
@@ -101,19 +114,9 @@ class ReportSettings:
             )
         else:
             self._set_rig_subset("sampler_rigs", self.sampler_rigs)
-        for key in self.methods:
-            find_row(METHODS, key, "method")
-        for key in self.samplers:
-            find_row(SAMPLERS, key, "sampler")
-        for key in self.kernels:
-            find_row(KERNELS, key, "kernel")
-        find_row(SAMPLERS, self.nn_sampler, "nn_sampler")
         excluded = {
             str(rig): tuple(str(m) for m in ms) for rig, ms in self.excluded_methods.items()
         }
-        for rig, methods in excluded.items():
-            for key in methods:
-                find_row(METHODS, key, f"excluded method of rig {rig!r}")
         object.__setattr__(self, "excluded_methods", excluded)
         if self.clips is not None:
             object.__setattr__(self, "clips", tuple(str(c) for c in self.clips))
@@ -136,11 +139,9 @@ class ReportSettings:
         return tuple(m for m in self.methods if m not in left_out)
 
     def method_sampler(self, method: str) -> str:
-        """The sampler in a method's file name: the network's for ``nn*`` (but the joint-space
-        network's, which draws its own poses), else ``none``."""
-        if method in JOINT_SPACE_METHODS:
-            return "none"
-        return self.nn_sampler if method.startswith("nn") else "none"
+        """The sampler in a method's file name: the network's for a method whose guess is the
+        ``nn`` regressor (as the evaluate stage names its files), else ``none``."""
+        return self.nn_sampler if self.catalogue.method(method).regressor == "nn" else "none"
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any] | None) -> ReportSettings:

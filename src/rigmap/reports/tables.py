@@ -17,9 +17,10 @@ from typing import Any
 import pandas as pd
 
 from rigmap.reports import published
-from rigmap.reports.catalog import KERNELS, METHODS, SAMPLERS, find_row, rig_label
+from rigmap.reports.catalog import rig_label
 from rigmap.reports.metrics_tree import LoadedResult, Numbers, ReportInputError, RigMetrics
 from rigmap.reports.rig_facts import RigFacts
+from rigmap.reports.seed_spread import Spread, compare, row_spread
 from rigmap.reports.settings import ReportSettings
 from rigmap.reports.table import MISSING, Column, Table, format_error, format_seconds
 
@@ -70,25 +71,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     }
     tree = {rig: metrics for rig, metrics in tree.items() if settings.methods_for(rig)}
     unit = _unit_label({r.length_unit for m in tree.values() for r in m.methods.values()})
-    distance = unit.removesuffix(SQUARE)
-    value_labels = [
-        f"Joint Error ({unit})",
-        f"Joint RMS ({distance})",
-        "Joint RMS (% of height)",
-        "Joint Error ÷ Mean Predictor's",
-        "Ground Truth Error",
-        "Total Time (s)",
-        "Frames per Sec",
-    ]
-    columns = [Column("Character/Motion", numeric=False), Column("Method", numeric=False)]
-    columns += [Column(label, OURS, short_group="") for label in value_labels]
-    columns += [
-        Column(label, published.LABEL, short_group="published")
-        for label in (
-            "Joint Error (unit not stated)", "Ground Truth Error", "Total Time (s)",
-            "Frames per Sec",
-        )
-    ]  # fmt: skip
+    columns = _methods_columns(unit)
 
     rows, classes, records, budget_notes = [], [], [], []
     for rig, metrics in tree.items():
@@ -102,10 +85,11 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                 result = metrics.methods[method]
                 numbers = _motion_numbers(result, motion)
                 baseline = _mean_predictor(metrics, motion)
-                row_kind = find_row(METHODS, method, "method")
+                row_kind = settings.catalogue.method(method)
                 paper = published.table1_value(rig, motion, method)
                 label = f"{rig_label(rig)} — {shown}" if index == 0 else ""
-                cells = [label, row_kind.display, *_method_cells(numbers, baseline)]
+                spreads = _row_spreads(metrics, result, motion)
+                cells = [label, row_kind.display, *_method_cells(numbers, baseline, spreads)]
                 rows.append(cells + _paper_cells(paper))
                 css = ["group-start" if index == 0 else ""]
                 css += ["average" if motion == published.AVERAGE else "", "extra" * row_kind.extra]
@@ -119,6 +103,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         "extra": row_kind.extra,
                         "sampler": result.sampler,
                         **_number_record(numbers),
+                        **_spread_record(numbers, spreads),
                         **_relative_record(numbers, baseline),
                         "novelty_error_spearman": result.novelty_spearman
                         if motion == published.AVERAGE
@@ -129,6 +114,7 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                     }
                 )
     notes = _methods_notes(settings) + budget_notes + _left_out_notes(tree, others, settings)
+    notes += seed_notes(tree, settings)
     return Table(
         name="table1_methods",
         title="Table 1 — inverse rig mapping methods on the test clips",
@@ -140,9 +126,38 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
     )
 
 
+def _methods_columns(unit: str) -> list[Column]:
+    """Table 1's columns: ours (a network row's errors with their min–max over seeds), then
+    the published values."""
+    distance = unit.removesuffix(SQUARE)
+    value_labels = [
+        f"Joint Error ({unit})",
+        f"Joint RMS ({distance})",
+        "Joint RMS (% of height)",
+        "Joint Error ÷ Mean Predictor's",
+        "Ground Truth Error",
+        "Total Time (s)",
+        "Frames per Sec",
+    ]
+    columns = [Column("Character/Motion", numeric=False), Column("Method", numeric=False)]
+    columns += [Column(label, OURS, short_group="") for label in value_labels]
+    columns.insert(3, Column("Joint Error min–max (seeds)", OURS, numeric=False, short_group=""))
+    columns.insert(8, Column("Ground Truth min–max (seeds)", OURS, numeric=False, short_group=""))
+    columns += [
+        Column(label, published.LABEL, short_group="published")
+        for label in (
+            "Joint Error (unit not stated)",
+            "Ground Truth Error",
+            "Total Time (s)",
+            "Frames per Sec",
+        )
+    ]
+    return columns
+
+
 def _methods_notes(settings: ReportSettings) -> list[str]:
     """Table 1's first notes: the measures, the models behind the rows, the extra rows."""
-    extras = [m.label for m in METHODS if m.extra and m.key in settings.methods]
+    extras = [m.label for m in settings.catalogue.methods if m.extra and m.key in settings.methods]
     notes = [
         JOINT_ERROR_NOTE,
         SCALE_FREE_NOTE,
@@ -150,7 +165,7 @@ def _methods_notes(settings: ReportSettings) -> list[str]:
         TIME_NOTE,
         f"GPR rows use the GPR fitted on the train corpus (multiquadric kernel unless the "
         f"experiment says otherwise); NN rows use the network trained on the corpus plus "
-        f"'{find_row(SAMPLERS, settings.nn_sampler, 'sampler').label}' supersamples.",
+        f"'{settings.catalogue.sampler(settings.nn_sampler).label}' supersamples.",
         PUBLISHED_NOTE + " The paper's 'Maya Script' is our Script row.",
     ]
     if extras:
@@ -180,7 +195,7 @@ def _left_out_notes(tree, others: Mapping[str, str], settings: ReportSettings) -
         r: ms for r, ms in settings.excluded_methods.items() if r in settings.method_rigs and ms
     }
     for rig, left_out in excluded.items():
-        labels = ", ".join(find_row(METHODS, m, "method").label for m in left_out)
+        labels = ", ".join(settings.catalogue.method(m).label for m in left_out)
         notes.append(f"{rig_label(rig)}: not evaluated by this experiment: {labels}.")
     return notes
 
@@ -238,18 +253,105 @@ def _ratio(value: float, baseline: float | None) -> float | None:
     return None if baseline is None or baseline <= 0 else value / baseline
 
 
-def _method_cells(numbers: Numbers, baseline: Numbers | None) -> list[str]:
+def _method_cells(
+    numbers: Numbers, baseline: Numbers | None, spreads: dict[str, Spread | None]
+) -> list[str]:
+    """A row's cells: a network row's errors are the median over seeds, its min–max beside."""
     percent = numbers.joint_rms_percent_of_height
     relative = _ratio(numbers.joint_error, baseline and baseline.joint_error)
+    joint, truth = spreads["joint_error"], spreads["ground_truth_error"]
     return [
-        format_error(numbers.joint_error),
+        format_error(numbers.joint_error if joint is None else joint.median),
+        _range_cell(joint),
         format_error(numbers.joint_rms),
         MISSING if percent is None else format_seconds(percent),
         MISSING if relative is None else format_error(relative),
-        format_error(numbers.ground_truth_error),
+        format_error(numbers.ground_truth_error if truth is None else truth.median),
+        _range_cell(truth),
         format_seconds(numbers.total_time_s),
         format_seconds(numbers.fps),
     ]
+
+
+def _row_spreads(metrics: RigMetrics, result: LoadedResult, motion: str) -> dict:
+    """The row's joint and ground-truth errors over seeds (None: not a network row, or no
+    replicate seed was run)."""
+    clip = None if motion == published.AVERAGE else motion
+    return {
+        measure: row_spread(result, metrics.replicates, clip, measure)
+        for measure in ("joint_error", "ground_truth_error")
+    }
+
+
+def _range_cell(spread: Spread | None) -> str:
+    if spread is None:
+        return MISSING
+    return f"{format_error(spread.low)}–{format_error(spread.high)} ({spread.seeds})"
+
+
+def _spread_record(numbers: Numbers, spreads: dict[str, Spread | None]) -> dict:
+    """The csv's seed columns: median, min, max over seeds (seed 0 alone: 1 seed)."""
+    record: dict[str, Any] = {}
+    seeds = 1
+    for measure, spread in spreads.items():
+        if spread is None:
+            spread = Spread.of([getattr(numbers, measure)])
+        seeds = spread.seeds
+        record |= {
+            f"{measure}_median": spread.median,
+            f"{measure}_min": spread.low,
+            f"{measure}_max": spread.high,
+        }
+    return record | {"seeds": seeds}
+
+
+#: the comparisons the report states between Table 1 rows (ours): (row, other row or a bar)
+CLAIMS = (
+    ("nn_joint_space", "gpr_computed_jacobian"),
+    ("nn_joint_space_tuned", 0.5),  # the tuning's bar (docs/inverse-mappings.md, session 34)
+)
+
+
+def seed_notes(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> list[str]:
+    """Per rig run with replicate seeds: what its network cells show, then each claim of
+    ``CLAIMS`` on the Average joint error, judged by the spread (a note each)."""
+    notes = []
+    for rig, metrics in tree.items():
+        if not metrics.replicates:
+            continue
+        seeds = ", ".join(str(k) for k in (0, *metrics.replicates))
+        notes.append(
+            f"{rig_label(rig)}: network rows (trained guesses) were re-trained with seeds "
+            f"{seeds}; their Joint and Ground Truth Error cells give the median over the seeds "
+            "and the min–max beside (the csv: *_median, *_min, *_max and seeds, while "
+            "joint_error stays seed 0's); their other columns are seed 0's."
+        )
+        for row, other in CLAIMS:
+            claim = _claim(metrics, row, other, settings) if row in metrics.methods else None
+            if claim:
+                notes.append(f"{rig_label(rig)}, Average joint error: {claim}.")
+    return notes
+
+
+def _claim(
+    metrics: RigMetrics, row: str, other: str | float, settings: ReportSettings
+) -> str | None:
+    if isinstance(other, str) and other not in metrics.methods:
+        return None
+    unit = f"{metrics.methods[row].length_unit}{SQUARE}"
+    label = settings.catalogue.method(row).label
+    if isinstance(other, str):
+        other_label = settings.catalogue.method(other).label
+        return compare(
+            label, _average_spread(metrics, row), other_label, _average_spread(metrics, other), unit
+        )
+    return compare(label, _average_spread(metrics, row), "the bar", other, unit)
+
+
+def _average_spread(metrics: RigMetrics, method: str) -> Spread:
+    result = metrics.methods[method]
+    spread = row_spread(result, metrics.replicates, None, "joint_error")
+    return spread if spread is not None else Spread.of([result.average.joint_error])
 
 
 def _relative_record(numbers: Numbers, baseline: Numbers | None) -> dict:
@@ -299,10 +401,10 @@ def _per_rig_table(
     """Rows = the ``spec``'s samplers or kernels; per rig of ``settings.sampler_rigs`` a group
     of Joint / Ground Truth Error; the spec's notes follow the two error notes."""
     tree = {rig: metrics for rig, metrics in tree.items() if rig in settings.sampler_rigs}
-    keys, catalogue, attribute = getattr(settings, spec.attribute), spec.catalogue, spec.attribute
+    keys, attribute = getattr(settings, spec.attribute), spec.attribute
     name, title, what, paper = spec.name, spec.title, spec.what, spec.paper
     notes = [JOINT_ERROR_NOTE, GROUND_TRUTH_NOTE, *spec.notes]
-    first_column = "Method" if catalogue is SAMPLERS else "Kernel"
+    first_column = "Method" if what == "sampler" else "Kernel"
     columns = [Column(first_column, numeric=False)]
     for rig, metrics in tree.items():
         unit = _unit_label({r.length_unit for r in getattr(metrics, attribute).values()})
@@ -315,7 +417,7 @@ def _per_rig_table(
         ]
     rows, records = [], []
     for key in keys:
-        row_kind = find_row(catalogue, key, what)
+        row_kind = settings.catalogue.row(what, key)
         cells = [row_kind.display]
         for rig, metrics in tree.items():
             result: LoadedResult = getattr(metrics, attribute)[key]
@@ -328,16 +430,16 @@ def _per_rig_table(
                 **_number_record(numbers),
                 "length_unit": result.length_unit,
             }
-            if paper is not None:
+            if paper is not None:  # a row the paper lacks (a new sampler) shows no number
                 record |= {
-                    "published_joint_error": paper[key][0],
-                    "published_ground_truth_error": paper[key][1],
+                    "published_joint_error": paper.get(key, (None, None))[0],
+                    "published_ground_truth_error": paper.get(key, (None, None))[1],
                     "published_source": f"{published.SOURCE}, Table 2 ({published.LABEL}; "
                     "character not stated)",
                 }
             records.append(record)
         if paper is not None:
-            cells += list(paper[key])
+            cells += list(paper.get(key, (MISSING, MISSING)))
         rows.append(cells)
     return Table(
         name=name,
@@ -354,8 +456,7 @@ class _PerRigSpec:
     """What a per-rig table compares: the settings list and metrics attribute it reads."""
 
     attribute: str  # "samplers" or "kernels": the ReportSettings list and RigMetrics field
-    catalogue: Any
-    what: str
+    what: str  # the catalogue's kind of row: sampler or kernel
     name: str
     title: str
     paper: Mapping[str, tuple[str, str]] | None
@@ -363,19 +464,28 @@ class _PerRigSpec:
 
 
 _SAMPLING = _PerRigSpec(
-    "samplers", SAMPLERS, "sampler", "table2_sampling",
+    "samplers",
+    "sampler",
+    "table2_sampling",
     "Table 2 — the network trained with each supersampling method (Average of the test clips)",
     published.TABLE2,
-    ("'No Extra Samples' trains on the animator corpus alone; the others add the same "
-     "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
-     PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on."),
-)  # fmt: skip
+    (
+        "'No Extra Samples' trains on the animator corpus alone; the others add the same "
+        "number of supersampled poses (budget.samples) drawn by each strategy (§5.2).",
+        PUBLISHED_NOTE + " The paper does not say which character Table 2 was measured on.",
+    ),
+)
 _KERNELS = _PerRigSpec(
-    "kernels", KERNELS, "kernel", "table_kernels",
-    "GPR kernels (§7.1) — Average of the test clips", None,
-    ("The paper reports no numbers for this comparison, only that the multiquadric "
-     "kernel did best (§7.1).",),
-)  # fmt: skip
+    "kernels",
+    "kernel",
+    "table_kernels",
+    "GPR kernels (§7.1) — Average of the test clips",
+    None,
+    (
+        "The paper reports no numbers for this comparison, only that the multiquadric "
+        "kernel did best (§7.1).",
+    ),
+)
 
 
 def sampling_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Table:
@@ -493,7 +603,7 @@ def splits_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> Ta
             numbers = [train[method].average, heldout[method].average]
             numbers.append(test.average if test is not None else None)
             ratio = _ratio(numbers[1].joint_error, numbers[0].joint_error)
-            label = find_row(METHODS, method, "method").display
+            label = settings.catalogue.method(method).display
             cells = [rig_label(rig), label]
             cells += [MISSING if n is None else format_error(n.joint_error) for n in numbers]
             cells += [MISSING if ratio is None else format_seconds(ratio)]

@@ -42,6 +42,10 @@ class Sampler:
     min_corpus_frames: ClassVar[int] = 1
     #: row of the paper's Table 2 (the built-in strategies' order); ``None`` for others
     paper_row: ClassVar[int | None] = None
+    #: the label reports print (rigmap.catalog); ``None``: the name
+    title: ClassVar[str | None] = None
+    #: a strategy the paper does not have (the report marks its row)
+    extra: ClassVar[bool] = False
 
     def __init__(self) -> None:
         """No hyper-parameters (strategies that have some store them, scikit-learn style)."""

@@ -30,6 +30,7 @@ class GaussianMixtureSampler(Sampler):
     """
 
     name = "gmm"
+    title = "Gaussian Mixture Model"  # the report's label (Table 2)
     paper_row = 4
 
     def __init__(

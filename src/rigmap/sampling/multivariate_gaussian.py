@@ -18,6 +18,7 @@ class MultivariateGaussianSampler(Sampler):
     """
 
     name = "multivariate_gaussian"
+    title = "Multivariate Gaussian"  # the report's label (Table 2)
     paper_row = 3
     min_corpus_frames = 2
 

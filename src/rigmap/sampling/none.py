@@ -15,6 +15,7 @@ class NoExtraSamples(Sampler):
     """
 
     name = "none"
+    title = "No Extra Samples"  # the report's label (Table 2)
     paper_row = 0
 
     def _fit(self, corpus: np.ndarray) -> None:

@@ -57,6 +57,7 @@ class PCAGaussianSampler(Sampler):
     """
 
     name = "pca_gaussian"
+    title = "PCA & Unit Gaussian"  # the report's label (Table 2)
     paper_row = 5
     min_corpus_frames = 2
 

@@ -29,6 +29,7 @@ class UniformSampler(Sampler):
     """
 
     name = "uniform"
+    title = "Uniform"  # the report's label (Table 2)
     paper_row = 1
 
     def __init__(self, range: str = "corpus", lower=None, upper=None):

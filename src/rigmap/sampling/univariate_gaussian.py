@@ -19,6 +19,7 @@ class UnivariateGaussianSampler(Sampler):
     """
 
     name = "univariate_gaussian"
+    title = "Univariate Gaussian"  # the report's label (Table 2)
     paper_row = 2
     min_corpus_frames = 2
 

@@ -25,6 +25,11 @@ USER_OUTPUTS = Path("outputs")
 EDITS = "edits"  # the edit-propagation folder under data/, models/ and metrics/ of a subject
 LATENT = "latent"  # the latent-synthesis folder under data/, models/ and metrics/ of a rig
 MAP_PREFIX = "map-"  # a map subset's model folder: models/<rig>/map-<subset>
+#: the regressors a replicate training seed re-fits (Table 1's trained networks, issue #36);
+#: every other model of a replicate evaluation is seed 0's own
+REPLICATED_REGRESSORS = ("nn", "nn_joint_space")
+#: replicate networks: models/seeds/<k>/<rig>/<model id> (beside, not in, models/<rig>)
+SEEDS = "seeds"
 
 
 @dataclass(frozen=True)
@@ -74,19 +79,25 @@ class Layout:
     models: Path = Path("models")
     metrics: Path = Path("metrics")
     reports: Path = Path("reports")
+    #: a replicate training seed (issue #36): its networks' models and its ``methods``
+    #: metrics get folders of their own; None is the committed run (seed 0)
+    replicate: int | None = None
 
     def __post_init__(self) -> None:
         for field in ("data", "models", "metrics", "reports"):
             object.__setattr__(self, field, Path(getattr(self, field)))
+        check_replicate(self.replicate)
 
     @classmethod
-    def from_paths(cls, paths: Mapping | None) -> Layout:
-        """From a ``paths`` config mapping (missing keys keep their defaults)."""
+    def from_paths(cls, paths: Mapping | None, replicate: int | None = None) -> Layout:
+        """From a ``paths`` config mapping (missing keys keep their defaults) and the
+        ``replicate`` option."""
         paths = dict(paths or {})
         unknown = sorted(set(paths) - {"data", "models", "metrics", "reports"})
         if unknown:
             raise ValueError(f"paths config has unknown keys {unknown}")
-        return cls(**{k: Path(os.fspath(v)) for k, v in paths.items() if v is not None})
+        roots = {k: Path(os.fspath(v)) for k, v in paths.items() if v is not None}
+        return cls(**roots, replicate=replicate)
 
     # --- data/<rig>/ -------------------------------------------------------------------
     def rig_data(self, rig: str) -> Path:
@@ -125,12 +136,19 @@ class Layout:
         return self.models / rig
 
     def model(self, rig: str, model_id: ModelId) -> Path:
-        """A fitted mapping's folder: ``models/<rig>/<regressor>-<sampler>-<kernel>/``."""
+        """A fitted mapping's folder: ``models/<rig>/<regressor>-<sampler>-<kernel>/``; a
+        replicate's network: ``models/seeds/<k>/<rig>/<model id>/`` (outside ``models/<rig>``,
+        which seed 0's evaluate stage depends on whole)."""
+        if self.replicate is not None and model_id.regressor in REPLICATED_REGRESSORS:
+            return self.models / SEEDS / str(self.replicate) / rig / model_id.folder_name
         return self.rig_models(rig) / model_id.folder_name
 
     # --- metrics/<rig>/<set>/ and reports/ ---------------------------------------------
     def metrics_folder(self, rig: str, metric_set: str) -> Path:
-        """One evaluation set's metrics: ``metrics/<rig>/<set>/``."""
+        """One evaluation set's metrics: ``metrics/<rig>/<set>/``; a replicate's:
+        ``metrics/<rig>/<set>_seed<k>/``."""
+        if self.replicate is not None:
+            return self.metrics / rig / replicate_set(metric_set, self.replicate)
         return self.metrics / rig / metric_set
 
     # --- one application's folders --------------------------------------------------
@@ -168,6 +186,23 @@ class Layout:
 
     def tables(self) -> Path:
         return self.reports / "tables"
+
+
+def replicate_set(metric_set: str, replicate: int) -> str:
+    """A metrics set's folder name for a replicate seed: ``methods`` -> ``methods_seed1``."""
+    check_replicate(replicate)
+    return f"{metric_set}_seed{replicate}"
+
+
+def check_replicate(replicate: object) -> None:
+    """``replicate`` is None (seed 0, the committed run) or a seed from 1 to 2**31 - 1."""
+    if replicate is None:
+        return
+    if isinstance(replicate, bool) or not isinstance(replicate, int) or not 1 <= replicate < 2**31:
+        raise ValueError(
+            f"replicate: expected null or a training seed from 1 to 2147483647 (0 is the "
+            f"committed run's seed), got {replicate!r}"
+        )
 
 
 def _split(split: str) -> str:

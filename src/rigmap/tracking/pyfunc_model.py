@@ -26,6 +26,7 @@ DataFrame of controls named by the rig's control names.
 
 from __future__ import annotations
 
+import importlib
 import importlib.metadata
 import json
 import os
@@ -147,13 +148,23 @@ def class_path(cls: type) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
-#: rigmap's pyfunc loaders (``loader_module``) and the data folder each reads
-RIGMAP_LOADERS = {LOADER_MODULE: DATA_FOLDER, "rigmap.map.pyfunc_model": "map_model"}
+MAP_DATA_FOLDER = "map_model"  # a whole clip's map model (:mod:`rigmap.tracking.map_model`)
+
+#: the data folders rigmap's one loader reads (:func:`_load_pyfunc`) and the wrapper each
+#: holds, ``"module:Class"`` (named, not imported here, so this module needs no map code)
+PYFUNC_WRAPPERS = {
+    DATA_FOLDER: f"{__name__}:InverseMappingModel",
+    MAP_DATA_FOLDER: "rigmap.tracking.map_model:MapClipModel",
+}
+
+#: rigmap's pyfunc loader (``loader_module``) and the data folders it reads
+RIGMAP_LOADERS = {LOADER_MODULE: tuple(PYFUNC_WRAPPERS)}
 
 
-def check_mlmodel(root: Path, loaders: Mapping[str, str] = RIGMAP_LOADERS) -> None:
+def check_mlmodel(root: Path, loaders: Mapping[str, Sequence[str]] = RIGMAP_LOADERS) -> None:
     """``root/MLmodel`` loads its python_function flavour with one of ``loaders`` (module →
-    data folder) from ``data/<folder>``, and nothing else: no code, python_model or pickle."""
+    its data folders) from ``data/<folder>``, and nothing else: no code, python_model or
+    pickle."""
     import yaml
 
     path = root / "MLmodel"
@@ -176,9 +187,10 @@ def check_mlmodel(root: Path, loaders: Mapping[str, str] = RIGMAP_LOADERS) -> No
             f"one of rigmap's loaders {sorted(loaders)}; the model is refused (its code must be "
             "the installed rigmap, never files in the model folder)"
         )
-    if conf.get("data") != f"data/{loaders[module]}":
+    allowed = [f"data/{folder}" for folder in loaders[module]]
+    if conf.get("data") not in allowed:
         raise UntrustedModelError(
-            f"{path}: data {conf.get('data')!r} is not data/{loaders[module]}; the model is refused"
+            f"{path}: data {conf.get('data')!r} is not {' or '.join(allowed)}; the model is refused"
         )
 
 
@@ -191,7 +203,7 @@ def checked_data_folder(data_path: str | os.PathLike, loader_module: str, name: 
             f"{data}: a {loader_module} model keeps its data in data/{name}; the model is refused"
         )
     root = data.parent.parent
-    check_mlmodel(root, {loader_module: name})
+    check_mlmodel(root, {loader_module: (name,)})
     check_payload(data, root)
     return root
 
@@ -219,9 +231,14 @@ class LoadedPyfunc:
 
 
 def _load_pyfunc(data_path: str) -> LoadedPyfunc:
-    """MLflow's ``loader_module`` entry: the inverse mapping in ``data/inverse_mapping``."""
-    root = checked_data_folder(data_path, LOADER_MODULE, DATA_FOLDER)
-    model = InverseMappingModel(root)
+    """MLflow's ``loader_module`` entry for every rigmap pyfunc model: the wrapper of
+    :data:`PYFUNC_WRAPPERS` its data folder names (``data/inverse_mapping`` or
+    ``data/map_model``); any other folder is refused as not the inverse mapping's."""
+    name = Path(data_path).name
+    folder = name if name in PYFUNC_WRAPPERS else DATA_FOLDER
+    root = checked_data_folder(data_path, LOADER_MODULE, folder)
+    module, _, cls = PYFUNC_WRAPPERS[folder].partition(":")
+    model = getattr(importlib.import_module(module), cls)(root)
     model.load_folder(Path(data_path))
     return LoadedPyfunc(model)
 

@@ -327,8 +327,9 @@ def log_method_run(
     try:
         _log_params(client, run_id, flatten_config(config) if config is not None else {})
         _log_metrics(client, run_id, metrics)
-        _log_run_artifacts(client, run_id, summary, config, per_frame, predicted_controls,
-                           title=f"{rig} · {name}")  # fmt: skip
+        _log_run_artifacts(
+            client, run_id, summary, config, per_frame, predicted_controls, title=f"{rig} · {name}"
+        )
         logged = None
         if model is not None:
             logged = log_inverse_mapping(

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,7 +157,7 @@ def write_gif(
     max_frames: int | None = None,
 ) -> Path:
     """An animated GIF at the clip's speed (every k-th frame when the clip is long)."""
-    from PIL import Image
+    from rigmap.viz.gif import write_figure_gif
 
     plt = _pyplot()
     view = view or _default_view(played)
@@ -166,39 +165,21 @@ def write_gif(
         max_frames = GIF_MAX_FRAMES_MESH if played.is_mesh else GIF_MAX_FRAMES
     step = max(1, int(np.ceil(len(played.frames) / max_frames)))
     camera = _Camera.fit(played, view)
-    images = []
     fig, ax = plt.subplots(figsize=(3.6 * camera.aspect, 3.6), dpi=80)
+
+    def draw(index: int) -> None:
+        ax.clear()
+        ax.set_axis_off()
+        _draw_frame(ax, played, index, view, camera)
+        if title:
+            ax.set_title(title, fontsize=8)
+
     try:
-        for index in range(0, len(played.frames), step):
-            ax.clear()
-            ax.set_axis_off()
-            _draw_frame(ax, played, index, view, camera)
-            if title:
-                ax.set_title(title, fontsize=8)
-            fig.canvas.draw()
-            rgba = np.asarray(fig.canvas.buffer_rgba())
-            images.append(Image.fromarray(rgba[..., :3].copy()).quantize(colors=64))
+        frames = range(0, len(played.frames), step)
+        duration = round(1000 * step / played.fps)
+        return write_figure_gif(fig, draw, frames, out_path, duration_ms=duration)
     finally:
         plt.close(fig)
-    out = Path(out_path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".gif")
-    os.close(handle)
-    try:
-        images[0].save(
-            temp,
-            format="GIF",
-            save_all=True,
-            append_images=images[1:],
-            duration=round(1000 * step / played.fps),
-            loop=0,
-        )
-        os.chmod(temp, 0o644)  # mkstemp makes it private; a figure is shared
-        os.replace(temp, out)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
-    return out
 
 
 # --- drawing one frame -------------------------------------------------------------------

@@ -19,20 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.catalog import default_catalogue
 from rigmap.viz.atomic import save_figure
 from rigmap.viz.mesh import DEFAULT_COLOR, rasterise
 from rigmap.viz.mesh import VIEWS as MESH_VIEWS
 from rigmap.viz.skeleton import draw_skeleton, project
 
-#: Row titles, in the order of the paper's Table 2.
-STRATEGY_TITLES: dict[str, str] = {
-    "none": "corpus (none)",
-    "uniform": "uniform",
-    "univariate_gaussian": "univariate Gaussian",
-    "multivariate_gaussian": "multivariate Gaussian",
-    "gmm": "Gaussian mixture",
-    "pca_gaussian": "PCA + unit Gaussian",
-}
 THUMBNAIL_PIXELS = 150
 PANEL_INCHES = 1.75  # height of one pose's panel
 LABEL_INCHES = 2.0  # left margin for the row titles
@@ -96,7 +88,7 @@ def sample_rows(
     rows = [
         PoseRow(
             "none",
-            STRATEGY_TITLES["none"],
+            f"corpus ({default_catalogue().sampler('none').label})",
             f"{len(corpus)} animator frames",
             chosen,
             corpus[chosen],
@@ -126,7 +118,7 @@ def sample_rows(
         rows.append(
             PoseRow(
                 name,
-                STRATEGY_TITLES.get(name, name),
+                default_catalogue().sampler(name).label,  # its own name if uncatalogued
                 f"{n} samples,\n{clamped:.1%} of values clamped",
                 chosen,
                 **drawn,

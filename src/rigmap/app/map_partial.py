@@ -43,8 +43,9 @@ def read_training(rig, layout: Layout):
     from rigmap.animation.corpus_files import read_corpus_split
     from rigmap.animation.posing import PoseTable
 
-    poses = PoseTable.read(layout.poses(rig.name, "train"), rig=rig.name, n_joints=rig.n_joints,
-                           split="train")  # fmt: skip
+    poses = PoseTable.read(
+        layout.poses(rig.name, "train"), rig=rig.name, n_joints=rig.n_joints, split="train"
+    )
     corpus = read_corpus_split(rig, layout, "train")
     Y = corpus.table[rig.used_controls].to_numpy(dtype=np.float64)
     return training_data(rig, poses, Y), poses
@@ -83,26 +84,44 @@ def map_partial(
     test_set = TestSet.load(rig, layout)
     fitted = fit_subset_mappings(rig, subsets, training, make_regressor)
     rows = evaluate_partial_inputs(rig, fitted, training, test_set, settings)
-    edit_settings = MapSettings(refine_iterations=EDIT_REFINE_ITERATIONS,
-                                prior_weight=settings.prior_weight)  # fmt: skip
-    edited = map_edit(rig, fitted[FULL_INPUT][0], world, edit, edit_settings,
-                      control_std=training.std, hold_values=training.median)  # fmt: skip
+    edit_settings = MapSettings(
+        refine_iterations=EDIT_REFINE_ITERATIONS, prior_weight=settings.prior_weight
+    )
+    edited = map_edit(
+        rig,
+        fitted[FULL_INPUT][0],
+        world,
+        edit,
+        edit_settings,
+        control_std=training.std,
+        hold_values=training.median,
+    )
     folder = layout.metrics_folder(rig.name, METRIC_SET)
     table = pd.DataFrame([r.to_dict() for r in rows])
-    meta = {"rig": rig.name, "test_clips": [c.name for c in test_set.clips],
-            "test_frames": test_set.frames, "settings": asdict(settings),
-            "subsets": {n: m.subset.to_dict() for n, (m, _) in fitted.items()},
-            "units": "errors in cm RMS over frames and joints (world); ground truth in "
-                     "training std squared (§6.1)",
-            "seconds": time.perf_counter() - started}  # fmt: skip
-    edit_record = {"rig": rig.name, "clip": edit_clip, **edited.to_dict(), "edit": asdict(edit),
-                   "refine_iterations": EDIT_REFINE_ITERATIONS}  # fmt: skip
+    meta = {
+        "rig": rig.name,
+        "test_clips": [c.name for c in test_set.clips],
+        "test_frames": test_set.frames,
+        "settings": asdict(settings),
+        "subsets": {n: m.subset.to_dict() for n, (m, _) in fitted.items()},
+        "units": "errors in cm RMS over frames and joints (world); ground truth in "
+        "training std squared (§6.1)",
+        "seconds": time.perf_counter() - started,
+    }
+    edit_record = {
+        "rig": rig.name,
+        "clip": edit_clip,
+        **edited.to_dict(),
+        "edit": asdict(edit),
+        "refine_iterations": EDIT_REFINE_ITERATIONS,
+    }
     return [
-        write_json_atomic(folder / "partial_inputs.json",
-                          json_ready({**meta, "rows": table.to_dict("records")})),
+        write_json_atomic(
+            folder / "partial_inputs.json", json_ready({**meta, "rows": table.to_dict("records")})
+        ),
         _write_csv(folder / "partial_inputs.csv", table),
         write_json_atomic(folder / "motion_edit.json", json_ready(edit_record)),
-    ]  # fmt: skip
+    ]
 
 
 def _write_csv(path: Path, table: pd.DataFrame) -> Path:
@@ -118,7 +137,7 @@ class MapPartialConfigError(RigmapError, ValueError):
 def map_partial_from_config(config: Mapping[str, Any]) -> list[Path]:
     """The stage from a composed config (a plain mapping: ``rig``, ``regressor``, ``paths``,
     ``map_partial``)."""
-    from rigmap.config_objects import instantiate_as
+    from rigmap.app.objects import instantiate_as
     from rigmap.regression.base import Regressor
     from rigmap.rigs import load
 
@@ -136,17 +155,28 @@ def map_partial_from_config(config: Mapping[str, Any]) -> list[Path]:
         edit_clip = str(edit_options.pop("clip"))
         edit_options = {k: tuple(v) if isinstance(v, list) else v for k, v in edit_options.items()}
         edit = MotionEdit(tuple(joints["feet"]), joints["hand"], **edit_options)
-        settings = PartialInputSettings(int(options["refine_iterations"]),
-                                        int(options["refine_every"]),
-                                        float(options["prior_weight"]))  # fmt: skip
+        settings = PartialInputSettings(
+            int(options["refine_iterations"]),
+            int(options["refine_every"]),
+            float(options["prior_weight"]),
+        )
 
         def make_regressor():
-            return instantiate_as(config["regressor"], Regressor, "regressor",
-                                  MapPartialConfigError)  # fmt: skip
+            return instantiate_as(
+                config["regressor"], Regressor, "regressor", MapPartialConfigError
+            )
 
         layout = Layout.from_paths(config["paths"])
-        return map_partial(rig, layout, subsets, make_regressor, settings, edit,
-                           edit_clip=edit_clip, edit_frames=edit_frames)  # fmt: skip
+        return map_partial(
+            rig,
+            layout,
+            subsets,
+            make_regressor,
+            settings,
+            edit,
+            edit_clip=edit_clip,
+            edit_frames=edit_frames,
+        )
 
 
 def _subsets(rig, options: Mapping[str, Any]) -> dict[str, JointSubset]:

@@ -1,6 +1,6 @@
 """``mlflow models serve`` of a saved model folder, as a context manager that always stops it.
 
-Used by the tests and benchmarks of the map model (:mod:`rigmap.map.pyfunc_model`) and by
+Used by the tests and benchmarks of the map model (:mod:`rigmap.tracking.map_model`) and by
 anyone who wants the REST answer on this machine: the server runs in the current Python
 environment (``--env-manager local``, so no virtualenv is built) on 127.0.0.1, in its own
 process group, and the whole group (uvicorn and its worker) is stopped on exit.
@@ -56,15 +56,37 @@ def served_model(
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
     # the server execs `uvicorn` by name: this interpreter's own, even from an unactivated venv
     env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
-    command = [sys.executable, "-m", "mlflow", "models", "serve", "-m", str(folder),
-               "--env-manager", "local", "-h", "127.0.0.1", "-p", str(port), "-w", "1",
-               "-t", str(int(request_timeout_s))]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "mlflow",
+        "models",
+        "serve",
+        "-m",
+        str(folder),
+        "--env-manager",
+        "local",
+        "-h",
+        "127.0.0.1",
+        "-p",
+        str(port),
+        "-w",
+        "1",
+        "-t",
+        str(int(request_timeout_s)),
+    ]
     url = f"http://127.0.0.1:{port}"
     with tempfile.TemporaryDirectory(prefix="rigmap-serve-") as scratch:
         log_path = Path(scratch) / "serve.log"
         with open(log_path, "w") as log:
-            server = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                      cwd=scratch, start_new_session=True)  # fmt: skip
+            server = subprocess.Popen(
+                command,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=env,
+                cwd=scratch,
+                start_new_session=True,
+            )
             try:
                 _wait_for_ping(server, url, log_path, start_timeout_s)
                 yield url
@@ -74,8 +96,12 @@ def served_model(
 
 def post_json(url: str, body: dict, timeout_s: float = REQUEST_TIMEOUT_S) -> tuple[int, dict]:
     """POST ``body`` as JSON; the HTTP status and the decoded answer (errors included)."""
-    request = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
-                                     headers={"Content-Type": "application/json"})  # fmt: skip
+    request = urllib.request.Request(
+        url,
+        data=json.dumps(body).encode(),
+        method="POST",
+        headers={"Content-Type": "application/json"},
+    )
     try:
         with urllib.request.urlopen(request, timeout=timeout_s) as response:
             return response.status, json.loads(response.read())
@@ -87,8 +113,9 @@ def _wait_for_ping(server: subprocess.Popen, url: str, log: Path, timeout_s: flo
     deadline = time.monotonic() + timeout_s
     while True:
         if server.poll() is not None:
-            raise ModelServerError(f"mlflow models serve exited with {server.returncode}: "
-                                   f"{log.read_text()[-3000:]}")  # fmt: skip
+            raise ModelServerError(
+                f"mlflow models serve exited with {server.returncode}: {log.read_text()[-3000:]}"
+            )
         try:
             with urllib.request.urlopen(f"{url}/ping", timeout=5) as response:
                 if response.status == 200:
@@ -96,8 +123,9 @@ def _wait_for_ping(server: subprocess.Popen, url: str, log: Path, timeout_s: flo
         except OSError:
             pass
         if time.monotonic() > deadline:
-            raise ModelServerError(f"mlflow models serve not up in {timeout_s:.0f} s: "
-                                   f"{log.read_text()[-3000:]}")  # fmt: skip
+            raise ModelServerError(
+                f"mlflow models serve not up in {timeout_s:.0f} s: {log.read_text()[-3000:]}"
+            )
         time.sleep(0.5)
 
 

@@ -3,7 +3,7 @@
 A request is one clip: a DataFrame with one row per frame, in frame order, and the
 columns ``<joint>.x``, ``<joint>.y``, ``<joint>.z`` of every joint of the model's
 :class:`~rigmap.map.partial.JointSubset` (world centimetres, the rig's axes: +Y up, the
-character's left +X; i.e. what a :class:`~rigmap.map.RetargetMap` gives). Extra columns
+character's left +X; i.e. what a :class:`~rigmap.map.JointMap` gives). Extra columns
 (``frame``, other joints) are ignored. The answer has one row per frame and one column
 per rig control, unused controls at their defaults: :func:`rigmap.map.clip.map_clip`'s
 ``controls`` — the subset mapping's guess, damped-least-squares refinement on the
@@ -17,12 +17,14 @@ Stored with the model (``data/map_model/``): the :class:`SubsetMapping` folder (
 Models are data, not code (as in :mod:`rigmap.tracking.pyfunc_model`, whose checks this
 reuses): the rig is built only from a registered rig name, regressors only from
 rigmap's own classes, and every data path must stay inside the model folder. The model's
-code is the installed rigmap: ``MLmodel`` names this module as ``loader_module``
-(:func:`_load_pyfunc`), no code file is copied into the folder, and nothing is pickled.
+code is the installed rigmap: ``MLmodel`` names :mod:`rigmap.tracking.pyfunc_model` as
+``loader_module`` (its one ``_load_pyfunc`` builds :class:`MapClipModel` for a
+``data/map_model`` folder), no code file is copied into the folder, and nothing is pickled.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -42,23 +44,21 @@ from mlflow.types import ColSpec, ParamSchema, ParamSpec, Schema
 
 from rigmap.errors import RigmapError
 from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.joint_map import MappedTargets
 from rigmap.map.partial import SubsetMapping
-from rigmap.map.retarget_map import MappedTargets
 from rigmap.map.tracks import JointTracks, TracksError
 from rigmap.store import write_folder_atomic, write_json_atomic
 from rigmap.tracking.pyfunc_model import (
-    RIGMAP_LOADERS,
-    LoadedPyfunc,
+    LOADER_MODULE,
+    MAP_DATA_FOLDER,
     UntrustedModelError,
     check_payload,
-    checked_data_folder,
     inside_folder,
     joint_columns,
     pinned_requirements,
 )
 
-LOADER_MODULE = __name__  # what MLmodel names as the model's code: the installed rigmap
-DATA_FOLDER = RIGMAP_LOADERS[LOADER_MODULE]  # the model's data folder, ``data/map_model``
+DATA_FOLDER = MAP_DATA_FOLDER  # the model's data folder, ``data/map_model``
 MAPPING_ARTIFACT = "subset_mapping"
 SPEC_ARTIFACT = "map_model"
 SPEC_FORMAT = "rigmap.map_pyfunc/1"
@@ -85,14 +85,6 @@ def input_frame(world: np.ndarray, joints: Sequence[str]) -> pd.DataFrame:
     """A request: ``(F, K, 3)`` world positions of ``joints`` as the model's input columns."""
     world = np.asarray(world, dtype=np.float64)
     return pd.DataFrame(world.reshape(len(world), -1), columns=joint_columns(joints))
-
-
-def _load_pyfunc(data_path: str) -> LoadedPyfunc:
-    """MLflow's ``loader_module`` entry: the map model in ``data/map_model``."""
-    root = checked_data_folder(data_path, LOADER_MODULE, DATA_FOLDER)
-    model = MapClipModel(root)
-    model.load_folder(Path(data_path))
-    return LoadedPyfunc(model)
 
 
 class MapClipModel(PythonModel):
@@ -134,14 +126,21 @@ class MapClipModel(PythonModel):
                 settings = dataclasses.replace(settings, refine_iterations=iterations)
             positions = request_positions(model_input, joints, fps)
             targets = MappedTargets(self._rig.name, joints, positions, fps, REQUEST, 1.0, (), ())
-            result = map_clip(self._rig, targets, self._mapping, settings,
-                              control_std=self._std, hold_values=self._hold)  # fmt: skip
+            result = map_clip(
+                self._rig,
+                targets,
+                self._mapping,
+                settings,
+                control_std=self._std,
+                hold_values=self._hold,
+            )
         except MlflowException:
             raise
         except RigmapError as error:  # bad settings, frames without a heading ...: the request's
             raise MapModelInputError(f"map model: {error}") from None
-        return pd.DataFrame(result.controls, columns=self._rig.control_names,
-                            index=model_input.index)  # fmt: skip
+        return pd.DataFrame(
+            result.controls, columns=self._rig.control_names, index=model_input.index
+        )
 
 
 def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarray:
@@ -166,8 +165,9 @@ def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarr
             f"{REQUEST}: joint columns are not all numbers ({error})"
         ) from None
     try:  # JointTracks names the joint, axis and row of a NaN or inf, or an empty clip
-        tracks = JointTracks(tuple(joints), values.reshape(len(table), len(joints), 3), fps,
-                             "cm", REQUEST)  # fmt: skip
+        tracks = JointTracks(
+            tuple(joints), values.reshape(len(table), len(joints), 3), fps, "cm", REQUEST
+        )
     except TracksError as error:
         raise MapModelInputError(str(error)) from None
     return tracks.positions
@@ -175,8 +175,9 @@ def request_positions(table: Any, joints: Sequence[str], fps: float) -> np.ndarr
 
 # --------------------------------------------------------------------------- the spec file
 def settings_to_dict(settings: MapSettings) -> dict:
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in
-            dataclasses.asdict(settings).items()}  # fmt: skip
+    return {
+        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(settings).items()
+    }
 
 
 def settings_from_dict(data: Any, where: str | os.PathLike) -> MapSettings:
@@ -264,13 +265,21 @@ def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignatur
     )
 
 
-def _model_arguments(scratch, rig, mapping, settings, control_std, hold_values, fps,
-                     input_example) -> dict:  # fmt: skip
-    """What ``save_model`` and ``log_model`` both take."""
-    data = _write_artifacts(Path(scratch), rig, mapping, settings, control_std, hold_values, fps)
-    return {"loader_module": LOADER_MODULE, "data_path": data,
-            "signature": _signature(rig, mapping, settings, fps), "input_example": input_example,
-            "pip_requirements": pinned_requirements(SubsetMapping)}  # fmt: skip
+@contextlib.contextmanager
+def _model_arguments(rig, mapping, settings, control_std, hold_values, fps, input_example):
+    """What ``save_model`` and ``log_model`` both take, its artifacts in a scratch folder
+    that lasts as long as the ``with`` block."""
+    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
+        data = _write_artifacts(
+            Path(scratch), rig, mapping, settings, control_std, hold_values, fps
+        )
+        yield {
+            "loader_module": LOADER_MODULE,
+            "data_path": data,
+            "signature": _signature(rig, mapping, settings, fps),
+            "input_example": input_example,
+            "pip_requirements": pinned_requirements(SubsetMapping),
+        }
 
 
 def save_map_model(
@@ -290,9 +299,9 @@ def save_map_model(
     ``input_example`` (a few frames, :func:`input_frame`) is stored as the model's serving
     example, and MLflow maps it once while saving: a check that the saved model works.
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(scratch, rig, mapping, settings, control_std,
-                                     hold_values, fps, input_example)  # fmt: skip
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
         return write_folder_atomic(
             path, lambda staging: mlflow.pyfunc.save_model(str(staging), **arguments)
         )
@@ -314,11 +323,12 @@ def log_map_model(
 
     Registered as ``registered_model_name`` if given (e.g. ``rigmap-<rig>-map-<subset>``).
     """
-    with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        arguments = _model_arguments(scratch, rig, mapping, settings, control_std,
-                                     hold_values, fps, input_example)  # fmt: skip
-        return mlflow.pyfunc.log_model(name=name, registered_model_name=registered_model_name,
-                                       **arguments)  # fmt: skip
+    with _model_arguments(
+        rig, mapping, settings, control_std, hold_values, fps, input_example
+    ) as arguments:
+        return mlflow.pyfunc.log_model(
+            name=name, registered_model_name=registered_model_name, **arguments
+        )
 
 
 def export_map_model(
@@ -343,5 +353,12 @@ def export_map_model(
     rig = load(rig_name)
     mapping = SubsetMapping.load(mapping_folder, rig)
     Y = read_corpus_split(rig, layout or Layout(), "train").values()
-    return save_map_model(out, rig, mapping, settings or MapSettings(), control_std=control_std(Y),
-                          hold_values=np.median(Y, axis=0), fps=fps)  # fmt: skip
+    return save_map_model(
+        out,
+        rig,
+        mapping,
+        settings or MapSettings(),
+        control_std=control_std(Y),
+        hold_values=np.median(Y, axis=0),
+        fps=fps,
+    )

@@ -1,4 +1,5 @@
-"""``rigmap map`` and ``rigmap pose`` from a plain config mapping (the library under the verbs).
+"""``rigmap map`` and ``rigmap pose``: their config composed (:func:`map_config`), then the work
+from the plain mapping.
 
 :func:`map_from_config` maps one input onto a rig: a BVH file, a folder of BVH files (a
 batch, with a progress bar), or a joint-tracks file (parquet, CSV or npz in the stated
@@ -9,6 +10,8 @@ map's joints is obtained (:mod:`rigmap.map.subset_model`: cached in
 (:func:`rigmap.map.clip.map_clip`) into ``<out>/<clip>/``, written whole or not at all:
 controls, per-frame error and confidence, keys, a BVH of the result, a summary, a
 preview, and for a Blender rig a copy of its ``.blend`` with the reduced keys as an action.
+The input's path through these functions is listed in ``docs/architecture.md``
+("Following `rigmap map`") and checked by ``tests/test_map_app.py``.
 
 :func:`pose_from_config` poses the whole body from a few effector targets (paper Fig. 5;
 FaceIK from landmarks, Fig. 10) and draws the pose.
@@ -23,10 +26,11 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +38,11 @@ import numpy as np
 
 from rigmap.animation.bvh import read_bvh
 from rigmap.errors import RigmapError
-from rigmap.map.clip import MapSettings, map_clip
+from rigmap.map.clip import MAP_STEPS, MapSettings, map_clip
 from rigmap.map.confidence import frame_confidence
-from rigmap.map.outputs import write_map_outputs
+from rigmap.map.joint_map import JointMap, JointMapError, MappedTargets
+from rigmap.map.outputs import MappedClip, write_map_outputs
 from rigmap.map.partial import JointSubset
-from rigmap.map.retarget_map import MappedTargets, RetargetMap, RetargetMapError
 from rigmap.map.skeleton_match import (
     Skeleton,
     check_frames,
@@ -57,6 +61,11 @@ from rigmap.store import (
 )
 
 TRACK_SUFFIXES = (".parquet", ".csv", ".npz")
+# Ours: the default of map.max_frames, the most frames one clip may map (about 55 minutes at
+# 30 fps); a longer request is refused before it is read or mapped.
+MAX_FRAMES = 100_000
+# Ours: a clip of more frames than this shows a progress bar (on stderr) while it is mapped.
+PROGRESS_FRAMES = 1_000
 RETARGET_JOINTS = "retarget"  # a subset whose joints are the retarget map's
 MATCH = "auto"  # map.retarget=auto: match the BVH skeleton even when the rig's default fits
 Log = Callable[[str], None]
@@ -66,23 +75,29 @@ class MapConfigError(RigmapError, ValueError):
     """A map or pose config that names no input, an unknown subset, or an unusable value."""
 
 
-@dataclass(frozen=True)
-class MappedClip:
-    """One clip's output folder and its headline numbers (``summary.json``)."""
+def map_config(overrides: list[str], config_dir=None) -> dict[str, Any]:
+    """``rigmap map``/``pose``'s config: ``conf/map.yaml`` with ``overrides``, the rig's
+    ``_overrides_`` applied, resolved to the plain mapping the jobs below take."""
+    from rigmap.app.config import compose_config
+    from rigmap.app.objects import plain
+    from rigmap.app.stage import stage_config
 
-    folder: Path
-    summary: dict
+    return plain(stage_config(compose_config(overrides, config_dir, config_name="map")))
 
 
 # --------------------------------------------------------------------------- map
-def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
-                    log: Log = print) -> list[MappedClip]:  # fmt: skip
-    """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip."""
+def map_from_config(
+    config: Mapping[str, Any], *, config_dir: str | os.PathLike, log: Log = print
+) -> list[MappedClip]:
+    """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip, written
+    whole (:func:`write_map_outputs`, with the preview and a Blender rig's ``.blend``). A clip
+    of more than :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
     from rigmap.rigs import load
 
     options = config["map"]
+    window = frame_window(options)  # options first: a bad one is named before any file is read
     sources = input_files(config.get("input"))
-    window = frame_window(options)
+    preview = bool(options.get("preview", True))
     with load(_rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
@@ -91,54 +106,50 @@ def map_from_config(config: Mapping[str, Any], *, config_dir: str | os.PathLike,
         settings = map_settings(options, rig.name)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
-            done.append(map_one(rig, targets, model, settings, out / _stem(targets.source),
-                                preview=bool(options.get("preview", True))))  # fmt: skip
+            with _step_bar(targets) as bar:
+                result = map_clip(
+                    rig,
+                    targets,
+                    model.mapping,
+                    settings,
+                    control_std=model.control_std,
+                    hold_values=model.hold_values,
+                    on_step=partial(_advance, bar),
+                )
+                confidence = frame_confidence(model.mapping, result.targets)
+                _advance(bar, "confidence")
+                folder = out / _stem(targets.source)
+                extra = partial(_extra_outputs, rig, result, preview)
+                done.append(
+                    write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
+                )
+                _advance(bar, "outputs")
             log(f"{done[-1].folder}: {_headline(done[-1].summary)}")
         return done
 
 
-def map_one(rig, targets: MappedTargets, model: SubsetModel, settings: MapSettings,
-            folder: Path, *, preview: bool = True) -> MappedClip:  # fmt: skip
-    """Map one clip's targets and write its folder (atomically)."""
-    result = map_clip(rig, targets, model.mapping, settings, control_std=model.control_std,
-                      hold_values=model.hold_values)  # fmt: skip
-    world = result.targets
-    confidence = frame_confidence(model.mapping, world)
-
-    def extra(staging: Path) -> None:
-        if preview:
-            from rigmap.map.preview import write_preview
-
-            write_preview(staging, rig, result)
-        if is_blender_rig(rig):
-            write_blend(rig, result.keys, result.fps, staging / "result.blend")
-
-    written = write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
-    import json
-
-    return MappedClip(written, json.loads((written / "summary.json").read_text()))
-
-
-def is_blender_rig(rig) -> bool:
-    """A rig evaluated by Blender workers (its animators work in a ``.blend``)."""
+def _extra_outputs(rig, result, preview: bool, staging: Path) -> None:
+    """The preview, and for a Blender rig (its animators work in a ``.blend``) a copy of its
+    file with the mapping's reduced keys (``keys.json``) as a new action on its control bones."""
     from rigmap.rigs.blender.rig import BlenderRig
 
-    return isinstance(rig, BlenderRig)
+    if preview:
+        from rigmap.map.preview import write_preview
 
+        write_preview(staging, rig, result)
+    if isinstance(rig, BlenderRig):
+        from rigmap.map.blend_output import write_mapped_keys_blend
 
-def write_blend(rig, keys, fps: float, path: Path) -> None:
-    """The one call site of the ``.blend`` writer: a copy of the rig's file with the
-    mapping's reduced keys (``keys.json``) as a new action on its control bones."""
-    from rigmap.map.blend_output import write_mapped_keys_blend
-
-    write_mapped_keys_blend(rig, keys, fps, path)
+        write_mapped_keys_blend(rig, result.keys, result.fps, staging / "result.blend")
 
 
 def input_files(value) -> list[Path]:
     """The files an ``input`` names: one BVH or tracks file, or every ``*.bvh`` of a folder."""
     if value in (None, ""):
-        raise MapConfigError("no input: pass input=<a .bvh file, a folder of them, or a joint "
-                             "tracks .parquet/.csv/.npz file>")  # fmt: skip
+        raise MapConfigError(
+            "no input: pass input=<a .bvh file, a folder of them, or a joint "
+            "tracks .parquet/.csv/.npz file>"
+        )
     path = Path(value)
     if path.is_dir():
         files = sorted(path.glob("*.bvh"))
@@ -148,37 +159,43 @@ def input_files(value) -> list[Path]:
     if not path.is_file():
         raise FileNotFoundError(f"input {path} does not exist")
     if path.suffix.lower() not in (".bvh", *TRACK_SUFFIXES):
-        raise MapConfigError(f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
-                             "of .bvh files, .parquet, .csv or .npz")  # fmt: skip
+        raise MapConfigError(
+            f"input {path}: unknown format {path.suffix!r}; use .bvh, a folder "
+            "of .bvh files, .parquet, .csv or .npz"
+        )
     return [path]
 
 
-def retarget_map(options: Mapping, rig_name: str, config_dir) -> RetargetMap:
+def retarget_map(options: Mapping, rig_name: str, config_dir) -> JointMap:
     """``map.retarget`` (a path, or a name in ``conf/retarget/``), else the rig's default."""
     name = options.get("retarget") or _rig_section(options, rig_name).get("retarget")
     if name == MATCH:
         raise MapConfigError(f"map.retarget={MATCH} matches BVH skeletons; it names no map")
     if not name:
-        raise MapConfigError(f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
-                             f"name in {Path(config_dir) / 'retarget'}>")  # fmt: skip
+        raise MapConfigError(
+            f"no retarget map for rig {rig_name!r}: set map.retarget=<file or "
+            f"name in {Path(config_dir) / 'retarget'}>"
+        )
     path = Path(name)
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
         path = Path(config_dir) / "retarget" / f"{name}.yaml"
-    retarget = RetargetMap.from_yaml(path)
+    retarget = JointMap.from_yaml(path)
     if retarget.rig != rig_name:
         raise MapConfigError(f"{path}: retarget map for rig {retarget.rig!r}, not {rig_name!r}")
     return retarget
 
 
-def subset_for(options: Mapping, rig, retarget: RetargetMap | None, name: str) -> JointSubset:
+def subset_for(options: Mapping, rig, retarget: JointMap | None, name: str) -> JointSubset:
     """The joint subset ``map.rigs.<rig>.subsets.<name>`` (``joints: retarget`` takes the
     retarget map's joints, and the map's name)."""
     subsets = _rig_section(options, rig.name).get("subsets") or {}
     if name not in subsets:
-        raise MapConfigError(f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
-                             f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
-                             "in map/default.yaml of the conf/ folder (for your own rig, a copy "
-                             "of conf/ given with --config-dir)")  # fmt: skip
+        raise MapConfigError(
+            f"rig {rig.name!r} has no joint subset {name!r} in map.rigs."
+            f"{rig.name}.subsets (has {sorted(subsets)}): add it under rigs: "
+            "in map/default.yaml of the conf/ folder (for your own rig, a copy "
+            "of conf/ given with --config-dir)"
+        )
     spec = dict(subsets[name])
     if spec.get("joints") == RETARGET_JOINTS:
         if retarget is None:
@@ -211,7 +228,7 @@ def read_clips(
     out: Path,
     log: Log,
     window: FrameWindow | None = None,
-) -> tuple[list[MappedTargets], RetargetMap]:
+) -> tuple[list[MappedTargets], JointMap]:
     """Every input as the rig's mapped joints, and the retarget map whose joints they are.
 
     ``map.retarget`` given: that map for every file. Otherwise the rig's default map for a
@@ -228,7 +245,15 @@ def read_clips(
         default = retarget_map(options, rig.name, config_dir)
     clips, maps, matched = [], [], {}
     for path in sources:
-        tracks, motion = _read_source(path, options, window)
+        motion = read_bvh(path) if path.suffix.lower() == ".bvh" else None
+        if motion is not None:
+            window.check_length(motion.n_frames, motion.fps, path)
+            tracks = tracks_from_motion(motion, str(path))
+        else:  # joint tracks; an npz is read (and checked) for the window's frames only
+            unit, fps = options.get("unit", "cm"), options.get("source_fps")
+            tracks = read_tracks(path, unit=unit, fps=fps, window=window)
+            if path.suffix.lower() != ".npz":
+                window.check_length(len(tracks.positions), tracks.fps, path)
         retarget = fixed or (default if default and _fits(default, tracks) else None)
         if retarget is None and motion is None:  # joint tracks: the default map says what lacks
             retarget = default or retarget_map(options, rig.name, config_dir)
@@ -238,14 +263,27 @@ def read_clips(
         if motion is not None:
             tracks = _clean_frames(tracks, motion, log)
         maps.append(retarget)
-        clips.append(_read_clip(path, tracks, retarget, rig, window))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # unused source joints: summarised below instead
+            targets = retarget.apply(rig, tracks)
+        if path.suffix.lower() != ".npz":  # cut to the window (an npz was cut as it was read)
+            cut = window.slice(targets.fps)
+            if len(targets.positions[cut]) == 0:
+                raise MapConfigError(
+                    f"{path}: no frames left to map (the clip has {len(targets.positions)} "
+                    f"frames; {window.describe()})"
+                )
+            targets = dataclasses.replace(
+                targets, positions=targets.positions[cut], fps=targets.fps / cut.step
+            )
         if was_matched:
             height = float(np.ptp(Skeleton.from_bvh(motion).rest @ retarget.axes_matrix[1]))
             log(
-                f"{path}: scale {clips[-1].scale:.4g} rig cm per source unit (from the bone "
+                f"{path}: scale {targets.scale:.4g} rig cm per source unit (from the bone "
                 f"lengths): the source's rest height {height:.4g} units is "
-                f"{height * clips[-1].scale:.1f} cm on the rig"
+                f"{height * targets.scale:.1f} cm on the rig"
             )
+        clips.append(targets)
     driven = {tuple(t.joint_names) for t in clips}
     if len(driven) > 1:
         raise MapConfigError(
@@ -255,17 +293,7 @@ def read_clips(
     return clips, _subset_map(maps[0], default)
 
 
-def _read_source(path: Path, options: Mapping, window: FrameWindow):
-    """The file's joint tracks, and for a BVH its parsed motion (for skeleton matching); an
-    npz is read for the ``window``'s frames only."""
-    if path.suffix.lower() != ".bvh":
-        unit, fps = options.get("unit", "cm"), options.get("source_fps")
-        return read_tracks(path, unit=unit, fps=fps, window=window), None
-    motion = read_bvh(path)
-    return tracks_from_motion(motion, str(path)), motion
-
-
-def _fits(retarget: RetargetMap, tracks) -> bool:
+def _fits(retarget: JointMap, tracks) -> bool:
     return all(name in tracks.joint_names for name in retarget.joints.values())
 
 
@@ -278,13 +306,13 @@ def _clean_frames(tracks, motion, log: Log):
     log(f"{tracks.source}: {frames.describe()}")
     try:
         return dataclasses.replace(tracks, positions=frames.apply(tracks.positions))
-    except RetargetMapError as error:
+    except JointMapError as error:
         raise MapConfigError(f"{tracks.source}: {error}") from None
 
 
 def _matched_map(
     path: Path, motion, tracks, rig_name: str, options: Mapping, out: Path, matched: dict, log: Log
-) -> RetargetMap:
+) -> JointMap:
     """The BVH's skeleton matched for the rig, saved beside the output (once per skeleton)."""
     skeleton = Skeleton.from_bvh(motion)
     key = (skeleton.names, skeleton.rest.round(9).tobytes())
@@ -301,13 +329,13 @@ def _matched_map(
             draft=out / f"{path.stem}.retarget.draft.yaml",
         )
         saved = write_text_atomic(out / f"{path.stem}.retarget.yaml", result.text)
-        retarget = RetargetMap.from_yaml(saved)
+        retarget = JointMap.from_yaml(saved)
         log(f"{path}: {result.describe()}; retarget map used: {saved}")
         matched[key] = retarget
     return matched[key]
 
 
-def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetMap:
+def _subset_map(retarget: JointMap, default: JointMap | None) -> JointMap:
     """The map that names the joint subset: a matched map driving the default map's rig
     joints shares its name (and so its cached model)."""
     if default is not None and set(retarget.joints) == set(default.joints):
@@ -316,12 +344,21 @@ def _subset_map(retarget: RetargetMap, default: RetargetMap | None) -> RetargetM
 
 
 def frame_window(options: Mapping) -> FrameWindow:
-    """``map.first_frame``, ``map.frames`` and ``map.fps``, checked (and ``map.source_fps``)."""
+    """``map.first_frame``, ``map.frames``, ``map.fps`` and ``map.max_frames``, checked (and
+    ``map.source_fps``); ``map.frames`` over the cap is refused before any file is read."""
+    cap = options.get("max_frames", MAX_FRAMES)
+    if cap is None:
+        raise MapConfigError(f"map.max_frames=None: expected an integer >= 1 (ours: {MAX_FRAMES})")
+    cap = _option({"max_frames": cap}, "max_frames", 1, "an integer >= 1 (the most frames mapped)")
     first = _option(options, "first_frame", 0, "an integer >= 0 (a source frame)")
     count = _option(options, "frames", 1, "an integer >= 1 (frames to map) or null (all)")
+    if count is not None and count > cap:
+        raise MapConfigError(
+            f"map.frames={count}: expected an integer in 1..{cap} (map.max_frames) or null (all)"
+        )
     fps = _option(options, "fps", 0.0, "a number > 0 (frames per second) or null (the source's)")
     _option(options, "source_fps", 0.0, "a number > 0 (the tracks' frames per second) or null")
-    return FrameWindow(0 if first is None else first, count, fps)
+    return FrameWindow(0 if first is None else first, count, fps, max_frames=cap)
 
 
 def _option(options: Mapping, key: str, bound, expected: str):
@@ -340,30 +377,17 @@ def _option(options: Mapping, key: str, bound, expected: str):
     return int(value) if isinstance(bound, int) else float(value)
 
 
-def _read_clip(
-    path: Path, tracks, retarget: RetargetMap, rig, window: FrameWindow
-) -> MappedTargets:
-    """One input's tracks as the rig's mapped joints, resampled and cut as ``map`` says (an
-    npz was cut as it was read, so its retargeting saw the window only)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # unused source joints: summarised below instead
-        targets = retarget.apply(rig, tracks)
-    if path.suffix.lower() == ".npz":
-        return targets
-    cut = window.slice(targets.fps)
-    positions = targets.positions[cut]
-    if len(positions) == 0:
-        raise MapConfigError(
-            f"{path}: no frames left to map (the clip has {len(targets.positions)} frames; "
-            f"{window.describe()})"
-        )
-    return dataclasses.replace(targets, positions=positions, fps=targets.fps / cut.step)
-
-
 def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     layout = Layout.from_paths(config.get("paths"))
-    return obtain_subset_model(rig, subset, layout, config["regressor"], folder=config.get("model"),
-                               cache=config.get("model_cache"), log=log)  # fmt: skip
+    return obtain_subset_model(
+        rig,
+        subset,
+        layout,
+        config["regressor"],
+        folder=config.get("model"),
+        cache=config.get("model_cache"),
+        log=log,
+    )
 
 
 def _rig_options(config: Mapping) -> dict:
@@ -379,15 +403,41 @@ def _stem(source: str) -> str:
 
 
 def _headline(summary: dict) -> str:
-    return (f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
-            f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
-            f"{summary['keys']} keys")  # fmt: skip
+    return (
+        f"{summary['frames']} frames, joint error {summary['joint_error_rms_cm']:.2f} cm RMS "
+        f"({summary['joint_error_rms_percent_of_height']:.2f} % of height), "
+        f"{summary['keys']} keys"
+    )
 
 
 def _progress(items, show: bool, what: str):
     from tqdm.auto import tqdm
 
     return tqdm(items, desc=what, unit="clip", disable=not show)
+
+
+# What :func:`map_from_config` reports of a clip after :func:`map_clip`'s own steps.
+ONE_CLIP_STEPS = (*MAP_STEPS, "confidence", "outputs")
+
+
+def _step_bar(targets: MappedTargets):
+    """A bar over :data:`ONE_CLIP_STEPS` on stderr, shown for a long clip only."""
+    from tqdm.auto import tqdm
+
+    frames = len(targets.positions)
+    return tqdm(
+        total=len(ONE_CLIP_STEPS),
+        desc=f"map {_stem(targets.source)} ({frames} frames)",
+        unit="step",
+        file=sys.stderr,
+        disable=frames <= PROGRESS_FRAMES,
+    )
+
+
+def _advance(bar, name: str) -> None:
+    """One step of ``bar`` done; the bar names it."""
+    bar.set_postfix_str(name, refresh=False)
+    bar.update(1)
 
 
 # --------------------------------------------------------------------------- pose
@@ -416,18 +466,26 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
             # toward the guess is for the many joints of a clip (MapSettings' docstring)
             plain = dataclasses.replace(settings, feet=(), prior_weight=0.0)
             controls, error, seconds = pose_from_effectors(
-                rig, model.mapping, targets, plain, control_std=model.control_std,
+                rig,
+                model.mapping,
+                targets,
+                plain,
+                control_std=model.control_std,
                 hold_values=model.hold_values,
-            )  # fmt: skip
+            )
         else:
             raise MapConfigError(f"map.pose_mode: expected 'drag' or 'batch', got {mode!r}")
         out = Path(
             config.get("out") or Layout.user_output("pose", rig.name) / Path(targets_file).stem
         )
-        write_folder_atomic(out, lambda staging: _write_poses(staging, rig, subset, controls,
-                                                              targets, error, seconds))  # fmt: skip
-        log(f"{out}: {len(controls)} pose(s), distance to the targets "
-            f"{float(error.max()):.3f} cm at most")  # fmt: skip
+        write_folder_atomic(
+            out,
+            lambda staging: _write_poses(staging, rig, subset, controls, targets, error, seconds),
+        )
+        log(
+            f"{out}: {len(controls)} pose(s), distance to the targets "
+            f"{float(error.max()):.3f} cm at most"
+        )
         return out
 
 
@@ -440,15 +498,23 @@ def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarra
     if unknown:
         raise MapConfigError(f"map.drag: unknown keys {unknown}; known: steps, carry_jacobian")
     try:
-        poser = InteractivePoser(rig, model.mapping, control_std=model.control_std,
-                                 hold_values=model.hold_values, hold=settings.hold,
-                                 damping=settings.damping, **options)  # fmt: skip
+        poser = InteractivePoser(
+            rig,
+            model.mapping,
+            control_std=model.control_std,
+            hold_values=model.hold_values,
+            hold=settings.hold,
+            damping=settings.damping,
+            **options,
+        )
     except (TypeError, ValueError) as error:
         raise MapConfigError(f"map.drag: {error}") from None
     started = time.perf_counter()
     results = [poser(frame) for frame in targets]
-    seconds = {"pose_s": time.perf_counter() - started,
-               "rig_evaluations": float(sum(r.rig_evaluations for r in results))}  # fmt: skip
+    seconds = {
+        "pose_s": time.perf_counter() - started,
+        "rig_evaluations": float(sum(r.rig_evaluations for r in results)),
+    }
     controls = np.array([r.controls for r in results])
     return controls, np.array([r.distance_cm for r in results]), seconds
 
@@ -471,6 +537,11 @@ def _write_poses(staging: Path, rig, subset, controls, targets, error, seconds) 
         ),
     )
     for k in range(len(controls)):
-        render_pose(rig, controls[k], targets[k], subset, staging / f"pose_{k}.png",
-                    title=f"{rig.name} posed from {len(subset.joints)} targets "
-                          f"({error[k]:.2f} cm RMS)")  # fmt: skip
+        render_pose(
+            rig,
+            controls[k],
+            targets[k],
+            subset,
+            staging / f"pose_{k}.png",
+            title=f"{rig.name} posed from {len(subset.joints)} targets ({error[k]:.2f} cm RMS)",
+        )

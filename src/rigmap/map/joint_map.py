@@ -1,6 +1,7 @@
 """Skeleton correspondence as data: which source joint drives which rig joint, and how.
 
-A retarget map (``conf/retarget/<name>.yaml``) says, for one source skeleton and one
+A joint map (:class:`JointMap`; its files and messages keep the user-facing name "retarget
+map": ``conf/retarget/<name>.yaml``, ``map.retarget``) says, for one source skeleton and one
 rig: the rig joints it drives and the source joint that drives each; the source's axes
 (which signed axis is up, forward and the character's left); and the scale. The rig's
 own conventions (Y up, facing +Z, left +X, centimetres) are the target.
@@ -33,7 +34,7 @@ DEGENERATE_FRACTION = 1e-6  # a source bone this much shorter than the longest h
 GROUND_PERCENTILE = 5.0  # the clip's "on the floor" height of its lowest joint (ours)
 
 
-class RetargetMapError(RigmapError, ValueError):
+class JointMapError(RigmapError, ValueError):
     """A retarget map that does not fit its rig or its source; names the file and the joint."""
 
 
@@ -54,7 +55,7 @@ class MappedTargets:
 
 
 @dataclass(frozen=True)
-class RetargetMap:
+class JointMap:
     """Source skeleton → rig: joint pairs, source axes, scale; see the module docstring."""
 
     name: str
@@ -73,49 +74,59 @@ class RetargetMap:
     def __post_init__(self) -> None:
         where = self.source_file
         if not self.joints:
-            raise RetargetMapError(f"{where}: 'joints' is empty; map at least the rig's root")
+            raise JointMapError(f"{where}: 'joints' is empty; map at least the rig's root")
         object.__setattr__(self, "joints", dict(self.joints))
         object.__setattr__(self, "ignore", tuple(self.ignore))
         object.__setattr__(self, "_matrix", self._axes_matrix())
         if not (self.scale in ("auto", "unit") or _positive_number(self.scale)):
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{where}: scale {self.scale!r} must be 'auto' (from bone lengths), 'unit' (the "
                 "tracks' stated unit) or a positive number of rig cm per source unit"
             )
         if self.ground not in ("align", "keep"):
-            raise RetargetMapError(f"{where}: ground {self.ground!r} must be 'align' or 'keep'")
+            raise JointMapError(f"{where}: ground {self.ground!r} must be 'align' or 'keep'")
 
     # --- reading -------------------------------------------------------------------------
     @classmethod
-    def from_yaml(cls, path: str | os.PathLike) -> RetargetMap:
-        data = read_data_file(path, "retarget map", RetargetMapError)
+    def from_yaml(cls, path: str | os.PathLike) -> JointMap:
+        data = read_data_file(path, "retarget map", JointMapError)
         return cls.from_mapping(data, source_file=str(path))
 
     @classmethod
-    def from_mapping(cls, data, *, source_file: str = "<retarget map>") -> RetargetMap:
+    def from_mapping(cls, data, *, source_file: str = "<retarget map>") -> JointMap:
         if not isinstance(data, Mapping):
-            raise RetargetMapError(f"{source_file}: expected a mapping, got {type(data).__name__}")
-        allowed = {"name", "rig", "joints", "up", "forward", "left", "scale",
-                   "preserve_lengths", "ground", "ignore"}  # fmt: skip
+            raise JointMapError(f"{source_file}: expected a mapping, got {type(data).__name__}")
+        allowed = {
+            "name",
+            "rig",
+            "joints",
+            "up",
+            "forward",
+            "left",
+            "scale",
+            "preserve_lengths",
+            "ground",
+            "ignore",
+        }
         unknown = sorted(set(data) - allowed)
         if unknown:
-            raise RetargetMapError(
-                f"{source_file}: unknown keys {unknown}; allowed {sorted(allowed)}"
-            )
+            raise JointMapError(f"{source_file}: unknown keys {unknown}; allowed {sorted(allowed)}")
         for key in ("rig", "joints"):
             if key not in data:
-                raise RetargetMapError(f"{source_file}: missing key {key!r}")
+                raise JointMapError(f"{source_file}: missing key {key!r}")
         joints = data["joints"]
         if not isinstance(joints, Mapping) or not all(
             isinstance(k, str) and isinstance(v, str) for k, v in joints.items()
         ):
-            raise RetargetMapError(
-                f"{source_file}: 'joints' must map rig joint names to source names"
-            )
+            raise JointMapError(f"{source_file}: 'joints' must map rig joint names to source names")
         options = {k: v for k, v in data.items() if k not in ("joints", "ignore")}
         options.setdefault("name", Path(source_file).stem)
-        return cls(joints=joints, ignore=tuple(data.get("ignore") or ()), source_file=source_file,
-                   **options)  # fmt: skip
+        return cls(
+            joints=joints,
+            ignore=tuple(data.get("ignore") or ()),
+            source_file=source_file,
+            **options,
+        )
 
     # --- axes ----------------------------------------------------------------------------
     def _axes_matrix(self) -> np.ndarray:
@@ -126,13 +137,13 @@ class RetargetMap:
             sign = -1.0 if spec.startswith("-") else 1.0
             axis = spec.lstrip("+-")
             if axis not in AXIS_NAMES:
-                raise RetargetMapError(
+                raise JointMapError(
                     f"{self.source_file}: {role} axis {spec!r} must be one of "
                     "+x, -x, +y, -y, +z, -z"
                 )
             matrix[row, AXIS_NAMES[axis]] = sign
         if not np.allclose(np.abs(matrix).sum(axis=0), 1.0):
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{self.source_file}: up {self.up!r}, forward {self.forward!r} and left "
                 f"{self.left!r} must name three different source axes"
             )
@@ -146,7 +157,7 @@ class RetargetMap:
     def apply(self, rig, tracks: JointTracks) -> MappedTargets:
         """The mapped rig joints' world positions for every frame of ``tracks``."""
         if rig.name != self.rig:
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{self.source_file}: the map is for rig {self.rig!r}, not {rig.name!r}"
             )
         rig_names, edges = self._edges(rig)
@@ -166,16 +177,24 @@ class RetargetMap:
                 f"{self.source_file} (add them to 'joints', or to 'ignore' to silence this)",
                 stacklevel=2,
             )
-        return MappedTargets(rig.name, tuple(rig_names), positions, tracks.fps, tracks.source,
-                             scale, undriven, unused)  # fmt: skip
+        return MappedTargets(
+            rig.name,
+            tuple(rig_names),
+            positions,
+            tracks.fps,
+            tracks.source,
+            scale,
+            undriven,
+            unused,
+        )
 
     def _edges(self, rig) -> tuple[list[str], list[tuple[int, int]]]:
         """Mapped rig joints in hierarchy order and (parent, child) pairs between them."""
         unknown = sorted(n for n in self.joints if n not in rig.joint_names)
         if unknown:
-            raise RetargetMapError(f"{self.source_file}: rig {rig.name!r} has no joints {unknown}")
+            raise JointMapError(f"{self.source_file}: rig {rig.name!r} has no joints {unknown}")
         if rig.parents is None:
-            raise RetargetMapError(f"{self.source_file}: rig {rig.name!r} has no joint hierarchy")
+            raise JointMapError(f"{self.source_file}: rig {rig.name!r} has no joint hierarchy")
         names = [n for n in rig.joint_names if n in self.joints]
         position = {n: k for k, n in enumerate(names)}
         edges, roots = [], []
@@ -188,7 +207,7 @@ class RetargetMap:
             else:
                 edges.append((position[rig.joint_names[ancestor]], k))
         if len(roots) != 1:
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{self.source_file}: mapped rig joints {roots} have no mapped ancestor; exactly "
                 "one (the rig's root joint) may, so that every other joint hangs from it"
             )
@@ -197,7 +216,7 @@ class RetargetMap:
     def _check_source(self, tracks: JointTracks) -> tuple[str, ...]:
         missing = {r: s for r, s in self.joints.items() if s not in tracks.joint_names}
         if missing:
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{tracks.source}: source joints required by {self.source_file} are missing: "
                 + ", ".join(f"{s!r} (drives {r!r})" for r, s in missing.items())
             )
@@ -213,7 +232,7 @@ class RetargetMap:
         frame, edge = np.unravel_index(int(np.argmin(lengths)), lengths.shape)
         if lengths[frame, edge] <= floor:
             parent, child = edges[edge]
-            raise RetargetMapError(
+            raise JointMapError(
                 f"{self.source_file}: rig bone {names[parent]!r} -> {names[child]!r} maps to "
                 f"source {self.joints[names[parent]]!r} -> {self.joints[names[child]]!r}, which "
                 f"has no length at frame {frame}; map one of them to another source joint"
@@ -226,7 +245,7 @@ class RetargetMap:
             return float(self.scale)
         if self.scale == "unit":
             if tracks.unit == SOURCE_UNIT:
-                raise RetargetMapError(
+                raise JointMapError(
                     f"{self.source_file}: scale 'unit' but {tracks.source} has no stated unit; "
                     "use scale: auto"
                 )
@@ -249,7 +268,7 @@ class RetargetMap:
                 bone = bone * scale
             out[:, child] = out[:, parent] + bone
         if not np.isfinite(out).all():
-            raise RetargetMapError(f"{where}: the retargeted positions are not finite")
+            raise JointMapError(f"{where}: the retargeted positions are not finite")
         return out
 
 

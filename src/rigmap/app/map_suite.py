@@ -5,7 +5,7 @@ speeds, runs, jumps, uneven ground, sitting and climbing, a dance), not on 16 fr
 two walks. Each clip is mapped whole at ``map.fps`` as ``rigmap map`` maps it (its
 skeleton matched when it is the other CMU conversion, a T-pose frame cut, glitch frames
 rebuilt) into ``<data>/<rig>/map_suite/<clip>/``; per clip
-``<metrics>/<rig>/map_suite/<clip>.json`` holds the :mod:`rigmap.map.mocap_stage`
+``<metrics>/<rig>/map_suite/<clip>.json`` holds the :mod:`rigmap.app.map_stage`
 scores plus the motion kind, and ``<reports>/map_suite/<rig>.md`` is the page: one
 row per clip with joint RMS (cm, % height), skate against the source's, ground
 penetration, the largest control jump (training std), keys per frame and control, Euler
@@ -22,8 +22,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from rigmap.map.app import Log, map_from_config
-from rigmap.map.mocap_stage import MODEL_FOLDER, clip_metrics
+from rigmap.app.map_job import Log
+from rigmap.app.map_stage import clip_metrics, map_stage_clip
 from rigmap.store import Layout, write_json_atomic, write_text_atomic
 
 METRICS_SET = "map_suite"
@@ -60,15 +60,8 @@ def map_suite(
     kinds = dict(options.get("kinds") or {})
     rows = []
     for source in suite_clips(options):
-        settings = {**config["map"], "first_frame": 0, "frames": None, "preview": False}
-        clip_config = {
-            **config,
-            "map": settings,
-            "input": str(source),
-            "out": str(out),
-            "model_cache": str(out / MODEL_FOLDER),
-        }
-        (mapped,) = map_from_config(clip_config, config_dir=config_dir, log=log)
+        whole = {"first_frame": 0, "frames": None, "preview": False}
+        mapped = map_stage_clip(config, source, out, whole, config_dir=config_dir, log=log)
         row = {**clip_metrics(mapped), "clip": source.stem, "kind": kinds.get(source.stem, "")}
         row["euler_flips"] = mapped.summary["euler_flips"]
         folder = layout.metrics_folder(rig_name, METRICS_SET)
