@@ -44,9 +44,12 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
         from rigmap.evaluation.mlflow_runs import EvaluationLog
 
         log = EvaluationLog.start(
-            config.get("tracking") or {}, rig.name, settings.set, config,
+            config.get("tracking") or {},
+            rig.name,
+            settings.set,
+            config,
             log_models=settings.log_models,
-        )  # fmt: skip
+        )
     with log if log is not None else nullcontext():
         return evaluate(
             rig,
