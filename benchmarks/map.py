@@ -39,8 +39,8 @@ WALK = ROOT.parent / "shared" / "mocap" / "cmu_131_01_walk.bvh"
 def _config(args, *overrides: str) -> dict:
     from omegaconf import OmegaConf
 
+    from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config
-    from rigmap.stage.runner import stage_config
 
     paths = [f"paths.data={args.data}", f"paths.models={args.models}"]
     cfg = compose_config(["rig=biped", *paths, *overrides], ROOT / "conf", config_name="map")

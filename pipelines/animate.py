@@ -19,8 +19,8 @@ from pathlib import Path
 from omegaconf import DictConfig
 
 from rigmap.animation.corpus_files import require_motion_library, write_corpora
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import corpus_settings, layout_of, rig_from_config
+from rigmap.app.inputs import corpus_settings, layout_of, rig_from_config
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig) -> list[Path]:

@@ -18,8 +18,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of
+from rigmap.app.inputs import layout_of
+from rigmap.app.stage import run_stage
 from rigmap.store import atomic_file
 
 #: the fixture's actions: two to learn from, one to test on (the most extreme by default)

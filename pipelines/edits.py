@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.stage import run_stage
 from rigmap.edits import steps
 from rigmap.edits.representation import TargetError
-from rigmap.stage import run_stage
 from rigmap.store import Layout
 
 STEPS = ("fit", "apply", "evaluate")

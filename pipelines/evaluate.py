@@ -19,8 +19,8 @@ from pathlib import Path
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from rigmap.evaluation import evaluate_from_config
-from rigmap.stage import run_stage
+from rigmap.app.evaluate import evaluate_from_config
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig, *, experiment: str | None = None) -> list[Path]:

@@ -5,7 +5,8 @@ Reads ``<paths.data>/<rig>/corpus/train.parquet`` and ``poses/train.parquet`` (p
 ``<paths.models>/<rig>/<regressor>-<sampler>-<kernel>/`` atomically: the model files,
 ``fit.json`` (rows, seconds, feature layout, training error, the resolved config) and,
 for a multiquadric GPR, the learned Jacobian in ``learned_jacobian/``. The logic lives
-in :mod:`rigmap.regression.fitting`, shared with ``rigmap fit``.
+in :mod:`rigmap.regression.fitting`, called through :mod:`rigmap.app.fit` as ``rigmap fit``
+does.
 
     python pipelines/fit.py rig=quadruped regressor=nn sampler=pca_gaussian
     python pipelines/fit.py rig=quadruped regressor=gpr sampler=none kernel=multiquadric
@@ -13,14 +14,15 @@ in :mod:`rigmap.regression.fitting`, shared with ``rigmap fit``.
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from rigmap.regression.fitting import FitResult, fit_from_config
-from rigmap.stage import run_stage
+from rigmap.app.fit import fit_from_config
+from rigmap.app.stage import run_stage
+from rigmap.regression.fitting import FitResult
 
 
 def run(cfg: DictConfig) -> FitResult:
-    return fit_from_config(OmegaConf.to_container(cfg, resolve=True))
+    return fit_from_config(cfg)
 
 
 if __name__ == "__main__":

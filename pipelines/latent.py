@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-from rigmap.latent.stage import run_step
-from rigmap.stage import run_stage
+from rigmap.app.latent import run_step
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig):

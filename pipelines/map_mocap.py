@@ -15,7 +15,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.app.map_stage import map_mocap
-from rigmap.stage import run_stage
+from rigmap.app.stage import run_stage
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "conf"
 

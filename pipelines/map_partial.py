@@ -16,7 +16,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.app.map_partial import map_partial_from_config
-from rigmap.stage import run_stage
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig) -> list[Path]:

@@ -14,7 +14,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.app.map_suite import map_suite
-from rigmap.stage import run_stage
+from rigmap.app.stage import run_stage
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "conf"
 

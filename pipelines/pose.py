@@ -14,8 +14,8 @@ from pathlib import Path
 from omegaconf import DictConfig
 
 from rigmap.animation.corpus_files import pose_corpora
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of, rig_from_config
+from rigmap.app.inputs import layout_of, rig_from_config
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> list[Path]:

@@ -23,11 +23,11 @@ from pathlib import Path
 import yaml
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from rigmap.app.inputs import layout_of
+from rigmap.app.objects import sampler_name
+from rigmap.app.stage import run_stage
 from rigmap.catalog import Catalogue, packaged_conf, read_catalogue
 from rigmap.reports import ReportFiles, ReportSettings, build_report
-from rigmap.sampling import sampler_name
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of
 
 PARAMS_FILE = Path("params.yaml")  # DVC runs the stage at the repository root
 

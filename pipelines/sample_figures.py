@@ -16,10 +16,10 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus_files import read_corpus_split
+from rigmap.app.inputs import layout_of, rig_from_config
+from rigmap.app.stage import run_stage
 from rigmap.rigs.manifest import manifest
 from rigmap.sampling import available
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of, rig_from_config
 from rigmap.viz.samples import SampleFigure, draw_sample_figure, sample_rows
 
 # The view each rig's poses read best in is its manifest's ``view`` (the face's

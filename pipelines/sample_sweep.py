@@ -22,15 +22,15 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
+from rigmap.app.inputs import layout_of, rig_from_config
+from rigmap.app.objects import sampler_name
+from rigmap.app.stage import run_stage
 from rigmap.evaluation.sample_sweep import (
     DEFAULT_FRACTIONS,
     joint_space_sweep,
     sample_counts,
     sample_sweep,
 )
-from rigmap.sampling import sampler_name
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of, rig_from_config
 
 __all__ = ["run", "sample_counts", "sweep_fractions"]
 

@@ -21,10 +21,10 @@ import time
 from omegaconf import DictConfig, OmegaConf
 
 from rigmap.animation.corpus_files import read_corpus_split
+from rigmap.app.inputs import layout_of, rig_from_config, sampler_from_config, sampler_seed
+from rigmap.app.stage import run_stage
 from rigmap.sampling import SupersampleResult, supersample
 from rigmap.sampling.supersample import DEFAULT_CHUNK_SIZE, check_supersample_memory
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import layout_of, rig_from_config, sampler_from_config, sampler_seed
 
 
 def run(cfg: DictConfig, *, progress: bool = True) -> SupersampleResult:

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
-from rigmap.config_objects import instantiate_as
-from rigmap.stage import run_stage
-from rigmap.stage.inputs import rig_from_config
+from rigmap.app.inputs import rig_from_config
+from rigmap.app.objects import instantiate_as
+from rigmap.app.stage import run_stage
 
 
 def run(cfg: DictConfig) -> float:

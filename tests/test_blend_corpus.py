@@ -170,7 +170,7 @@ def test_the_animate_stage_and_rig_blend_file_read_the_imported_corpus(hero, her
 
     from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import read_corpus_split
-    from rigmap.stage.inputs import rig_from_config
+    from rigmap.app.inputs import rig_from_config
     from rigmap.store import Layout
 
     conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "rig" / "blend_file.yaml")
@@ -298,10 +298,10 @@ def test_mapped_keys_go_into_a_copy_that_keeps_the_files_actions(hero, hero_blen
 
     from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import read_corpus_split
+    from rigmap.app.inputs import rig_from_config
     from rigmap.map.blend_output import write_mapped_keys_blend
     from rigmap.map.key_reduction import reduce_within_joint_tolerance
     from rigmap.rigs.blender.export import read_blend_animation
-    from rigmap.stage.inputs import rig_from_config
     from rigmap.store import Layout
 
     conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "rig" / "blend_file.yaml")
@@ -355,11 +355,11 @@ def test_rigmap_map_onto_the_users_file_writes_back_keys_that_replay_within_its_
 
     from rigmap.animation.blend_corpus import write_blend_corpora
     from rigmap.animation.corpus_files import pose_corpora
+    from rigmap.app.inputs import rig_from_config
     from rigmap.app.map_job import map_from_config
+    from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config, find_config_dir
     from rigmap.rigs.blender.export import read_blend_animation
-    from rigmap.stage.inputs import rig_from_config
-    from rigmap.stage.runner import stage_config
     from rigmap.store import Layout
 
     root = Path(__file__).resolve().parents[1]

@@ -16,10 +16,10 @@ import yaml
 from hydra import compose, initialize_config_dir
 
 from rigmap.animation.library import libraries
-from rigmap.pipeline_params import compose_params, write_params
+from rigmap.app.params import compose_params, write_params
+from rigmap.app.stage import RIG_OVERRIDES, apply_rig_overrides, stage_config
 from rigmap.rigs import available as available_rigs
 from rigmap.sampling import available as available_samplers
-from rigmap.stage import RIG_OVERRIDES, apply_rig_overrides, stage_config
 
 ROOT = Path(__file__).resolve().parents[1]
 KERNELS = ["multiquadric", "gaussian", "linear", "polynomial"]
@@ -34,8 +34,8 @@ def resolved_stages(project: Path) -> dict:
 
 
 def filled(stage, project: Path = ROOT) -> str:
-    """The stage's command as it runs: its @placeholders filled (rigmap.stage.placeholders)."""
-    from rigmap.stage.placeholders import resolve_argv
+    """The stage's command as it runs: its @placeholders filled (rigmap.app.placeholders)."""
+    from rigmap.app.placeholders import resolve_argv
 
     resolved = resolve_argv(stage.cmd.split(), project, stage.name)
     values = [f"{key}={value}" for key, (_, value) in resolved.params.items()]

@@ -18,8 +18,9 @@ from scipy.spatial.transform import Rotation
 from rigmap.animation import read_bvh
 from rigmap.animation.bvh import ROTATION_CHANNELS
 from rigmap.animation.bvh_write import write_bvh
+from rigmap.app.edits import load_settings
 from rigmap.cli import main
-from rigmap.edits.artist import MODEL_STEM, load_settings
+from rigmap.edits.artist import MODEL_STEM
 from rigmap.edits.pairs import feature_joints, fixed_rate, pair_scale, read_clip, read_pair
 from rigmap.edits.propagation import EditModel, save_model
 from rigmap.edits.study import weights_from

@@ -20,7 +20,8 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from rigmap.evaluation import EvaluationSetupError, RefineSettings, method_catalog
+from rigmap.app.evaluate import method_catalog
+from rigmap.evaluation import EvaluationSetupError, RefineSettings
 from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor
 from rigmap.regression.features import feature_names, inverse_features
 from test_methods import build_rig_data, fit_tiny_models

@@ -115,7 +115,7 @@ def test_every_stage_command_is_a_fixed_string_whose_values_are_declared_params(
 
 def test_placeholders_take_the_matrix_entry_and_params_yaml_values(tmp_path):
     """Trial: ``fit_gpr@biped-linear`` fills rig and kernel from its own matrix entry."""
-    from rigmap.stage.placeholders import resolve_argv
+    from rigmap.app.placeholders import resolve_argv
 
     project = _project(tmp_path, seed=7)
     argv = ["fit.py", "rig=@item.rig", "regressor=gpr", "kernel=@item.kernel", "seed=@seed"]
@@ -128,7 +128,7 @@ def test_placeholders_take_the_matrix_entry_and_params_yaml_values(tmp_path):
 @pytest.mark.parametrize("rig", ["biped;touch X", "$(touch X)", "a b"])
 def test_hostile_matrix_value_is_refused_before_any_command(tmp_path, rig):
     """Trial: a rig name with shell syntax in pipeline.rigs never reaches an argument."""
-    from rigmap.stage.placeholders import PlaceholderError, resolve_argv
+    from rigmap.app.placeholders import PlaceholderError, resolve_argv
 
     project = _project(tmp_path, **{"pipeline.rigs": [rig]})
     with pytest.raises(PlaceholderError, match="is not a plain name"):
@@ -138,7 +138,7 @@ def test_hostile_matrix_value_is_refused_before_any_command(tmp_path, rig):
 
 def test_placeholder_outside_dvc_says_how_to_run_it(tmp_path):
     """Trial: ``rig=@item.rig`` typed by hand, with no DVC_STAGE."""
-    from rigmap.stage.placeholders import PlaceholderError, resolve_argv
+    from rigmap.app.placeholders import PlaceholderError, resolve_argv
 
     project = _project(tmp_path)
     with pytest.raises(PlaceholderError, match="run it with dvc repro"):
@@ -147,7 +147,7 @@ def test_placeholder_outside_dvc_says_how_to_run_it(tmp_path):
 
 def test_committed_params_yaml_is_what_conf_composes():
     """Trial: the committed params.yaml against conf/ (``.ci/run`` runs the same check)."""
-    from rigmap.pipeline_params import stale_params
+    from rigmap.app.params import stale_params
 
     assert stale_params(ROOT) == []
     assert "python -m rigmap.pipeline_params fresh" in (ROOT / ".ci" / "run").read_text()
@@ -155,7 +155,7 @@ def test_committed_params_yaml_is_what_conf_composes():
 
 def test_stale_params_yaml_fails_the_check(tmp_path, monkeypatch, capsys):
     """Trial: tune.steps 80 / control_weight 0.01 in params.yaml while conf/ says otherwise."""
-    from rigmap.pipeline_params import main
+    from rigmap.app.params import main
 
     tuned = "method.nn_joint_space_tuned.tune"
     project = _project(tmp_path, **{f"{tuned}.steps": 80, f"{tuned}.control_weight": 0.01})
@@ -413,6 +413,7 @@ def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, k
     """Trials: ``rigmap edits``, ``synth``, ``map`` (its model cache), ``fit`` and ``evaluate``
     write under outputs/ unless a paths.* override names another folder; the data they only
     read stays the pipeline's; DVC stages keep conf/'s paths."""
+    import rigmap.app.config
     import rigmap.cli as cli
 
     seen = []
@@ -422,7 +423,8 @@ def test_user_commands_compose_paths_under_outputs(monkeypatch, command, tail, k
         raise ValueError("composed")  # stop before any work
 
     monkeypatch.delenv("RIGMAP_DEBUG", raising=False)
-    monkeypatch.setattr(cli, "compose_config", compose)
+    monkeypatch.setattr(cli, "compose_config", compose)  # the verbs handed it (synth)
+    monkeypatch.setattr(rigmap.app.config, "compose_config", compose)  # the application layer
     assert cli.main([*command, *tail]) == 2
     paths = [o for o in seen[0] if o.startswith("paths.")]
     assert paths == [f"paths.{k}=outputs/{k}" for k in keys]
@@ -457,8 +459,8 @@ def test_every_stage_gets_the_config_its_interpolated_command_gave(tmp_path):
     from hydra import compose, initialize_config_dir
     from omegaconf import OmegaConf
 
-    from rigmap.stage import stage_config
-    from rigmap.stage.placeholders import apply_params, resolve_argv
+    from rigmap.app.placeholders import apply_params, resolve_argv
+    from rigmap.app.stage import stage_config
 
     project = _project(tmp_path, **CHANGED)
     firsts = {}

@@ -397,9 +397,9 @@ def test_supersample_beyond_memory_refused(here):
     """budget.samples=1e9 is refused before the corpus is read or anything drawn."""
     from omegaconf import OmegaConf
 
+    from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config
     from rigmap.memory import MemoryBudgetError
-    from rigmap.stage.runner import stage_config
     from stage_scripts import load_stage
 
     overrides = ["rig=biped", "sampler=pca_gaussian", "budget.samples=1000000000", *_paths(here)]

@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rigmap.pipeline_params import ParamsError, write_params
+from rigmap.app.params import ParamsError, write_params
 from rigmap.preflight import PreflightError, check_pipeline_needs
 from rigmap.reproduce import plan_reproduce, run_reproduce
 

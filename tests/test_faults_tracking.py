@@ -119,8 +119,8 @@ def test_a_server_that_stalls_after_health_is_named_in_one_line_after_bounded_re
     MlflowException tracebacks)."""
     from mlflow.exceptions import MlflowException
 
+    from rigmap.app.stage import _exit_if_users
     from rigmap.cli import expected_failure, failure_message
-    from rigmap.stage.runner import _exit_if_users
     from rigmap.tracking import Tracker
     from rigmap.tracking.store import TrackingUnavailableError, tracking_failure
 

@@ -26,9 +26,17 @@ PACKAGE = SRC / "rigmap"
 ALLOWED_CYCLES: list[frozenset[str]] = []
 ALLOWED_LONG_FUNCTIONS: set[str] = set()
 
-# The command line and the jobs it runs: they import the library; the library never imports
+# The command line, the jobs it runs and the application layer that reads config (rigmap.app):
+# they import the library; the library never imports
 # them back (ours: the layering rule of issue #35).
-APPLICATIONS = ("rigmap.cli", "rigmap.learn", "rigmap.reproduce")
+APPLICATIONS = (
+    "rigmap.cli",
+    "rigmap.learn",
+    "rigmap.reproduce",
+    "rigmap.app",
+    "rigmap.pipeline_params",
+    "rigmap.stage",  # the old name of rigmap.app.stage, a re-export
+)
 
 MAX_FUNCTION_LINES = 80
 LONG_FUNCTIONS_ALLOWED_UNDER = ("rigmap/rigs/characters/", "rigmap/animation/library/")

@@ -17,10 +17,10 @@ import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 
+from rigmap.app.latent import run_step, step_metrics
 from rigmap.cli import main
 from rigmap.latent import steps
 from rigmap.latent.errors import LatentInputError
-from rigmap.latent.stage import run_step, step_metrics
 from rigmap.reports.latent_tables import latent_figures, latent_tables
 from rigmap.rigs import load
 from rigmap.store import Layout
@@ -241,7 +241,7 @@ def test_the_evaluate_run_in_mlflow_carries_every_steps_numbers(project, tmp_pat
     """latent.mlflow_steps=[evaluate] (quick): one run with fit, match and synthesize too."""
     from mlflow import MlflowClient
 
-    from rigmap.latent.stage import latent_config, log_step
+    from rigmap.app.latent import latent_config, log_step
 
     tmp, script = project
     summary = tmp / "metrics/face/latent/summary.json"

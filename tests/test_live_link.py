@@ -275,7 +275,8 @@ def test_live_link_columns_of_a_rigs_controls():
 
 
 def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch):
-    from rigmap.latent import cli, steps
+    from rigmap.app import synth as cli
+    from rigmap.latent import steps
 
     rig = SimpleNamespace(name="arkit", used_controls=("jawOpen", "mouthSmileLeft"))
     P = np.random.default_rng(3).uniform(0, 1, (48, 2))
@@ -292,7 +293,8 @@ def test_synth_run_writes_a_live_link_csv_for_an_arkit_rig(tmp_path, monkeypatch
 
 
 def test_synth_run_refuses_a_csv_for_a_rig_without_arkit_controls(tmp_path, monkeypatch):
-    from rigmap.latent import cli, steps
+    from rigmap.app import synth as cli
+    from rigmap.latent import steps
     from rigmap.rigs import load
 
     rig = load("face")

@@ -29,7 +29,7 @@ OUTPUTS = ["controls.parquet", "frames.parquet", "keys.json", "preview.gif", "pr
 def map_config(project: Path, *overrides: str) -> dict:
     from omegaconf import OmegaConf
 
-    from rigmap.stage.runner import stage_config
+    from rigmap.app.stage import stage_config
 
     paths = [f"paths.data={project / 'data'}", f"paths.models={project / 'models'}"]
     cfg = compose_config(["rig=biped", *paths, *SMALL_MODEL, *overrides], CONF,

@@ -136,8 +136,8 @@ def test_rigmap_map_on_rigify_human_writes_its_keys_into_a_blend(human, tmp_path
 
     from rigmap.animation.corpus_files import pose_corpora, write_corpora
     from rigmap.app.map_job import map_from_config
+    from rigmap.app.stage import stage_config
     from rigmap.cli import compose_config, find_config_dir
-    from rigmap.stage.runner import stage_config
     from rigmap.store import Layout
 
     root = Path(__file__).resolve().parents[1]

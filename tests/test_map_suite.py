@@ -35,7 +35,7 @@ def project(tmp_path_factory, biped):
 def suite_config(project: Path, *overrides: str) -> dict:
     from omegaconf import OmegaConf
 
-    from rigmap.stage.runner import stage_config
+    from rigmap.app.stage import stage_config
 
     paths = [f"paths.{p}={project / p}" for p in ("data", "models", "metrics", "reports")]
     cfg = compose_config(["rig=biped", *paths, *SMALL_MODEL, *overrides], CONF, config_name="map")

@@ -132,9 +132,9 @@ def test_ray_not_installed_is_a_clear_error(monkeypatch):
 
 def test_executor_choice_is_checked_and_only_blender_rigs_take_ray(quadruped):
     from rigmap.errors import RigmapError
+    from rigmap.rigs import use_executor
     from rigmap.rigs.base import RigInputError
     from rigmap.rigs.blender.rig import executor_options
-    from rigmap.stage.inputs import use_executor
 
     assert executor_options(None, "w") == {"kind": "local"}
     assert executor_options({"kind": "ray", "address": None, "actors": 2}, "w")["actors"] == 2

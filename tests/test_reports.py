@@ -610,7 +610,7 @@ def _mini_project(folder: Path, *, dvc_init: bool = False) -> Path:
 
 
 def test_reproduce_arguments_are_checked(tmp_path):
-    from rigmap.pipeline_params import ParamsError
+    from rigmap.app.params import ParamsError
     from rigmap.reproduce import plan_reproduce
 
     project = _mini_project(tmp_path)
@@ -668,7 +668,7 @@ def test_reproduce_runs_dvc_with_the_composed_experiment(tmp_path):
 def test_params_yaml_is_what_dvc_exp_run_writes(tmp_path):
     from dvc.utils.hydra import compose_and_dump
 
-    from rigmap.pipeline_params import reaching_stages, write_params
+    from rigmap.app.params import reaching_stages, write_params
 
     project = _mini_project(tmp_path)
     overrides = ["experiment=paper", "regressor.hidden=1024"]

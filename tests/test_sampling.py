@@ -10,6 +10,7 @@ from hydra.utils import instantiate
 from omegaconf import OmegaConf
 from scipy.spatial import cKDTree
 
+from rigmap.app.objects import sampler_from_node, sampler_name
 from rigmap.sampling import (
     SAMPLERS,
     GaussianMixtureSampler,
@@ -23,7 +24,6 @@ from rigmap.sampling import (
     available,
     clamp_to_limits,
     make_sampler,
-    sampler_name,
 )
 
 CONF = Path(__file__).resolve().parents[1] / "conf" / "sampler"
@@ -378,14 +378,19 @@ def test_each_config_builds_its_strategy_with_the_class_defaults(name):
     sampler = instantiate(config, _convert_="all")
     assert type(sampler) is SAMPLERS[name]
     assert sampler.get_params() == type(sampler)().get_params()
-    assert type(make_sampler(**config)) is SAMPLERS[name]  # the compatibility door agrees
+    assert type(sampler_from_node(**config)) is SAMPLERS[name]  # the app layer's door agrees
 
 
 def test_config_target_must_match_its_name():
     with pytest.raises(ValueError, match=r"PCAGaussianSampler' is the 'pca_gaussian' sampler"):
-        make_sampler("gmm", _target_="rigmap.sampling.PCAGaussianSampler")
+        sampler_from_node("gmm", _target_="rigmap.sampling.PCAGaussianSampler")
     # Hydra's instantiate would get the class itself from _target_
     assert isinstance(
-        make_sampler("gmm", _target_="rigmap.sampling.GaussianMixtureSampler", n_components=2),
+        sampler_from_node("gmm", _target_="rigmap.sampling.GaussianMixtureSampler", n_components=2),
         GaussianMixtureSampler,
     )
+
+
+def test_the_library_make_sampler_refuses_a_config_node():
+    with pytest.raises(TypeError, match=r"rigmap\.app\.objects\.sampler_from_node"):
+        make_sampler("gmm", _target_="rigmap.sampling.GaussianMixtureSampler")

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from rigmap.regression.fitting import FitInputError, _replicate_of
+from rigmap.app.fit import _replicate_of
+from rigmap.regression.fitting import FitInputError
 from rigmap.reports import ReportSettings, load_metrics
 from rigmap.reports.seed_spread import NETWORK_METHODS, Spread, compare
 from rigmap.reports.tables import methods_table
@@ -168,16 +169,37 @@ def test_seed_spread_script_flags_rows_that_disagree(tmp_path):
     assert _seed_spread(a, tmp_path / "nowhere").returncode == 2
 
 
-def test_replicate_rows_that_train_no_network_are_not_spread_rows(tmp_path):
-    """A Blender rig's replicate stage also scores GPR and the mean predictor (seed 0's
-    models): the report reads only the network rows from it, and refuses a malformed name."""
+def test_a_replicate_run_scores_only_the_network_rows_whatever_the_rig_lists():
+    """A Blender rig's ``_overrides_`` list GPR and the mean predictor too (seed 0's models):
+    the replicate evaluate keeps only the rows a re-trained network guesses, and the report
+    refuses any other row in a replicate folder."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.evaluate import replicated_methods
+    from rigmap.evaluation.checks import EvaluationSetupError
+    from rigmap.evaluation.method import packaged_methods
+
+    wolf = OmegaConf.load(Path(__file__).parents[1] / "conf" / "rig" / "rigify_wolf.yaml")
+    wolf_list = list(wolf["_overrides_"]["evaluate"]["methods"])
+    assert "gpr" in wolf_list and "mean" in wolf_list
+    catalog = packaged_methods()
+    assert replicated_methods(wolf_list, catalog) == (
+        "nn",
+        "nn_computed_jacobian",
+        "nn_learned_jacobian",
+    )
+    assert replicated_methods(list(catalog), catalog) == tuple(
+        name for name in catalog if name.startswith("nn")
+    )
+    with pytest.raises(EvaluationSetupError, match=r"evaluate\.methods: a replicate seed"):
+        replicated_methods(["gpr", "mean"], catalog)
+
+
+def test_the_report_refuses_a_row_that_trains_no_network_in_a_replicate_folder(tmp_path):
     from rigmap.reports.metrics_tree import ReportInputError, read_replicates
 
     seed_folder = tmp_path / "rigify_wolf" / "methods_seed1"
     seed_folder.mkdir(parents=True)
     (seed_folder / "gpr-none.json").write_text("{}")
-    (seed_folder / "mean-none.json").write_text("{}")
-    assert read_replicates(tmp_path / "rigify_wolf", "rigify_wolf") == {1: {}}
-    (seed_folder / "stray.json").write_text("{}")
-    with pytest.raises(ReportInputError, match=r"stray\.json: unexpected file"):
+    with pytest.raises(ReportInputError, match=r"gpr-none\.json: unexpected file"):
         read_replicates(tmp_path / "rigify_wolf", "rigify_wolf")

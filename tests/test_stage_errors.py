@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from rigmap.stage import USER_ERROR_EXIT, error_message, is_user_error
+from rigmap.app.stage import USER_ERROR_EXIT, error_message, is_user_error
 
 ROOT = Path(__file__).resolve().parents[1]
 

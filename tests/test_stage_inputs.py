@@ -1,4 +1,4 @@
-"""rigmap.stage.inputs: the plain objects a stage builds from its composed config."""
+"""rigmap.app.inputs: the plain objects a stage builds from its composed config."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from rigmap.stage.inputs import corpus_fps, layout_of, rig_from_config, sampler_seed
+from rigmap.app.inputs import corpus_fps, layout_of, rig_from_config, sampler_seed
 from rigmap.store import Layout
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -112,7 +112,7 @@ def test_a_failed_stage_stops_what_depends_on_it(tmp_path, keep_going):
 
 @pytest.mark.parametrize("jobs", [0, -1, True])
 def test_jobs_must_be_a_positive_whole_number(tmp_path, jobs):
-    from rigmap.pipeline_params import ParamsError
+    from rigmap.app.params import ParamsError
     from rigmap.reproduce import plan_reproduce
 
     with pytest.raises(ParamsError, match="--jobs"):

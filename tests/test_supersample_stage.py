@@ -121,7 +121,7 @@ def test_samplers_draw_from_different_seeds_and_uniform_soft_uses_the_rigs_range
 KILLABLE_STAGE = """
 import runpy, sys, time
 sys.path.insert(0, {pipelines!r})
-import rigmap.stage.inputs as stage_inputs
+import rigmap.app.inputs as stage_inputs
 
 class SlowRig:
     # the real rig, posing slowly enough that the test can kill the run between chunks

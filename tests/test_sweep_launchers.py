@@ -1,5 +1,5 @@
 """Sweeps with the maintained Optuna sweeper (hydra-optuna-sweeper) and rigmap's callback
-(rigmap.tracking.optuna_sweep): a 12-trial study killed and resumed, its trials resumed as
+(rigmap.app.optuna_sweep): a 12-trial study killed and resumed, its trials resumed as
 submitit jobs, one MLflow parent run with a child per trial; and a sweep on a Ray head.
 
 Trials are the real ``pipelines/tune.py`` trials of the quadruped's joint-space network,
@@ -179,7 +179,7 @@ def test_slurm_launcher_config_and_sweeper_space_compose():
     searched = {"gaussian_scale", "hidden", "learning_rate", "control_weight"}
     assert set(sweeper.params) == {f"regressor.{name}" for name in searched}
     callback = cfg.hydra.callbacks.optuna_mlflow
-    assert callback._target_ == "rigmap.tracking.optuna_sweep.OptunaSweepCallback"
+    assert callback._target_ == "rigmap.app.optuna_sweep.OptunaSweepCallback"
     assert callback.rig == "quadruped" and callback.resume is True
     assert cfg.regressor._target_.endswith("JointSpaceNetworkRegressor")
 
@@ -187,7 +187,7 @@ def test_slurm_launcher_config_and_sweeper_space_compose():
 def test_the_sweep_callback_refuses_a_sweep_without_storage_or_a_bad_resume(tmp_path):
     from hydra import compose, initialize_config_dir
 
-    from rigmap.tracking.optuna_sweep import OptunaSweepCallback
+    from rigmap.app.optuna_sweep import OptunaSweepCallback
 
     overrides = ["hydra.sweeper.storage=null", f"tracking.uri=sqlite:///{tmp_path / 'm.db'}"]
     with initialize_config_dir(str(REPO / "conf"), version_base="1.3"):

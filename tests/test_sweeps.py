@@ -131,7 +131,7 @@ def _alive(pid: int) -> bool:
 def test_dvc_queue_runs_a_two_point_sweep_in_parallel(tmp_path):
     """The README's `dvc exp run --queue -S …` then `dvc queue start -j 2`, on a one-stage
     project that composes the repository's conf/ (DVC's Hydra integration)."""
-    from rigmap.pipeline_params import write_params
+    from rigmap.app.params import write_params
 
     project = tmp_path / "project"
     shutil.copytree(ROOT / "conf", project / "conf")

@@ -27,7 +27,7 @@ TIMEOUT_S = 300  # ours: each step takes seconds; this only stops a hung one
 MAKE_DATA = """
 from rigmap.animation.corpus_files import pose_corpora, write_corpora
 from rigmap.cli import compose_config
-from rigmap.stage.inputs import corpus_settings, layout_of, rig_from_config
+from rigmap.app.inputs import corpus_settings, layout_of, rig_from_config
 
 cfg = compose_config(["rig=quadruped"])
 rig, layout = rig_from_config(cfg.rig), layout_of(cfg)

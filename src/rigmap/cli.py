@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.config_compose import compose_config, find_config_dir
+from rigmap.app.config import compose_config, find_config_dir
 from rigmap.errors import RigmapError
 from rigmap.user_outputs import user_paths
 
@@ -52,11 +52,10 @@ def expected_failure(error: BaseException) -> bool:
     system refuses (every ``OSError``: a missing file, a folder where a file is expected,
     a full disk), ``MemoryError``, and a config Hydra cannot compose. Anything else is a bug.
     """
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
+    from rigmap.app.config import config_errors
 
-    expected = (RigmapError, ValueError, KeyError, OSError, MemoryError, HydraException)
-    return isinstance(error, (*expected, OmegaConfBaseException))
+    expected = (RigmapError, ValueError, KeyError, OSError, MemoryError)
+    return isinstance(error, (*expected, *config_errors()))
 
 
 def failure_message(error: BaseException) -> str:
@@ -89,7 +88,7 @@ def command_name(parser: argparse.ArgumentParser, argv: list[str]) -> str:
 
 
 def _debugging() -> bool:
-    from rigmap.stage.runner import debugging
+    from rigmap.app.stage import debugging
 
     return debugging()
 
@@ -114,7 +113,7 @@ def _parser() -> argparse.ArgumentParser:
     ):
         add(commands)
     add_learn_command(commands, compose_config, find_config_dir)
-    from rigmap.latent.cli import add_synth_command
+    from rigmap.app.synth import add_synth_command
 
     add_synth_command(commands, compose_config, find_config_dir)
     return parser
@@ -244,8 +243,8 @@ def _add_edits(commands) -> None:
     """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
     ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
     ``rigmap edits learn`` and ``apply --model``: an artist's own BVH pairs
-    (:mod:`rigmap.edits.artist_cli`)."""
-    from rigmap.edits import artist_cli
+    (:mod:`rigmap.app.edits`)."""
+    from rigmap.app import edits as edits_app
 
     edits = commands.add_parser(
         "edits",
@@ -290,28 +289,22 @@ def _add_edits(commands) -> None:
             run=lambda args, verb=verb: _edits(verb, args),
         )
         if verb == "apply":
-            artist_cli.add_apply_options(command)
-    artist_cli.add_learn_command(verbs)
-    artist_cli.add_fix_command(verbs)
+            edits_app.add_apply_options(command)
+    edits_app.add_learn_command(verbs)
+    edits_app.add_fix_command(verbs)
 
 
 def _edits(verb: str, args) -> int:
-    from omegaconf import OmegaConf
-
-    from rigmap.edits import steps
-    from rigmap.store import Layout
+    from rigmap.app.edits import run_edits_stage
 
     if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
-        from rigmap.edits.artist_cli import run_apply
+        from rigmap.app.edits import run_apply
 
         return run_apply(args)
     if verb == "apply" and (args.input, args.out, args.fps) != (None, None, None):
         raise ValueError("--input, --out and --fps go with --model (a rigmap edits learn folder)")
     overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
-    cfg = compose_config(["+edits=default", *overrides], args.config_dir)
-    config = OmegaConf.to_container(cfg.edits, resolve=True)
-    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    for path in getattr(steps, f"run_{verb}")(config, layout):
+    for path in run_edits_stage(verb, overrides, args.config_dir):
         print(path)
     return 0
 
@@ -441,41 +434,28 @@ def _add_reproduce(commands) -> None:
 
 
 def _fit(args) -> int:
-    from omegaconf import OmegaConf
-
-    from rigmap.regression.fitting import fit_from_config
-    from rigmap.stage.runner import apply_rig_overrides
+    from rigmap.app.fit import fit_command
 
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
-    cfg = apply_rig_overrides(compose_config(overrides, args.config_dir))
-    result = fit_from_config(OmegaConf.to_container(cfg, resolve=True))
-    print(result.folder)
+    print(fit_command(overrides, args.config_dir).folder)
     return 0
 
 
 def _evaluate(args) -> int:
-    """The evaluate stage in this process: the same library call as pipelines/evaluate.py."""
-    from omegaconf import OmegaConf
-
-    from rigmap.evaluation import evaluate_from_config
+    """The evaluate stage in this process: the same call as pipelines/evaluate.py."""
+    from rigmap.app.evaluate import evaluate_command
 
     overrides = [*user_paths(args.overrides, keys=("metrics", "reports")), *args.overrides]
-    cfg = compose_config(overrides, args.config_dir, with_hydra=True)
-    experiment = cfg.hydra.runtime.choices.get("experiment")
-    stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
-    evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+    evaluate_command(overrides, args.config_dir)
     return 0
 
 
 def _map_config(args) -> dict:
-    from omegaconf import OmegaConf
-
-    from rigmap.stage.runner import stage_config
+    from rigmap.app.map_job import map_config
 
     # the map's model cache (paths.models) goes under outputs/; the corpus is read from data/
     overrides = [*user_paths(args.overrides, keys=("models",)), *args.overrides]
-    cfg = stage_config(compose_config(overrides, args.config_dir, config_name="map"))
-    return OmegaConf.to_container(cfg, resolve=True)
+    return map_config(overrides, args.config_dir)
 
 
 def _map(args) -> int:

@@ -1,10 +1,54 @@
 """Objects built from config nodes: ``hydra.utils.instantiate``, then checked to be the kind
-the caller asked for, so a wrong ``_target_`` is one clear error naming the group."""
+the caller asked for, so a wrong ``_target_`` is one clear error naming the group.
+
+The one module outside :mod:`rigmap.app` that imports Hydra, because two library callers
+still build from config nodes and cannot import the application layer without a cycle:
+``rigmap.map.subset_model`` (its regressor) and ``rigmap.evaluation.method``'s
+``packaged_methods`` (the package's ``conf/method``, for the runner and the sample sweep,
+which take a method by name). It joins :mod:`rigmap.app.objects` once they take built
+objects. The application layer uses it through :mod:`rigmap.app.objects`."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
+
+from rigmap.errors import RigmapError
+
+
+class ConfigNodeError(RigmapError, ValueError):
+    """A config node Hydra could not build; ``__cause__`` is the reason Hydra wrapped."""
+
+
+def instantiate_node(config: Mapping[str, Any], **kwargs: Any) -> Any:
+    """``hydra.utils.instantiate`` of a plain node (``kwargs`` added to its own), Hydra's
+    wrapper unwrapped so the caller names the reason plainly."""
+    import hydra.utils
+    from hydra.errors import InstantiationException
+
+    try:
+        return hydra.utils.instantiate(dict(config), _convert_="all", **kwargs)
+    except InstantiationException as error:
+        cause = error.__cause__ if error.__cause__ is not None else error
+        raise ConfigNodeError(str(cause)) from cause
+
+
+def compose_group(config_dir: Path, group: str) -> Any:
+    """The ``group`` node of ``config_dir``'s ``config.yaml`` as composed, plain and resolved."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.initialize import get_gh_backup, restore_gh_from_backup
+    from omegaconf import OmegaConf
+
+    running_app = get_gh_backup()  # inside a stage's @hydra.main Hydra is initialised already
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(config_dir), version_base="1.3"):
+            config = compose(config_name="config")
+    finally:
+        restore_gh_from_backup(running_app)
+    return OmegaConf.to_container(config[group], resolve=True)
 
 
 def instantiate_as(config: Mapping[str, Any], base: type, group: str, error: type[Exception]):

@@ -137,7 +137,7 @@ def run_learn(
     return report
 
 
-STAGE_ERROR = "error: "  # how a stage prints an error the user can fix (rigmap.stage.runner)
+STAGE_ERROR = "error: "  # how a stage prints an error the user can fix (rigmap.app.stage)
 
 
 def _run_stage(argv: list[str], project: Path, env: dict) -> tuple[int, str]:

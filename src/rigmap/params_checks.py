@@ -1,7 +1,7 @@
 """What a value in ``params.yaml`` may be, checked before the file is written.
 
 Stages read values from ``params.yaml`` (``budget.samples=@budget.samples``, filled in by
-:mod:`rigmap.stage.placeholders`, which checks them here again), so a value
+:mod:`rigmap.app.placeholders`, which checks them here again), so a value
 that is the wrong type (``budget.samples=2.5`` or ``abc``), out of range
 (``-5``, ``0``), not finite, or carries shell syntax (``;``, ``$(...)``) is
 refused here with the key, the value and what was expected, and nothing is written.

@@ -2,7 +2,7 @@
 
 1. ``params.yaml`` is composed from ``conf/`` and the overrides (``experiment=paper``,
    ``budget.samples=20000`` ...) exactly as ``dvc exp run -S`` would compose it
-   (:mod:`rigmap.pipeline_params`); it is rewritten only when it changes.
+   (:mod:`rigmap.app.params`); it is rewritten only when it changes.
 2. ``dvc repro [STAGE ...]`` runs with the directory of the running Python first on
    ``PATH``, so every stage's ``python`` is the project's virtual environment.
    DVC's output is streamed as it comes, and a ``stage k/n`` line is printed when
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from rigmap.pipeline_params import (
+from rigmap.app.params import (
     ParamsError,
     check_overrides,
     find_project_root,

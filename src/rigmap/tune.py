@@ -7,7 +7,7 @@ Slurm node needs only the code), fits ``regressor`` through
 :class:`~rigmap.regression.mapping.InverseMapping` as the fit stage does, and returns the
 validation joint error (mean squared joint distance, cm²: what the sweep minimises). With
 ``optuna.parent_run_id`` set (the sweep's callback,
-:class:`rigmap.tracking.optuna_sweep.OptunaSweepCallback`, passes it) the trial is logged
+:class:`rigmap.app.optuna_sweep.OptunaSweepCallback`, passes it) the trial is logged
 as an MLflow child run of the study's parent run, with its parameters and score.
 """
 

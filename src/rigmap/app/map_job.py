@@ -1,4 +1,5 @@
-"""``rigmap map`` and ``rigmap pose`` from a plain config mapping (the library under the verbs).
+"""``rigmap map`` and ``rigmap pose``: their config composed (:func:`map_config`), then the work
+from the plain mapping.
 
 :func:`map_from_config` maps one input onto a rig: a BVH file, a folder of BVH files (a
 batch, with a progress bar), or a joint-tracks file (parquet, CSV or npz in the stated
@@ -72,6 +73,16 @@ Log = Callable[[str], None]
 
 class MapConfigError(RigmapError, ValueError):
     """A map or pose config that names no input, an unknown subset, or an unusable value."""
+
+
+def map_config(overrides: list[str], config_dir=None) -> dict[str, Any]:
+    """``rigmap map``/``pose``'s config: ``conf/map.yaml`` with ``overrides``, the rig's
+    ``_overrides_`` applied, resolved to the plain mapping the jobs below take."""
+    from rigmap.app.config import compose_config
+    from rigmap.app.objects import plain
+    from rigmap.app.stage import stage_config
+
+    return plain(stage_config(compose_config(overrides, config_dir, config_name="map")))
 
 
 # --------------------------------------------------------------------------- map

@@ -137,7 +137,7 @@ class MapPartialConfigError(RigmapError, ValueError):
 def map_partial_from_config(config: Mapping[str, Any]) -> list[Path]:
     """The stage from a composed config (a plain mapping: ``rig``, ``regressor``, ``paths``,
     ``map_partial``)."""
-    from rigmap.config_objects import instantiate_as
+    from rigmap.app.objects import instantiate_as
     from rigmap.regression.base import Regressor
     from rigmap.rigs import load
 

@@ -170,13 +170,3 @@ def apply_folder(model_dir, inputs, out, fps: float | None = None, glitch: str =
     summary = {"model": str(model_dir), "clips": rows}
     written.append(write_json_atomic(out / "applied.json", json_ready(summary)))
     return written, summary
-
-
-def load_settings(config_dir=None) -> dict:
-    """``conf/edits/default.yaml``'s model settings (residual, weights, iterations)."""
-    from omegaconf import OmegaConf
-
-    from rigmap.config_compose import compose_config
-
-    cfg = compose_config(["+edits=default"], config_dir)
-    return OmegaConf.to_container(cfg.edits, resolve=True)

@@ -11,12 +11,11 @@
 - :mod:`~rigmap.evaluation.fitted_models`: the model folders an evaluation reads;
 - :mod:`~rigmap.evaluation.evaluate`: the evaluate stage's work on plain objects;
 - :mod:`~rigmap.evaluation.mlflow_runs`: its parent and child MLflow runs;
-- :mod:`~rigmap.evaluation.from_config`: the same from a plain composed config (stage, CLI).
+- :mod:`rigmap.app.evaluate` (the application layer): the same from a composed config.
 """
 
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate, evaluate_job
 from rigmap.evaluation.fitted_models import FittedModels
-from rigmap.evaluation.from_config import evaluate_from_config
 from rigmap.evaluation.jobs import EVALUATION_SETS, EvaluationJob, evaluation_jobs
 from rigmap.evaluation.methods import (
     EvaluationSetupError,
@@ -27,7 +26,6 @@ from rigmap.evaluation.methods import (
     TestClip,
     TestSet,
     get_method,
-    method_catalog,
     run_method,
 )
 from rigmap.evaluation.metrics import (
@@ -66,13 +64,11 @@ __all__ = [
     "Timing",
     "control_std",
     "evaluate",
-    "evaluate_from_config",
     "evaluate_job",
     "evaluation_jobs",
     "get_method",
     "ground_truth_error",
     "joint_error",
-    "method_catalog",
     "run_method",
     "run_timed",
     "write_per_frame_csv",

@@ -1,6 +1,6 @@
 """A method of Table 1 as an object: an initial guess, then a refiner with its Jacobian source.
 
-A method is built from its yaml (``conf/method/<name>.yaml``) by ``hydra.utils.instantiate``:
+A method is built from its yaml (``conf/method/<name>.yaml``) from its ``_target_``:
 ``_target_: rigmap.evaluation.method.Method``, a ``guess`` node (the rig's retarget script, or
 a regressor by name) and a ``refine`` node from ``conf/refine/*`` (no refinement, or damped
 least squares, Eq. 13, with a computed or a learned Jacobian). The guess and the refiner do the
@@ -296,15 +296,16 @@ class Method:
 
 
 def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, Method]:
-    """Every method of the ``method`` config node, by name, built by ``hydra.utils.instantiate``."""
-    import hydra.utils
-    from hydra.errors import InstantiationException
+    """Every method of the ``method`` config node, by name, each built from its ``_target_``
+    (:func:`rigmap.config_objects.instantiate_node`; the application layer's
+    :func:`rigmap.app.evaluate.method_catalog` is this)."""
+    from rigmap.config_objects import ConfigNodeError, instantiate_node
 
     catalog = {}
     for name, node in configs.items():
         try:
-            built = hydra.utils.instantiate(dict(node), name=str(name), _convert_="all")
-        except (InstantiationException, EvaluationSetupError) as error:
+            built = instantiate_node(node, name=str(name))
+        except (ConfigNodeError, EvaluationSetupError) as error:
             cause = error.__cause__ if error.__cause__ is not None else error
             where = f"method.{name} (conf/method/{name}.yaml)"
             raise EvaluationSetupError(f"{where}: {cause}") from None
@@ -327,18 +328,10 @@ def method_catalog(configs: Mapping[str, Mapping[str, Any]]) -> dict[str, Method
 @lru_cache(maxsize=1)
 def packaged_methods() -> dict[str, Method]:
     """The package's methods as its own config composes them (for callers without a config)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from omegaconf import OmegaConf
-
     from rigmap.catalog import packaged_conf
+    from rigmap.config_objects import compose_group
 
-    if GlobalHydra.instance().is_initialized():  # inside a stage's @hydra.main: its own conf
-        config = compose(config_name="config")
-    else:
-        with initialize_config_dir(config_dir=str(packaged_conf()), version_base="1.3"):
-            config = compose(config_name="config")
-    return method_catalog(OmegaConf.to_container(config.method, resolve=True))
+    return method_catalog(compose_group(packaged_conf(), "method"))
 
 
 def get_method(name: str) -> Method:

@@ -39,7 +39,6 @@ import numpy as np
 
 from rigmap.animation.corpus import Corpus
 from rigmap.animation.posing import PoseTable
-from rigmap.config_objects import instantiate_as
 from rigmap.error_measures import control_std, ground_truth_error, joint_error
 from rigmap.errors import RigmapError
 from rigmap.regression.base import Regressor
@@ -52,10 +51,8 @@ from rigmap.regression.features import (
 from rigmap.regression.learned_jacobian import learned_jacobian_plan
 from rigmap.regression.mapping import InverseMapping, JacobianMapping
 from rigmap.regression.placement import Placement, find_placement
-from rigmap.sampling import sampler_name
 from rigmap.sampling.supersample import load_samples
 from rigmap.store import Layout, ModelId, json_ready, write_folder_atomic, write_json_atomic
-from rigmap.store.layout import REPLICATED_REGRESSORS
 
 FIT_FORMAT = "rigmap.fit/1"
 TRAIN_SPLIT = "train"
@@ -270,40 +267,20 @@ class FitResult:
     record: dict[str, Any]
 
 
-def fit_from_config(config: Mapping[str, Any], *, log: Log = _print) -> FitResult:
-    """Read the training data a composed config (a plain mapping: ``rig``, ``regressor``,
-    ``sampler``, ``paths`` …) names, fit its regressor, write the model folder."""
-    from rigmap.rigs import load
-
-    started = time.perf_counter()
-    rig_options = {k: v for k, v in dict(config["rig"]).items() if k != "corpus"}
-    with load(rig_options) as rig:  # a DCC rig's worker processes end with the fit
-        return _fit_with_rig(config, rig, started, log)
-
-
-def _replicate_of(config: Mapping[str, Any]) -> tuple[Layout, Regressor]:
-    """The layout and regressor of a fit; a ``replicate`` seed k (issue #36) re-fits a trained
-    network with only its training seed set to k, into the replicate's own folder."""
-    replicate = config.get("replicate")
-    try:
-        layout = Layout.from_paths(config["paths"], replicate)
-    except ValueError as error:
-        raise FitInputError(str(error)) from None
-    model = instantiate_as(config["regressor"], Regressor, "regressor", FitInputError)
-    if replicate is None:
-        return layout, model
-    if model.name not in REPLICATED_REGRESSORS:
-        raise FitInputError(
-            f"replicate={replicate}: only the trained networks "
-            f"({', '.join(REPLICATED_REGRESSORS)}) have replicate seeds, not {model.name}"
-        )
-    seeded = {**config["regressor"], "seed": replicate}
-    return layout, instantiate_as(seeded, Regressor, "regressor", FitInputError)
-
-
-def _fit_with_rig(config: Mapping[str, Any], rig, started: float, log: Log) -> FitResult:
-    sampler = sampler_name(config["sampler"])
-    layout, model = _replicate_of(config)
+def fit_model(
+    rig,
+    model: Regressor,
+    sampler: str,
+    layout: Layout,
+    config: Mapping[str, Any],
+    *,
+    started: float | None = None,
+    log: Log = _print,
+) -> FitResult:
+    """Fit the unfitted ``model`` on ``rig``'s corpus and ``sampler``'s samples, write the
+    model folder under ``layout``; ``config`` (plain) is recorded in ``fit.json`` as given
+    and ``started`` (a ``perf_counter`` time) is when the job began."""
+    started = time.perf_counter() if started is None else started
     regressor, kernel_label = model.name, model.kernel_name
     model_id = ModelId(regressor, sampler, kernel_label)
     folder = layout.model(rig.name, model_id)

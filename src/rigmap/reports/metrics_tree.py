@@ -343,7 +343,8 @@ def load_metrics(
 def read_replicates(
     rig_folder: str | Path, rig: str, clips: Sequence[str] | None = None
 ) -> dict[int, dict[str, LoadedResult]]:
-    """A rig's ``methods_seed<k>/<method>-<sampler>.json``: seed -> method -> result."""
+    """A rig's ``methods_seed<k>/<method>-<sampler>.json``: seed -> method -> result (their
+    spread is :mod:`rigmap.reports.seed_spread`'s)."""
     folder = Path(rig_folder)
     found: dict[int, dict[str, LoadedResult]] = {}
     for seed_folder in sorted(folder.glob("methods_seed*")) if folder.is_dir() else ():
@@ -353,16 +354,11 @@ def read_replicates(
         results = {}
         for path in sorted(seed_folder.glob("*.json")):
             method, _, sampler = path.stem.partition("-")
-            if not sampler:
+            if method not in NETWORK_METHODS or not sampler:
                 raise ReportInputError(
-                    f"{path}: unexpected file; a replicate seed holds rows "
+                    f"{path}: unexpected file; a replicate seed holds network rows "
                     f"<method>-<sampler>.json of {', '.join(NETWORK_METHODS)}"
                 )
-            if method not in NETWORK_METHODS:
-                # a row that trains no network (GPR, mean: seed 0's models) is no spread row;
-                # the Blender rigs' replicate stages score them too (their rig config's
-                # evaluate.methods wins over the stage's list)
-                continue
             results[method] = read_result(
                 path, rig=rig, method=method, sampler=sampler, clips=clips
             )

@@ -12,11 +12,22 @@ import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from rigmap.reports.metrics_tree import (  # read there with the rest of the tree
+from rigmap.reports.metrics_tree import (  # the replicates are read with the other metrics
     NETWORK_METHODS,
     LoadedResult,
     ReportInputError,
+    read_replicates,
 )
+
+__all__ = [
+    "MEASURES",
+    "NETWORK_METHODS",
+    "Spread",
+    "compare",
+    "describe",
+    "read_replicates",
+    "row_spread",
+]
 
 MEASURES = ("joint_error", "ground_truth_error")
 

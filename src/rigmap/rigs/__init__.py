@@ -10,7 +10,7 @@ from rigmap.rigs.base import (
     check_placement,
     check_positions,
 )
-from rigmap.rigs.registry import available, load, register
+from rigmap.rigs.registry import available, load, register, use_executor
 
 __all__ = [
     "Control",
@@ -24,4 +24,5 @@ __all__ = [
     "check_positions",
     "load",
     "register",
+    "use_executor",
 ]

@@ -1,9 +1,9 @@
 """Which rigs exist and how to build them, by name.
 
 Each rig's :class:`~rigmap.rigs.manifest.RigManifest` names its factory; ``load``
-builds the rig from a name or a config mapping (``{"name": ..., **options}``, e.g.
-a Hydra ``rig`` group). Factories are imported lazily so listing rigs never starts
-Blender.
+builds the rig from a name or a plain config mapping (``{"name": ..., **options}``, e.g.
+a Hydra ``rig`` group the application layer turned into dicts and lists). Factories are
+imported lazily so listing rigs never starts Blender.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def load(name_or_config: str | Mapping | Rig, **overrides) -> Rig:
     known = manifest(name)  # unknown names fail here, before building
     if not options:
         return _cached_builtin(known.factory)
-    return known.build_factory()(**_plain(options))
+    return known.build_factory()(**options)
 
 
 @cache
@@ -69,16 +69,16 @@ def _cached_builtin(factory: str | Callable[..., Rig]) -> Rig:
     return resolve(factory)()
 
 
-def _plain(options: Mapping) -> dict:
-    """OmegaConf containers to plain Python, so factories see dicts and lists."""
-    try:
-        from omegaconf import DictConfig, ListConfig, OmegaConf
+def use_executor(rig, executor: dict | None):
+    """Switch a Blender rig to ``executor``; ``local`` suits every rig, ``ray`` Blender rigs."""
+    from rigmap.errors import RigmapError
 
-        return {
-            k: OmegaConf.to_container(v, resolve=True)
-            if isinstance(v, DictConfig | ListConfig)
-            else v
-            for k, v in options.items()
-        }
-    except ImportError:  # pragma: no cover - omegaconf is a dependency
-        return dict(options)
+    kind = (executor or {}).get("kind", "local")
+    if hasattr(rig, "use_executor"):
+        rig.use_executor(executor)
+    elif kind != "local":
+        raise RigmapError(
+            f"executor={kind} evaluates Blender rigs (rigify_human, rigify_wolf, blend_file) on "
+            f"workers; rig {rig.name!r} is evaluated in this process: use executor=local"
+        )
+    return rig

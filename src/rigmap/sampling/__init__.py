@@ -18,9 +18,7 @@ from rigmap.sampling.pca_gaussian import PCAGaussianSampler
 from rigmap.sampling.registry import (
     SAMPLERS,
     available,
-    instantiate_sampler,
     make_sampler,
-    sampler_name,
 )
 from rigmap.sampling.supersample import (
     SupersampleError,
@@ -47,10 +45,8 @@ __all__ = [
     "UnivariateGaussianSampler",
     "available",
     "clamp_to_limits",
-    "instantiate_sampler",
     "load_samples",
     "make_sampler",
     "sampler_classes",
-    "sampler_name",
     "supersample",
 ]

@@ -1,24 +1,7 @@
-"""How a pipeline stage runs: :mod:`~rigmap.stage.runner` (Hydra, errors as one message) and
-:mod:`~rigmap.stage.inputs` (the plain objects a stage builds from its config)."""
+"""The old name of :mod:`rigmap.app.stage` (``run_stage``), kept importable for stage scripts
+written against it; dvc.yaml's stages also list this folder as a dependency. New code
+imports :mod:`rigmap.app.stage` and :mod:`rigmap.app.inputs`."""
 
-from rigmap.stage.runner import (
-    RIG_OVERRIDES,
-    USER_ERROR_EXIT,
-    apply_rig_overrides,
-    debugging,
-    error_message,
-    is_user_error,
-    run_stage,
-    stage_config,
-)
+from rigmap.app.stage import run_stage
 
-__all__ = [
-    "RIG_OVERRIDES",
-    "USER_ERROR_EXIT",
-    "apply_rig_overrides",
-    "debugging",
-    "error_message",
-    "is_user_error",
-    "run_stage",
-    "stage_config",
-]
+__all__ = ["run_stage"]

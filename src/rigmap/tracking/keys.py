@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import posixpath
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from rigmap.errors import RigmapError
@@ -121,16 +121,12 @@ def _flatten(node: Any, prefix: str, sep: str, out: dict[str, str]) -> None:
 
 
 def plain_container(config: Any) -> Any:
-    """Plain dicts/lists from an OmegaConf config (resolved when it can be), else as given."""
-    try:
-        from omegaconf import DictConfig, ListConfig, OmegaConf
-    except ImportError:  # pragma: no cover - omegaconf is a dependency
-        return config
-    if isinstance(config, DictConfig | ListConfig):
-        try:
-            return OmegaConf.to_container(config, resolve=True)
-        except Exception:  # interpolations that need a running Hydra app: keep them as text
-            return OmegaConf.to_container(config, resolve=False)
+    """Nested mappings and sequences as plain dicts and lists (a config node reads as one), so
+    the YAML and JSON writers take it; anything else as given."""
+    if isinstance(config, Mapping):
+        return {key: plain_container(value) for key, value in config.items()}
+    if isinstance(config, Sequence) and not isinstance(config, str | bytes):
+        return [plain_container(value) for value in config]
     return config
 
 

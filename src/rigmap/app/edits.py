@@ -1,6 +1,7 @@
 """The command-line side of :mod:`rigmap.edits.artist`: ``rigmap edits learn`` and the
-``--model`` options of ``rigmap edits apply``. Imports stay light here (the parser is
-built on every ``rigmap`` call); the work is imported when a command runs."""
+``--model`` options of ``rigmap edits apply``, and the edits' settings read from ``conf/``.
+Imports stay light here (the parser is built on every ``rigmap`` call); the work is
+imported when a command runs."""
 
 from __future__ import annotations
 
@@ -8,6 +9,31 @@ from pathlib import Path
 
 from rigmap.store import Layout
 from rigmap.user_outputs import USER_OUTPUTS
+
+
+def load_settings(config_dir=None) -> dict:
+    """``conf/edits/default.yaml``'s model settings (residual, weights, iterations)."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.config import compose_config
+
+    cfg = compose_config(["+edits=default"], config_dir)
+    return OmegaConf.to_container(cfg.edits, resolve=True)
+
+
+def run_edits_stage(verb: str, overrides: list[str], config_dir=None) -> list[Path]:
+    """``rigmap edits <verb>``: the edits stage ``verb`` (``rigmap.edits.steps.run_<verb>``)
+    on ``conf/edits/default.yaml`` with ``overrides``."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.config import compose_config
+    from rigmap.edits import steps
+
+    cfg = compose_config(["+edits=default", *overrides], config_dir)
+    config = OmegaConf.to_container(cfg.edits, resolve=True)
+    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
+    return list(getattr(steps, f"run_{verb}")(config, layout))
+
 
 GLITCH_HELP = (
     "a capture glitch (a frame whose every channel is zero): repair (default: rebuilt from "
@@ -83,7 +109,7 @@ def add_fix_command(verbs) -> None:
 
 
 def run_fix(args) -> int:
-    from rigmap.edits.artist import load_settings, parse_frames
+    from rigmap.edits.artist import parse_frames
     from rigmap.edits.fixes import fix_folder
     from rigmap.edits.pairs import PairError
 
@@ -139,7 +165,7 @@ def add_apply_options(command) -> None:
 
 
 def run_learn(args) -> int:
-    from rigmap.edits.artist import learn_folder, load_settings, pair_specs
+    from rigmap.edits.artist import learn_folder, pair_specs
 
     specs = pair_specs(args.source, args.edited, args.frames)
     out = args.out or Layout.user_output("edits", Path(specs[0][1]).stem)

@@ -1,23 +1,28 @@
-"""The evaluate stage from its composed config: one call for ``pipelines/evaluate.py`` and the CLI.
+"""The evaluate job from its composed config: one call for ``pipelines/evaluate.py`` and the CLI.
 
 The config arrives as a plain, resolved mapping (``OmegaConf.to_container(cfg,
-resolve=True)``), never a ``DictConfig``: the rig, the methods (``method.<name>``,
-built by ``hydra.utils.instantiate``), the paths, the settings and the tracking group
-become plain objects here, and :func:`rigmap.evaluation.evaluate.evaluate` does the work.
+resolve=True)``), never a ``DictConfig``: the rig, the methods (``method.<name>``, built
+from their ``_target_`` by :func:`method_catalog`), the paths, the settings and the tracking
+group become plain objects here, and :func:`rigmap.evaluation.evaluate.evaluate` does the work.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from contextlib import nullcontext
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rigmap.app.objects import kernel_name, sampler_name
 from rigmap.evaluation.checks import EvaluationSetupError
 from rigmap.evaluation.evaluate import EvaluationSettings, evaluate
 from rigmap.evaluation.method import method_catalog
-from rigmap.sampling import sampler_name
+from rigmap.rigs import use_executor
 from rigmap.store import Layout
+from rigmap.store.layout import REPLICATED_REGRESSORS
+
+__all__ = ["evaluate_command", "evaluate_from_config", "method_catalog", "rig_from_mapping"]
 
 
 def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = None) -> list[Path]:
@@ -33,19 +38,22 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
     settings = EvaluationSettings.from_mapping(config["evaluate"])
     catalog = method_catalog(config["method"])
     layout = Layout.from_paths(config["paths"], config.get("replicate"))
+    if layout.replicate is not None:
+        settings = replace(settings, methods=replicated_methods(settings.methods, catalog))
     rig = rig_from_mapping(config["rig"])
     if config.get("executor") is not None:
-        from rigmap.stage.inputs import use_executor
-
         use_executor(rig, dict(config["executor"]))
     log = None
     if settings.log_to_mlflow:
         from rigmap.evaluation.mlflow_runs import EvaluationLog
 
         log = EvaluationLog.start(
-            config.get("tracking") or {}, rig.name, settings.set, config,
+            config.get("tracking") or {},
+            rig.name,
+            settings.set,
+            config,
             log_models=settings.log_models,
-        )  # fmt: skip
+        )
     with log if log is not None else nullcontext():
         return evaluate(
             rig,
@@ -59,6 +67,36 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
         )
 
 
+def replicated_methods(methods, catalog) -> tuple[str, ...]:
+    """Of ``methods``, those whose guess is a network a replicate seed re-trains: only they can
+    differ from seed 0's rows, so a replicate run scores nothing else (whatever list a rig's
+    ``_overrides_`` gives); an error naming the option when none is left."""
+    kept = tuple(
+        name
+        for name in methods
+        if name in catalog and catalog[name].regressor in REPLICATED_REGRESSORS
+    )
+    if not kept:
+        raise EvaluationSetupError(
+            f"evaluate.methods: a replicate seed scores only methods guessed by a re-trained "
+            f"network ({', '.join(REPLICATED_REGRESSORS)}); none in {list(methods)}"
+        )
+    return kept
+
+
+def evaluate_command(overrides: list[str], config_dir=None) -> list[Path]:
+    """``rigmap evaluate``: ``conf/`` composed with ``overrides`` and evaluated as the stage
+    does, the experiment group's choice recorded."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.config import compose_config
+
+    cfg = compose_config(overrides, config_dir, with_hydra=True)
+    experiment = cfg.hydra.runtime.choices.get("experiment")
+    stage = OmegaConf.masked_copy(cfg, [key for key in cfg if key != "hydra"])
+    return evaluate_from_config(OmegaConf.to_container(stage, resolve=True), experiment=experiment)
+
+
 def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     """The rig the ``rig`` group names (its ``corpus`` options are not the factory's)."""
     from rigmap.rigs import load
@@ -66,10 +104,3 @@ def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     options = dict(rig_config)
     options.pop("corpus", None)
     return load(options)
-
-
-def kernel_name(kernel_config: Mapping[str, Any]) -> str:
-    """The kernel's label in model ids (``multiquadric``, ``multiquadric_plus_linear`` …)."""
-    import hydra.utils
-
-    return str(hydra.utils.instantiate(dict(kernel_config)).label)

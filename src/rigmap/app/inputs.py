@@ -15,6 +15,15 @@ from omegaconf import DictConfig, OmegaConf
 
 from rigmap.store import Layout
 
+__all__ = [
+    "corpus_fps",
+    "corpus_settings",
+    "layout_of",
+    "rig_from_config",
+    "sampler_from_config",
+    "sampler_seed",
+]
+
 DEFAULT_FPS = 24  # the frame rate a rig config without ``corpus.fps`` is played at
 
 
@@ -26,28 +35,13 @@ def layout_of(cfg: DictConfig) -> Layout:
 def rig_from_config(rig_cfg: DictConfig, executor: DictConfig | None = None):
     """The rig named by the ``rig`` group (its ``corpus`` options are not the factory's),
     evaluated on the ``executor`` group's engine (``local`` or ``ray``)."""
-    from rigmap.rigs import load
+    from rigmap.rigs import load, use_executor
 
     options = OmegaConf.to_container(rig_cfg, resolve=True)
     options.pop("corpus", None)
     rig = load(options)
     if executor is not None:
         use_executor(rig, OmegaConf.to_container(executor, resolve=True))
-    return rig
-
-
-def use_executor(rig, executor: dict | None):
-    """Switch a Blender rig to ``executor``; ``local`` suits every rig, ``ray`` Blender rigs."""
-    from rigmap.errors import RigmapError
-
-    kind = (executor or {}).get("kind", "local")
-    if hasattr(rig, "use_executor"):
-        rig.use_executor(executor)
-    elif kind != "local":
-        raise RigmapError(
-            f"executor={kind} evaluates Blender rigs (rigify_human, rigify_wolf, blend_file) on "
-            f"workers; rig {rig.name!r} is evaluated in this process: use executor=local"
-        )
     return rig
 
 
@@ -68,7 +62,7 @@ def corpus_settings(cfg: DictConfig) -> dict[str, Any]:
 
 def sampler_from_config(sampler_cfg: DictConfig, rig) -> Any:
     """The unfitted sampler; ``uniform`` with ``range: soft`` gets the rig's soft range."""
-    from rigmap.sampling import instantiate_sampler, sampler_name
+    from rigmap.app.objects import instantiate_sampler, sampler_name
 
     options = OmegaConf.to_container(sampler_cfg, resolve=True)
     overrides = {}

@@ -1,7 +1,7 @@
 """Hydra composition of ``conf/`` as the pipeline apps see it, with the range checks of
-:mod:`rigmap.params_checks`: used by the command line and by the few library commands
-that read their settings from ``conf/`` (``rigmap edits``), so these need not import the
-CLI (which imports them)."""
+:mod:`rigmap.params_checks`: used by the command line and the application layer's verbs
+(``rigmap edits``, ``rigmap synth``), so these need not import the CLI (which imports
+them)."""
 
 from __future__ import annotations
 
@@ -22,6 +22,15 @@ def find_config_dir(explicit: Path | None = None) -> Path:
         f"no Hydra config found (looked for {looked}); run from the repository root or pass "
         "--config-dir PATH/TO/conf"
     )
+
+
+def config_errors() -> tuple[type[Exception], ...]:
+    """The errors of a config Hydra or omegaconf cannot compose or resolve (a bad override,
+    an unknown group): the user's to fix, so the CLI prints them as one line."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    return (HydraException, OmegaConfBaseException)
 
 
 def compose_config(

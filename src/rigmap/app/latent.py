@@ -37,7 +37,7 @@ def latent_config(cfg) -> dict:
 
 
 def run_step(cfg) -> Path:
-    from rigmap.stage.inputs import layout_of, rig_from_config
+    from rigmap.app.inputs import layout_of, rig_from_config
 
     step = step_of(cfg)
     config = latent_config(cfg)

@@ -12,7 +12,7 @@ A stage script is ``run(cfg)`` plus ``if __name__ == "__main__": run_stage(run)`
 - ``RIGMAP_DEBUG=1`` shows the traceback of every error.
 
 A command's ``KEY=@NAME`` and ``KEY=@item.K`` take their values from params.yaml and the
-DVC matrix entry (:mod:`~rigmap.stage.placeholders`), checked before ``run`` starts.
+DVC matrix entry (:mod:`~rigmap.app.placeholders`), checked before ``run`` starts.
 Before ``run`` sees the config, the chosen rig's ``_overrides_`` are merged over it
 (:func:`apply_rig_overrides`: a slow rig's smaller budgets) and dvc.yaml's ``pipeline``
 lists are dropped (:func:`stage_config`).
@@ -58,7 +58,7 @@ def run_stage(
     name = name or script.stem
     config_dir = Path(config_dir) if config_dir is not None else script.parent.parent / "conf"
 
-    from rigmap.stage.placeholders import apply_params, resolve_argv
+    from rigmap.app.placeholders import apply_params, resolve_argv
 
     try:  # dvc.yaml's @placeholders: values from params.yaml, never through a shell
         resolved = resolve_argv(sys.argv)

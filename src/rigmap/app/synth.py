@@ -112,7 +112,7 @@ def _overrides(command) -> None:
 
 
 def _stage(verb: str, args, compose_config) -> int:
-    from rigmap.latent.stage import run_step
+    from rigmap.app.latent import run_step
     from rigmap.user_outputs import user_paths
 
     overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
@@ -124,9 +124,9 @@ def _stage(verb: str, args, compose_config) -> int:
 def _loaded(args, compose_config, script: str | None = None):
     """The rig, the latent config and the fitted models; ``script`` is read (and checked)
     before the models load."""
+    from rigmap.app.inputs import layout_of, rig_from_config
+    from rigmap.app.latent import latent_config
     from rigmap.latent import steps
-    from rigmap.latent.stage import latent_config
-    from rigmap.stage.inputs import layout_of, rig_from_config
     from rigmap.store import Layout
     from rigmap.user_outputs import USER_OUTPUTS, user_paths
 
