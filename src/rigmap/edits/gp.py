@@ -71,16 +71,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, eigh, lapack
+from scipy.linalg import eigh, lapack
 from scipy.optimize import brentq, minimize
 from threadpoolctl import threadpool_limits
 
 from rigmap.edits import nogil
 from rigmap.errors import RigmapError
+from rigmap.gp.distances import expanded_squared_distances
+from rigmap.gp.kernels import rbf, rbf_d_log_lengthscale
+from rigmap.gp.likelihood import negative_log_marginal_likelihood
+from rigmap.gp.solve import JITTER as _JITTER
+from rigmap.gp.solve import add_noise, cholesky, cholesky_solve
 
 MAX_ITERATIONS = 100  # §7.1
 INITIAL = {"length_scale": 1.0, "signal": 1.0, "noise": 0.1}  # §7.1
-_JITTER = 1e-10
 METHODS = ("profile", "lbfgs")
 INPUT_SCALES = ("global", "column")
 # the profile fit's search ranges (ours): log ℓ on standardised inputs, the starting
@@ -149,7 +153,7 @@ class SharedGP:
         self.y_mean_ = Y.mean(axis=0) if self.center else np.zeros(Y.shape[1])
         self.X_ = (X - self.x_mean_) / self.x_std_
         self.Y_ = Y - self.y_mean_
-        self._sq = _squared_distances(self.X_, self.X_)
+        self._sq = expanded_squared_distances(self.X_, self.X_)
         n = len(self.X_)
         self._lower = np.tril(np.full((n, n), 2.0), -1) + np.eye(n)  # see _objective
         self.__dict__.pop("_work", None)  # _objective's work arrays: made for these data
@@ -169,23 +173,16 @@ class SharedGP:
             theta = self._fit_profile(theta[0])
         self.__dict__.pop("_work", None)  # n² arrays the fitted GP does not need
         self.length_scale_, self.signal_, self.noise_ = (float(v) for v in np.exp(theta))
-        self._factor = cho_factor(self._gram(theta), lower=True)
-        self._alpha = cho_solve(self._factor, self.Y_)
-        n, d = self.Y_.shape
-        log_det = 2.0 * np.log(np.diag(self._factor[0])).sum()
-        self.log_marginal_likelihood_ = -(
-            0.5 * float((self.Y_ * self._alpha).sum())
-            + 0.5 * d * log_det
-            + 0.5 * n * d * np.log(2 * np.pi)
+        self._L = cholesky(self._gram(theta))
+        self._alpha = cholesky_solve(self._L, self.Y_)
+        self.log_marginal_likelihood_ = -float(
+            negative_log_marginal_likelihood(self.Y_, self._alpha, self._L)
         )
         return self
 
     def _gram(self, theta) -> np.ndarray:
         length, signal, noise = np.exp(theta)
-        sq = self._sq
-        K = signal**2 * np.exp(-0.5 * sq / length**2)
-        K[np.diag_indices_from(K)] += noise**2 + _JITTER
-        return K
+        return add_noise(rbf(self._sq, signal**2, length**2), noise**2, _JITTER)
 
     def _objective(self, theta) -> tuple[float, np.ndarray]:
         """Negative summed log marginal likelihood and its gradient in log-parameters.
@@ -206,27 +203,24 @@ class SharedGP:
             scales = np.array([length**2, signal**2, noise**2])
         if not (np.isfinite(scales).all() and scales[0] > 0):
             return 1e300, np.zeros(3)  # a line search's step out of range: reject it
-        n, d = self.Y_.shape
+        d = self.Y_.shape[1]
         sq = self._sq
         work = self.__dict__.get("_work")
         if work is None or work[0].shape != sq.shape:
             # Fortran order: LAPACK works on K in place (SciPy would copy a C array)
             half_sq = np.asfortranarray(-0.5 * sq)
             work = self._work = (half_sq, np.empty_like(half_sq), np.empty_like(half_sq))
-        half_sq, rbf, K = work
-        np.divide(half_sq, length**2, out=rbf)  # −½ sq / ℓ²
-        np.exp(rbf, out=rbf)
-        rbf *= signal**2
-        np.copyto(K, rbf)
-        K[np.diag_indices_from(K)] += noise**2 + _JITTER
+        half_sq, gram, K = work
+        np.divide(half_sq, length**2, out=gram)  # −½ sq / ℓ²
+        np.exp(gram, out=gram)  # rigmap.gp.kernels.rbf, in place
+        gram *= signal**2
+        np.copyto(K, gram)
+        add_noise(K, noise**2, _JITTER)
         factor, info = lapack.dpotrf(K, lower=1, overwrite_a=1, clean=0)
         if info != 0:
             return 1e300, np.zeros(3)
         A = nogil.potrs_lower(factor, self.Y_)  # K⁻¹ Y
-        log_det = 2.0 * np.log(np.diag(factor)).sum()
-        value = (
-            0.5 * float((self.Y_ * A).sum()) + 0.5 * d * log_det + 0.5 * n * d * np.log(2 * np.pi)
-        )
+        value = float(negative_log_marginal_likelihood(self.Y_, A, factor))
         if nogil.potri_lower(factor) != 0:  # K⁻¹ (lower half) in place of the factor
             return 1e300, np.zeros(3)
         inverse = factor
@@ -234,7 +228,7 @@ class SharedGP:
         inverse *= d
         inner -= inverse  # (ααᵀ − D K⁻¹); above the diagonal: ignored
         trace = float(np.trace(inner))
-        inner *= rbf
+        inner *= gram
         inner *= self._lower  # (ααᵀ − D K⁻¹) ∘ rbf, weighted to the whole sum
         gradient = np.array(
             [
@@ -256,14 +250,14 @@ class SharedGP:
         def slope(u: float) -> float:
             """``∂/∂ log ℓ`` of the profiled objective at ``log ℓ = u``."""
             length = float(np.exp(u))
-            rbf = np.exp(-0.5 * self._sq / length**2)
-            eigenvalues, Q = eigh(rbf, driver="evd", check_finite=False)
+            unit = rbf(self._sq, 1.0, length**2)
+            eigenvalues, Q = eigh(unit, driver="evd", check_finite=False)
             eigenvalues = np.maximum(eigenvalues, 0.0)
             projected = Q.T @ self.Y_
             signal2, noise2, value = _profile_signal_noise(eigenvalues, (projected**2).sum(1), d)
             values = signal2 * eigenvalues + noise2 + _JITTER  # the eigenvalues of K
             alpha = Q @ (projected / values[:, None])  # K⁻¹ Y
-            dK = signal2 * rbf * self._sq / length**2  # ∂K/∂log ℓ
+            dK = rbf_d_log_lengthscale(signal2 * unit, self._sq, length**2)  # ∂K/∂log ℓ
             trace = float(((Q * (dK @ Q)).sum(axis=0) / values).sum())  # tr(K⁻¹ ∂K)
             inner[u] = (signal2, noise2)
             values_at[u] = value + 0.5 * n * d * np.log(2 * np.pi)
@@ -288,7 +282,7 @@ class SharedGP:
         """Plain arrays that rebuild the fitted GP (:meth:`from_state`); no pickle."""
         names = ("X_", "Y_", "x_mean_", "x_std_", "y_mean_")
         arrays = {name: getattr(self, name) for name in names}
-        arrays["factor"], arrays["alpha"] = self._factor[0], self._alpha
+        arrays["factor"], arrays["alpha"] = self._L, self._alpha
         arrays["hyper"] = np.array(
             [
                 self.length_scale_,
@@ -309,7 +303,7 @@ class SharedGP:
         gp.length_scale_, gp.signal_, gp.noise_, gp.log_marginal_likelihood_ = map(float, hyper[:4])
         gp.iterations_ = int(hyper[4])
         # the factor itself, not a refactorisation: a near-noiseless K is ill-conditioned
-        gp._factor = (np.asarray(arrays["factor"], dtype=np.float64), True)
+        gp._L = np.asarray(arrays["factor"], dtype=np.float64)
         gp._alpha = np.asarray(arrays["alpha"], dtype=np.float64)
         return gp
 
@@ -326,9 +320,9 @@ class SharedGP:
             raise GPInputError(
                 f"X has {X.shape[1]} columns, the GP was fitted on {self.X_.shape[1]}"
             )
-        k = self.signal_**2 * np.exp(-0.5 * _squared_distances(X, self.X_) / self.length_scale_**2)
+        k = rbf(expanded_squared_distances(X, self.X_), self.signal_**2, self.length_scale_**2)
         mean = k @ self._alpha + self.y_mean_
-        v = cho_solve(self._factor, k.T)
+        v = cholesky_solve(self._L, k.T)
         variance = self.signal_**2 + self.noise_**2 - np.einsum("ij,ji->i", k, v)
         return Prediction(mean, np.maximum(variance, self.noise_**2))
 
@@ -414,11 +408,6 @@ def _descend_to_root(slope, u: float, bounds: tuple[float, float], max_steps: in
         step = float(np.clip(1.5 * extrapolated, 0.5, 3.0))
         u, ga = v, gb
     return u, steps
-
-
-def _squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    sq = (A**2).sum(axis=1)[:, None] + (B**2).sum(axis=1)[None, :] - 2.0 * A @ B.T
-    return np.maximum(sq, 0.0)
 
 
 def _checked(values, name: str) -> np.ndarray:

@@ -38,7 +38,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
-from rigmap.edits.gp import GPInputError, Prediction, _checked, _squared_distances
+from rigmap.edits.gp import GPInputError, Prediction, _checked
+from rigmap.gp.distances import expanded_squared_distances
 
 COMPONENTS = 16  # ours (module docstring)
 BANDWIDTH_FACTORS = (0.03, 0.06, 0.12, 0.25, 0.5, 1.0)  # × median pairwise distance
@@ -74,7 +75,7 @@ class MovingLeastSquares:
         self.A_ = standard @ self.basis_
         self.B_ = Y.copy()
         if self.bandwidth is None:
-            sq = _squared_distances(self.A_, self.A_)
+            sq = expanded_squared_distances(self.A_, self.A_)
             scale = float(np.sqrt(np.median(sq[np.triu_indices(len(sq), 1)])))
             scale = scale if scale > 0 else 1.0
             scores = {}
@@ -168,7 +169,7 @@ def _solve(query: np.ndarray, A: np.ndarray, B: np.ndarray, bandwidth: float):
     means, confidences = [], []
     for start in range(0, len(query), _CHUNK):
         q = query[start : start + _CHUNK]
-        sq = _squared_distances(q, A)
+        sq = expanded_squared_distances(q, A)
         nearest = -0.5 * np.partition(sq, min(2, n - 1), axis=1)[:, :3] / bandwidth**2
         confidences.append(logsumexp(nearest, axis=1) - np.log(nearest.shape[1]))  # log
         # the local fit is unchanged by scaling a query's weights: relative to its nearest

@@ -31,6 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from rigmap.gp.distances import difference_squared_distances
+from rigmap.gp.kernels import rbf_gram, rbf_input_gradient
+from rigmap.gp.likelihood import negative_log_marginal_likelihood
+from rigmap.gp.solve import add_noise, cholesky, cholesky_solve, solve_lower
 from rigmap.latent.errors import LatentInputError
 from rigmap.torch_threads import torch_threads
 
@@ -65,19 +69,13 @@ class GPLVMSettings:
                 raise LatentInputError(f"{name} must be > 0, got {getattr(self, name)}")
 
 
-def rbf(A: torch.Tensor, B: torch.Tensor, variance, lengthscale2) -> torch.Tensor:
-    """``variance · exp(−‖a − b‖² / 2l²)`` for every pair of rows."""
-    d2 = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2.0 * A @ B.T
-    return variance * torch.exp(-0.5 * d2.clamp_min(0.0) / lengthscale2)
-
-
 def dynamics_kernel(times: np.ndarray, segments: np.ndarray, s: GPLVMSettings) -> torch.Tensor:
     """``K_t``: an RBF over frame time, zero between frames of different segments."""
     t = torch.as_tensor(times, dtype=DTYPE)[:, None]
-    K = rbf(t, t, s.dynamics_variance, s.dynamics_lengthscale_s**2)
+    K = rbf_gram(t, t, s.dynamics_variance, s.dynamics_lengthscale_s**2)
     same = torch.as_tensor(segments[:, None] == segments[None, :])
     K = torch.where(same, K, torch.zeros((), dtype=DTYPE))
-    return K + s.dynamics_noise * s.dynamics_variance * torch.eye(len(t), dtype=DTYPE)
+    return add_noise(K, s.dynamics_noise * s.dynamics_variance)
 
 
 def diffusion_log_kernel(X: torch.Tensor, beta: float, power: float, eps: float) -> torch.Tensor:
@@ -91,7 +89,7 @@ def diffusion_log_kernel(X: torch.Tensor, beta: float, power: float, eps: float)
     series itself is evaluated by Paterson–Stockmeyer (:func:`_exp_series`).
     """
     n = len(X)
-    d2 = (X[:, None, :] - X[None, :, :]).pow(2).sum(-1)
+    d2 = difference_squared_distances(X, X)
     W = (d2 + eps * eps).pow(-0.5 * power) * (1.0 - torch.eye(n, dtype=X.dtype))
     r = W.sum(1).rsqrt()
     A = r[:, None] * W * r[None, :]
@@ -177,7 +175,7 @@ class GPLVM:
             X0 = np.hstack([X0, 1e-2 * rng.standard_normal((len(Y), q - d))])
         if s.dynamics:
             Kt = dynamics_kernel(times, segments, s)
-            self._Kt_chol = torch.linalg.cholesky(Kt)
+            self._Kt_chol = cholesky(Kt)
         log_hyper = torch.tensor(
             [math.log(self.data_variance), 0.0, math.log(1e-2 * self.data_variance)], dtype=DTYPE
         )  # ours: σ_rbf² = data variance, l = 1, σ_white² = 1 % of it
@@ -191,15 +189,12 @@ class GPLVM:
     def objective(self, X: torch.Tensor, log_hyper: torch.Tensor) -> torch.Tensor:
         """Negative log posterior, −(Eq 7), up to the constant ``ln|K_t|`` term."""
         s = self.settings
-        n, d = self.Y.shape
+        n = len(self.Y)
         variance, ls2, white = self.hyper(log_hyper)
-        K = rbf(X, X, variance, ls2) + white * torch.eye(n, dtype=DTYPE)
-        L = torch.linalg.cholesky(K)
-        alpha = torch.cholesky_solve(self.Y, L)
-        loss = d * torch.log(torch.diagonal(L)).sum() + 0.5 * (self.Y * alpha).sum()
-        loss = loss + 0.5 * n * d * math.log(2 * math.pi)
+        L = cholesky(add_noise(rbf_gram(X, X, variance, ls2), white))
+        loss = negative_log_marginal_likelihood(self.Y, cholesky_solve(L, self.Y), L)
         if s.dynamics:
-            v = torch.linalg.solve_triangular(self._Kt_chol, X, upper=False)
+            v = solve_lower(self._Kt_chol, X)
             loss = loss + 0.5 * (v * v).sum()
         if s.connectivity:
             logK = diffusion_log_kernel(
@@ -243,13 +238,11 @@ class GPLVM:
         return self
 
     def _finish(self, X: torch.Tensor, log_hyper: torch.Tensor) -> None:
-        n = len(X)
         variance, ls2, white = self.hyper(log_hyper)
-        K = rbf(X, X, variance, ls2) + white * torch.eye(n, dtype=DTYPE)
         self._X = X
         self.log_hyper = log_hyper
-        self._L = torch.linalg.cholesky(K)
-        self._alpha = torch.cholesky_solve(self.Y, self._L)  # K⁻¹ Y, precomputed (§4.4)
+        self._L = cholesky(add_noise(rbf_gram(X, X, variance, ls2), white))
+        self._alpha = cholesky_solve(self._L, self.Y)  # K⁻¹ Y, precomputed (§4.4)
         self.X = X.numpy().copy()
         self.kernel_variance, self.lengthscale2, self.white_variance = (
             float(variance),
@@ -275,7 +268,7 @@ class GPLVM:
 
     def mean_t(self, Xs: torch.Tensor) -> torch.Tensor:
         """Eq 8's mean ``k_xᵀ K_x⁻¹ Y`` in torch (differentiable in ``Xs``)."""
-        return rbf(Xs, self._X, self.kernel_variance, self.lengthscale2) @ self._alpha
+        return rbf_gram(Xs, self._X, self.kernel_variance, self.lengthscale2) @ self._alpha
 
     def mean(self, Xs) -> np.ndarray:
         """The most likely outputs ``(M, d)`` at latent points ``(M, q)`` (Eq 8)."""
@@ -287,8 +280,8 @@ class GPLVM:
         """Eq 8's variance ``k(x, x) − k_xᵀ K_x⁻¹ k_x`` ``(M,)``, shared by every output."""
         self._check_fitted()
         with torch.no_grad():
-            Ks = rbf(self._latent(Xs), self._X, self.kernel_variance, self.lengthscale2)
-            v = torch.linalg.solve_triangular(self._L, Ks.T, upper=False)
+            Ks = rbf_gram(self._latent(Xs), self._X, self.kernel_variance, self.lengthscale2)
+            v = solve_lower(self._L, Ks.T)
             var = self.kernel_variance - (v * v).sum(0)
             if include_noise:
                 var = var + self.white_variance
@@ -298,8 +291,8 @@ class GPLVM:
     def mean_and_jacobian(self, Xs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Eq 8's mean ``(M, d)`` and its Jacobian in ``x`` ``(M, d, q)``, in closed form:
         ``∂k_i/∂x = −k_i (x − x_i) / l²``."""
-        Ks = rbf(Xs, self._X, self.kernel_variance, self.lengthscale2)
-        dK = -(Ks[..., None] * (Xs[:, None, :] - self._X[None])) / self.lengthscale2
+        Ks = rbf_gram(Xs, self._X, self.kernel_variance, self.lengthscale2)
+        dK = rbf_input_gradient(Ks, Xs[:, None, :] - self._X[None], self.lengthscale2)
         return Ks @ self._alpha, torch.einsum("mnq,nd->mdq", dK, self._alpha)
 
     def project(self, Ys, *, max_iter: int = 100) -> np.ndarray:

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from rigmap.gp.distances import expanded_squared_distances
 from rigmap.latent.control_scaling import surface
 from rigmap.latent.errors import LatentInputError
 
@@ -40,8 +41,7 @@ def window_distance(FA, FB, window: int = WINDOW) -> np.ndarray:
         raise LatentInputError(
             f"clips of {len(FA)} and {len(FB)} frames are shorter than the {window}-frame window"
         )
-    d2 = (FA * FA).sum(1)[:, None] + (FB * FB).sum(1)[None, :] - 2.0 * FA @ FB.T
-    d2 = np.maximum(d2, 0.0)
+    d2 = expanded_squared_distances(FA, FB)
     n, m = len(FA) - window + 1, len(FB) - window + 1
     D = np.zeros((n, m))
     for k in range(window):

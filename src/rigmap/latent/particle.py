@@ -38,8 +38,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
+from rigmap.gp.distances import difference_squared_distances
+from rigmap.gp.kernels import rbf, rbf_gram
+from rigmap.gp.solve import add_noise, solve_lower, solve_lower_transposed
 from rigmap.latent.errors import LatentInputError
 
 
@@ -93,10 +95,10 @@ class LatentField:
         self.q = self.X.shape[1]
         self.variance = float(g.kernel_variance)
         self.lengthscale2 = float(g.lengthscale2)
-        K = _rbf(self.X, self.X, self.variance, self.lengthscale2) + g.white_variance * np.eye(
-            len(self.X)
-        )
-        self.L = np.linalg.cholesky(K)  # solves, not an inverse: K is ill-conditioned
+        K = add_noise(rbf_gram(self.X, self.X, self.variance, self.lengthscale2), g.white_variance)
+        # solves, not an inverse: K is ill-conditioned. numpy's Cholesky, not the core's
+        # (SciPy's): they differ in the last bits, and the committed syntheses used this one
+        self.L = np.linalg.cholesky(K)
         alpha = g._alpha.numpy()  # K⁻¹ Y (N, d)
         pca = model.pca
         self.B = alpha @ pca.components_  # (N, D): scaled controls per kernel weight
@@ -108,19 +110,21 @@ class LatentField:
         self.lower, self.upper = s.lower, s.upper
 
     def kernel_row(self, x: np.ndarray) -> np.ndarray:
-        d2 = ((self.X - x) ** 2).sum(1)
-        return self.variance * np.exp(-0.5 * d2 / self.lengthscale2)
+        return rbf(self._squared_distances(x), self.variance, self.lengthscale2)
+
+    def _squared_distances(self, x: np.ndarray) -> np.ndarray:
+        return difference_squared_distances(x[None], self.X)[0]
 
     def confidence(self, x: np.ndarray) -> float:
-        v = solve_triangular(self.L, self.kernel_row(x), lower=True)
+        v = solve_lower(self.L, self.kernel_row(x))
         return float(v @ v) / self.variance
 
     def confidence_and_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """``c(x) = kᵀK⁻¹k / σ²_rbf`` and ``∇c = −2/(σ²_rbf l²) Σ_i k_i u_i (x − x_i)``,
         ``u = K⁻¹k`` (two triangular solves, quadratic in the training size)."""
         k = self.kernel_row(x)
-        v = solve_triangular(self.L, k, lower=True)
-        u = solve_triangular(self.L.T, v, lower=False)
+        v = solve_lower(self.L, k)
+        u = solve_lower_transposed(self.L, v)
         c = float(v @ v) / self.variance
         grad = -2.0 / (self.variance * self.lengthscale2) * ((k * u) @ (x - self.X))
         return c, grad
@@ -133,12 +137,7 @@ class LatentField:
         return np.clip(p, self.lower, self.upper) if clamp else p
 
     def nearest(self, x: np.ndarray) -> int:
-        return int(((self.X - x) ** 2).sum(1).argmin())
-
-
-def _rbf(A, B, variance, lengthscale2):
-    d2 = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2.0 * A @ B.T
-    return variance * np.exp(-0.5 * np.maximum(d2, 0.0) / lengthscale2)
+        return int(self._squared_distances(x).argmin())
 
 
 class RandomForce:

@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from rigmap.gp.solve import solve_regularized
 from rigmap.regression.base import Regressor, regressor_classes
 from rigmap.regression.errors import ModelFileError, ModelMismatchError, RegressionInputError
 from rigmap.regression.fingerprint import ModelFingerprint
@@ -30,7 +31,6 @@ from rigmap.regression.kernels import (
 )
 from rigmap.regression.learned_jacobian import LearnedJacobian
 from rigmap.regression.length_scale_search import length_scale_cv_errors
-from rigmap.regression.linear_solve import solve_regularized
 from rigmap.regression.mean import MeanRegressor
 from rigmap.regression.network import FeedForwardRegressor
 from rigmap.regression.subsampling import greedy_subsample

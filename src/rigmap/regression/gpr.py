@@ -12,7 +12,7 @@ parts, both from the paper, each in its own module:
   from the rest pose, add a few farthest points (Eq. 7), then repeatedly the
   point the current GP predicts worst (Eq. 10) until ``n_points`` are chosen.
 
-The solve is :func:`~rigmap.regression.linear_solve.solve_regularized` (LU,
+The solve is :func:`~rigmap.gp.solve.solve_regularized` (LU,
 never Cholesky: the multiquadric Gram matrix is indefinite).
 """
 
@@ -26,12 +26,12 @@ from typing import Any, Literal
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from rigmap.gp.kernels import Kernel, MultiquadricKernel, kernel_from_dict
+from rigmap.gp.solve import solve_regularized
 from rigmap.regression.base import Regressor
 from rigmap.regression.errors import ModelFileError, RegressionInputError
 from rigmap.regression.fingerprint import ModelFingerprint
-from rigmap.regression.kernels import Kernel, MultiquadricKernel, kernel_from_dict
 from rigmap.regression.length_scale_search import length_scale_cv_errors
-from rigmap.regression.linear_solve import solve_regularized
 from rigmap.regression.model_io import arrays_from_bytes, params_for_file, params_from_file
 from rigmap.regression.normalisation import column_scale
 from rigmap.regression.subsampling import greedy_subsample

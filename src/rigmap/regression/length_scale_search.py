@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigmap.gp.kernels import Kernel
+from rigmap.gp.solve import solve_regularized
 from rigmap.regression.errors import RegressionInputError
-from rigmap.regression.kernels import Kernel
-from rigmap.regression.linear_solve import solve_regularized
 
 
 def length_scale_cv_errors(

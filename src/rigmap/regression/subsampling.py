@@ -22,7 +22,7 @@ import numpy as np
 from scipy.linalg import blas
 from tqdm.auto import tqdm
 
-from rigmap.regression.kernels import Kernel
+from rigmap.gp.kernels import Kernel
 
 # A pivot this small relative to its kernel diagonal means the candidate is
 # numerically a combination of the chosen points; it is skipped.
