@@ -22,7 +22,6 @@ import numpy as np
 
 from rigmap.animation.library import Motion
 from rigmap.animation.library.biped import Human
-from rigmap.animation.library.body import SIDES
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 STAND, RAMP, CRUISE = 24.0, 45.0, 45.0  # nominal frames at 24 fps: 1 s, 1.5 cycles each
@@ -90,25 +89,9 @@ def walk_start_stop(b: ClipBuilder) -> None:
                 lift = s(passing)
                 h.foot(passing, side, ty=height * lift, tz=0.0, rx=-0.25 * lift)
                 h.leg(passing, side, roll=0.0)
-        for k in range(cycles + 1):  # this side's arm swings forward as the other leg strikes
-            forward = phase + PERIOD / 2 + k * PERIOD - PERIOD
-            for t, amount in ((forward, 1.0), (forward + PERIOD / 2, -1.0)):
-                if 0.0 <= t <= end:
-                    a = amount * s(t)
-                    h.arm(
-                        t,
-                        side,
-                        [
-                            (0.0, -swing_arm * a - 0.05, -1.42),
-                            (0.0, -0.35 - 0.15 * max(a, 0.0), 0.0),
-                            (0.0, 0.0, -0.1),
-                        ],
-                    )
-    for side in SIDES:
-        h.ik_fk(0.0, side, 0.0)
-        h.ik_fk(end, side, 0.0)
-        h.hand(0.0, side, "relaxed")
-        h.hand(end, side, "relaxed", amount=0.8)
+        # this side's arm swings forward as the other leg strikes
+        h.walk_arm_swing(side, phase, PERIOD, cycles, end, swing_arm, scale=s)
+    h.relaxed_hands(end)
     _torso_keys(b, h, end, s)
 
 

@@ -114,6 +114,42 @@ class Human(BodyKeys):
         self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
+    def walk_arm_swing(
+        self,
+        side: str,
+        phase: float,
+        period: float,
+        cycles: int,
+        end: float,
+        swing: float,
+        scale=None,
+    ) -> None:
+        """A walk's arm swing: this side's arm forward while the other leg strikes, back half
+        a cycle later; ``scale(t)`` (default 1) shrinks each swing (a walk starting or
+        stopping)."""
+        for k in range(cycles + 1):
+            forward = phase + period / 2 + k * period - period
+            for t, amount in ((forward, 1.0), (forward + period / 2, -1.0)):
+                if 0.0 <= t <= end:
+                    a = amount if scale is None else amount * scale(t)
+                    self.arm(
+                        t,
+                        side,
+                        [
+                            (0.0, -swing * a - 0.05, -1.42),
+                            (0.0, -0.35 - 0.15 * max(a, 0.0), 0.0),
+                            (0.0, 0.0, -0.1),
+                        ],
+                    )
+
+    def relaxed_hands(self, end: float) -> None:
+        """Both arms in FK with relaxed hands at the first and last frame."""
+        for side in SIDES:
+            self.ik_fk(0.0, side, 0.0)
+            self.ik_fk(end, side, 0.0)
+            self.hand(0.0, side, "relaxed")
+            self.hand(end, side, "relaxed", amount=0.8)
+
     def hand_ik(self, frame: float, side: str, **channels) -> None:
         self._mirrored(f"arm_{side}_ik", side, channels, frame)
 
@@ -304,25 +340,8 @@ def walk(b: ClipBuilder) -> None:
             if 0.0 <= passing <= end:
                 h.foot(passing, side, ty=height, tz=0.0, rx=-0.25)
                 h.leg(passing, side, roll=0.0)
-        # the arm of this side swings forward while the other leg strikes
-        for k in range(cycles + 1):
-            forward = phase + period / 2 + k * period - period
-            for t, amount in ((forward, 1.0), (forward + period / 2, -1.0)):
-                if 0.0 <= t <= end:
-                    h.arm(
-                        t,
-                        side,
-                        [
-                            (0.0, -swing_arm * amount - 0.05, -1.42),
-                            (0.0, -0.35 - 0.15 * max(amount, 0.0), 0.0),
-                            (0.0, 0.0, -0.1),
-                        ],
-                    )
-    for side in SIDES:
-        h.ik_fk(0.0, side, 0.0)
-        h.ik_fk(end, side, 0.0)
-        h.hand(0.0, side, "relaxed")
-        h.hand(end, side, "relaxed", amount=0.8)
+        h.walk_arm_swing(side, phase, period, cycles, end, swing_arm)
+    h.relaxed_hands(end)
     # body: lowest at double support, sways over the stance foot, hips rotate with legs
     for k, t in enumerate(np.arange(0.0, end + 1e-9, 7.5)):
         t = float(t)
