@@ -64,31 +64,19 @@ def walk_start_stop(b: ClipBuilder) -> None:
     strike_roll, toe_off_roll = b.vary(-0.3, 0.05), b.vary(0.9, 0.1)
     cycles = math.ceil(end / PERIOD)
     for side, phase in {"l": 0.0, "r": PERIOD / 2}.items():
-        for k in range(-1, cycles + 1):
-            strike = phase + k * PERIOD
-            toe_off, mid = strike + 18.0, strike + 9.0
-            passing = toe_off + 6.0
-            if 0.0 <= strike <= end:
-                b.key(f"leg_{side}_ik.tz", strike, reach * s(strike), "linear")
-                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
-                h.leg(strike, side, roll=strike_roll * s(strike))
-                h.foot(strike, side, rx=0.0)
-            if 0.0 <= strike + GRID <= end:
-                h.leg(strike + GRID, side, roll=0.0)
-            if 0.0 <= mid <= end:
-                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
-                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
-            if 0.0 <= toe_off - GRID <= end:
-                h.leg(toe_off - GRID, side, roll=0.2 * s(toe_off - GRID))
-            if 0.0 <= toe_off <= end:
-                b.key(f"leg_{side}_ik.tz", toe_off, -reach * s(toe_off), "bezier")
-                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
-                h.leg(toe_off, side, roll=toe_off_roll * s(toe_off))
-                h.foot(toe_off, side, rx=0.0)
-            if 0.0 <= passing <= end:
-                lift = s(passing)
-                h.foot(passing, side, ty=height * lift, tz=0.0, rx=-0.25 * lift)
-                h.leg(passing, side, roll=0.0)
+        h.walk_steps(
+            side,
+            phase,
+            PERIOD,
+            GRID,
+            cycles,
+            end,
+            reach=reach,
+            height=height,
+            strike_roll=lambda: strike_roll,
+            toe_off_roll=lambda: toe_off_roll,
+            scale=s,
+        )
         # this side's arm swings forward as the other leg strikes
         h.walk_arm_swing(side, phase, PERIOD, cycles, end, swing_arm, scale=s)
     h.relaxed_hands(end)

@@ -114,6 +114,57 @@ class Human(BodyKeys):
         self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
+    def walk_steps(
+        self,
+        side: str,
+        phase: float,
+        period: float,
+        grid: float,
+        cycles: int,
+        end: float,
+        *,
+        reach: float,
+        height: float,
+        strike_roll,
+        toe_off_roll,
+        scale=None,
+    ) -> None:
+        """A walk's leg keys on one side: strike, mid-stance, toe-off and passing pose of
+        every cycle that falls in ``[0, end]``. ``strike_roll()``/``toe_off_roll()`` give
+        the foot roll at each strike/toe-off (called when keyed, so a drawn roll keeps its
+        place in the clip's random stream); ``scale(t)`` (default 1) shrinks reach, rolls
+        and foot lift (a walk starting or stopping)."""
+        b = self.b
+
+        def w(t: float) -> float:
+            return 1.0 if scale is None else scale(t)
+
+        for k in range(-1, cycles + 1):
+            strike = phase + k * period
+            toe_off, mid = strike + 18.0, strike + 9.0
+            passing = toe_off + 6.0
+            if 0.0 <= strike <= end:
+                b.key(f"leg_{side}_ik.tz", strike, reach * w(strike), "linear")
+                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
+                self.leg(strike, side, roll=strike_roll() * w(strike))
+                self.foot(strike, side, rx=0.0)
+            if 0.0 <= strike + grid <= end:
+                self.leg(strike + grid, side, roll=0.0)
+            if 0.0 <= mid <= end:
+                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
+                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
+            if 0.0 <= toe_off - grid <= end:
+                self.leg(toe_off - grid, side, roll=0.2 * w(toe_off - grid))
+            if 0.0 <= toe_off <= end:
+                b.key(f"leg_{side}_ik.tz", toe_off, -reach * w(toe_off), "bezier")
+                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
+                self.leg(toe_off, side, roll=toe_off_roll() * w(toe_off))
+                self.foot(toe_off, side, rx=0.0)
+            if 0.0 <= passing <= end:
+                lift = w(passing)
+                self.foot(passing, side, ty=height * lift, tz=0.0, rx=-0.25 * lift)
+                self.leg(passing, side, roll=0.0)
+
     def walk_arm_swing(
         self,
         side: str,
@@ -315,31 +366,18 @@ def walk(b: ClipBuilder) -> None:
     height = b.vary(12.0, 2.0)
     swing_arm = b.vary(0.25, 0.06)
     for side, phase in strikes.items():
-        for k in range(-1, cycles + 1):
-            strike = phase + k * period
-            toe_off = strike + 18.0
-            mid = strike + 9.0
-            passing = toe_off + 6.0
-            if 0.0 <= strike <= end:
-                b.key(f"leg_{side}_ik.tz", strike, reach, "linear")
-                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
-                h.leg(strike, side, roll=b.vary(-0.3, 0.05))
-                h.foot(strike, side, rx=0.0)
-            if 0.0 <= strike + grid <= end:
-                h.leg(strike + grid, side, roll=0.0)
-            if 0.0 <= mid <= end:
-                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
-                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
-            if 0.0 <= toe_off - grid <= end:
-                h.leg(toe_off - grid, side, roll=0.2)
-            if 0.0 <= toe_off <= end:
-                b.key(f"leg_{side}_ik.tz", toe_off, -reach, "bezier")
-                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
-                h.leg(toe_off, side, roll=b.vary(0.9, 0.1))
-                h.foot(toe_off, side, rx=0.0)
-            if 0.0 <= passing <= end:
-                h.foot(passing, side, ty=height, tz=0.0, rx=-0.25)
-                h.leg(passing, side, roll=0.0)
+        h.walk_steps(
+            side,
+            phase,
+            period,
+            grid,
+            cycles,
+            end,
+            reach=reach,
+            height=height,
+            strike_roll=lambda: b.vary(-0.3, 0.05),
+            toe_off_roll=lambda: b.vary(0.9, 0.1),
+        )
         h.walk_arm_swing(side, phase, period, cycles, end, swing_arm)
     h.relaxed_hands(end)
     # body: lowest at double support, sways over the stance foot, hips rotate with legs
