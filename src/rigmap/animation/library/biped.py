@@ -114,6 +114,12 @@ class Human(BodyKeys):
         self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
+    def drawn_sides(self) -> tuple[str, str]:
+        """``(side, other)``: the side this take favours, drawn by ``ClipBuilder.sign`` (so a
+        held-out take can keep its training take's), and the other side."""
+        side = "r" if self.b.sign() > 0 else "l"
+        return side, "l" if side == "r" else "r"
+
     def walk_steps(
         self,
         side: str,
@@ -399,8 +405,7 @@ def reach(b: ClipBuilder) -> None:
     """Reach for a box on a shelf: one arm rises in FK, switches to IK on a matched pose,
     grabs; the other arm joins the same way and both hands bring it in, then back to FK."""
     h = Human(b)
-    first = "r" if b.sign() > 0 else "l"
-    second = "l" if first == "r" else "r"
+    first, second = h.drawn_sides()
     end = 96.0
     h.stand(0.0)
     h.stand(end)
@@ -531,8 +536,7 @@ def crouch(b: ClipBuilder) -> None:
 def wave(b: ClipBuilder) -> None:
     """Raise a hand and wave hello (forearm swinging, fingers spread), then lower it."""
     h = Human(b)
-    side = "r" if b.sign() > 0 else "l"
-    other = "l" if side == "r" else "r"
+    side, other = h.drawn_sides()
     waves = round(b.vary(4.0, 1.0))
     up = 14.0
     end = up + 6.0 * waves + 22.0
@@ -704,8 +708,7 @@ def pick_up(b: ClipBuilder) -> None:
 def kick(b: ClipBuilder) -> None:
     """Kick a ball with one leg (switched to FK), recover, then a smaller kick with the other."""
     h = Human(b)
-    first = "r" if b.sign() > 0 else "l"
-    order = (first, "l" if first == "r" else "r")
+    order = h.drawn_sides()
     t = 8.0
     h.stand(0.0)
     for n, side in enumerate(order):
@@ -816,8 +819,7 @@ def look_around(b: ClipBuilder) -> None:
 def point_and_shrug(b: ClipBuilder) -> None:
     """Point at something far off, look, then shrug with both palms up."""
     h = Human(b)
-    side = "r" if b.sign() > 0 else "l"
-    other = "l" if side == "r" else "r"
+    side, other = h.drawn_sides()
     point, hold, drop, shrug, end = 12.0, 30.0, 38.0, 50.0, 74.0
     h.planted_feet(0.0, end)
     h.stand(0.0)
