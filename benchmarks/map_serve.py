@@ -79,7 +79,7 @@ def main() -> None:
 
     from rigmap.map.clip import MapSettings, map_clip
     from rigmap.rigs import load
-    from rigmap.tracking.map_model import input_frame, save_map_model
+    from rigmap.tracking.map_model import MapModelParts, input_frame, save_map_model
     from rigmap.tracking.model_server import post_json, served_model
 
     load_before = os.getloadavg()[0]
@@ -93,8 +93,10 @@ def main() -> None:
     body = {"dataframe_split": {"columns": list(request.columns),
                                 "data": request.to_numpy().tolist()}}  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="rigmap-map-serve-") as scratch:
-        folder = save_map_model(Path(scratch) / "model", rig, mapping, settings, control_std=std,
-                                hold_values=hold, fps=targets.fps)  # fmt: skip
+        parts = MapModelParts(
+            rig, mapping, settings, control_std=std, hold_values=hold, fps=targets.fps
+        )
+        folder = save_map_model(Path(scratch) / "model", parts)
         model = mlflow.pyfunc.load_model(str(folder))
         loaded, loaded_s = timed(lambda: model.predict(request), args.repeats)
         started = time.perf_counter()

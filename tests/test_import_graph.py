@@ -18,6 +18,12 @@ import ast
 import itertools
 from pathlib import Path
 
+# the one walk over function bodies, shared with scripts/code_shape.py (and its 80-line limit)
+from test_code_shape import code_shape
+
+function_lengths = code_shape.function_lengths
+MAX_FUNCTION_LINES = code_shape.MAX_FUNCTION_LINES
+
 SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = SRC / "rigmap"
 
@@ -38,7 +44,6 @@ APPLICATIONS = (
     "rigmap.stage",  # the old name of rigmap.app.stage, a re-export
 )
 
-MAX_FUNCTION_LINES = 80
 LONG_FUNCTIONS_ALLOWED_UNDER = ("rigmap/rigs/characters/", "rigmap/animation/library/")
 
 
@@ -237,18 +242,8 @@ def _long_functions() -> list[tuple[str, int]]:
         if relative.startswith(LONG_FUNCTIONS_ALLOWED_UNDER):
             continue
         tree = ast.parse(path.read_text(), filename=str(path))
-        found += [(f"{name}:{q}", n) for q, n in _function_lengths(tree) if n > MAX_FUNCTION_LINES]
+        found += [(f"{name}:{q}", n) for q, n in function_lengths(tree) if n > MAX_FUNCTION_LINES]
     return found
-
-
-def _function_lengths(tree: ast.AST, prefix: str = ""):
-    for node in ast.iter_child_nodes(tree):
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
-            qualified = f"{prefix}{node.name}"
-            if not isinstance(node, ast.ClassDef):
-                first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
-                yield qualified, node.end_lineno - first + 1
-            yield from _function_lengths(node, f"{qualified}.")
 
 
 def test_no_function_over_80_lines_outside_rig_builders_and_clips():

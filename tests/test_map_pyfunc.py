@@ -14,7 +14,12 @@ import pytest
 from rigmap.map.clip import MapSettings, map_clip
 from rigmap.map.joint_map import MappedTargets
 from rigmap.map.partial import JointSubset, SubsetMapping
-from rigmap.tracking.map_model import MapModelInputError, input_frame, save_map_model
+from rigmap.tracking.map_model import (
+    MapModelInputError,
+    MapModelParts,
+    input_frame,
+    save_map_model,
+)
 from rigmap.tracking.pyfunc_model import UntrustedModelError
 from test_map_partial import EFFECTORS, gpr, random_poses
 
@@ -42,9 +47,16 @@ def fitted(biped, tmp_path_factory):
         :, subset.columns(biped)
     ]
     request = input_frame(world, subset.joints)
-    folder = save_map_model(tmp_path_factory.mktemp("map-model") / "model", biped, mapping,
-                            SETTINGS, control_std=std, hold_values=hold, fps=24.0,
-                            input_example=request.iloc[:1])  # fmt: skip
+    parts = MapModelParts(
+        biped,
+        mapping,
+        SETTINGS,
+        control_std=std,
+        hold_values=hold,
+        fps=24.0,
+        input_example=request.iloc[:1],
+    )
+    folder = save_map_model(tmp_path_factory.mktemp("map-model") / "model", parts)
     targets = MappedTargets("biped", subset.joints, world, 24.0, "test clip", 1.0, (), ())
     expected = map_clip(biped, targets, mapping, SETTINGS, control_std=std, hold_values=hold)
     return {"folder": folder, "mapping": mapping, "targets": targets, "std": std, "hold": hold,
@@ -160,9 +172,15 @@ def test_logged_model_is_registered_and_loads_by_name(biped, fitted, tmp_path):
         # active experiment and MLFLOW_EXPERIMENT_ID, which later tests' runs would inherit
         experiment = mlflow.create_experiment("rigmap-biped")
         with mlflow.start_run(experiment_id=experiment):
-            info = log_map_model(biped, fitted["mapping"], SETTINGS, control_std=fitted["std"],
-                                 hold_values=fitted["hold"], fps=24.0,
-                                 registered_model_name="rigmap-biped-map-effectors")  # fmt: skip
+            parts = MapModelParts(
+                biped,
+                fitted["mapping"],
+                SETTINGS,
+                control_std=fitted["std"],
+                hold_values=fitted["hold"],
+                fps=24.0,
+            )
+            info = log_map_model(parts, registered_model_name="rigmap-biped-map-effectors")
         assert info.registered_model_version == 1
         model = mlflow.pyfunc.load_model("models:/rigmap-biped-map-effectors/1")
         params = {p.name: p.default for p in model.metadata.get_params_schema().params}

@@ -17,6 +17,7 @@ from omegaconf import OmegaConf
 
 from rigmap.latent import steps
 from rigmap.latent.errors import LatentInputError
+from rigmap.store.layout import LATENT
 
 STEPS = ("fit", "match", "synthesize", "evaluate")
 
@@ -85,7 +86,7 @@ def earlier_records(config: dict, rig: str, step: str, layout) -> dict[str, Path
     paths = {
         "fit": steps.fit_folder(layout, rig) / "fit.json",
         "match": steps.match_folder(layout, rig) / "match.json",
-        "synthesize": layout.latent_data(rig) / "log.json",
+        "synthesize": layout.app_data(rig, LATENT) / "log.json",
     }
     before = STEPS[: STEPS.index(step)]
     return {s: paths[s] for s in before if s not in own and paths[s].is_file()}

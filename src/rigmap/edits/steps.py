@@ -39,6 +39,7 @@ from rigmap.edits.study import (
     weights_from,
 )
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store.layout import EDITS
 
 TABLE_COLUMNS = (
     "edit_error_std",
@@ -151,7 +152,7 @@ def refine_settings(config: dict) -> dict:
 
 def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
     subject, data, edits = _setup(config, subject)
-    folder = layout.edits_metrics(subject) / "refinement"
+    folder = layout.app_metrics(subject, EDITS) / "refinement"
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
 
@@ -188,7 +189,7 @@ def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
 
 def _fit(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    folder = layout.edits_models(subject)
+    folder = layout.app_models(subject, EDITS)
     infos = {}
     for name, edit in edits.items():
         model, infos[name] = fit_edit(data, edit, config)
@@ -198,8 +199,8 @@ def _fit(config: dict, subject: str, layout: Layout) -> Path:
 
 def _apply(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    models = layout.edits_models(subject)
-    out = layout.edits_data(subject)
+    models = layout.app_models(subject, EDITS)
+    out = layout.app_data(subject, EDITS)
     for name in edits:
         model = load_model(models / f"{name}.npz")
         start = time.perf_counter()
@@ -215,9 +216,9 @@ def _apply(config: dict, subject: str, layout: Layout) -> Path:
 
 def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
     subject, data, edits = _setup(config, subject)
-    models = layout.edits_models(subject)
-    applied = layout.edits_data(subject)
-    folder = layout.edits_metrics(subject)
+    models = layout.app_models(subject, EDITS)
+    applied = layout.app_data(subject, EDITS)
+    folder = layout.app_metrics(subject, EDITS)
     summary = {}
     for name, edit in edits.items():
         model = load_model(models / f"{name}.npz")

@@ -22,7 +22,6 @@ import numpy as np
 
 from rigmap.animation.library import Motion
 from rigmap.animation.library.biped import Human
-from rigmap.animation.library.body import SIDES
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 STAND, RAMP, CRUISE = 24.0, 45.0, 45.0  # nominal frames at 24 fps: 1 s, 1.5 cycles each
@@ -65,50 +64,22 @@ def walk_start_stop(b: ClipBuilder) -> None:
     strike_roll, toe_off_roll = b.vary(-0.3, 0.05), b.vary(0.9, 0.1)
     cycles = math.ceil(end / PERIOD)
     for side, phase in {"l": 0.0, "r": PERIOD / 2}.items():
-        for k in range(-1, cycles + 1):
-            strike = phase + k * PERIOD
-            toe_off, mid = strike + 18.0, strike + 9.0
-            passing = toe_off + 6.0
-            if 0.0 <= strike <= end:
-                b.key(f"leg_{side}_ik.tz", strike, reach * s(strike), "linear")
-                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
-                h.leg(strike, side, roll=strike_roll * s(strike))
-                h.foot(strike, side, rx=0.0)
-            if 0.0 <= strike + GRID <= end:
-                h.leg(strike + GRID, side, roll=0.0)
-            if 0.0 <= mid <= end:
-                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
-                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
-            if 0.0 <= toe_off - GRID <= end:
-                h.leg(toe_off - GRID, side, roll=0.2 * s(toe_off - GRID))
-            if 0.0 <= toe_off <= end:
-                b.key(f"leg_{side}_ik.tz", toe_off, -reach * s(toe_off), "bezier")
-                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
-                h.leg(toe_off, side, roll=toe_off_roll * s(toe_off))
-                h.foot(toe_off, side, rx=0.0)
-            if 0.0 <= passing <= end:
-                lift = s(passing)
-                h.foot(passing, side, ty=height * lift, tz=0.0, rx=-0.25 * lift)
-                h.leg(passing, side, roll=0.0)
-        for k in range(cycles + 1):  # this side's arm swings forward as the other leg strikes
-            forward = phase + PERIOD / 2 + k * PERIOD - PERIOD
-            for t, amount in ((forward, 1.0), (forward + PERIOD / 2, -1.0)):
-                if 0.0 <= t <= end:
-                    a = amount * s(t)
-                    h.arm(
-                        t,
-                        side,
-                        [
-                            (0.0, -swing_arm * a - 0.05, -1.42),
-                            (0.0, -0.35 - 0.15 * max(a, 0.0), 0.0),
-                            (0.0, 0.0, -0.1),
-                        ],
-                    )
-    for side in SIDES:
-        h.ik_fk(0.0, side, 0.0)
-        h.ik_fk(end, side, 0.0)
-        h.hand(0.0, side, "relaxed")
-        h.hand(end, side, "relaxed", amount=0.8)
+        h.walk_steps(
+            side,
+            phase,
+            PERIOD,
+            GRID,
+            cycles,
+            end,
+            reach=reach,
+            height=height,
+            strike_roll=lambda: strike_roll,
+            toe_off_roll=lambda: toe_off_roll,
+            scale=s,
+        )
+        # this side's arm swings forward as the other leg strikes
+        h.walk_arm_swing(side, phase, PERIOD, cycles, end, swing_arm, scale=s)
+    h.relaxed_hands(end)
     _torso_keys(b, h, end, s)
 
 

@@ -33,6 +33,7 @@ from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, MAX_SCRIPT_FRAMES_LIMIT, re
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
 from rigmap.store import PACKAGED_CONF, Layout, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store.layout import LATENT
 from rigmap.store.table_file import write_table_file
 
 SCRIPTS_DIR = PACKAGED_CONF / "latent" / "scripts"
@@ -55,11 +56,11 @@ def n_pca_of(config: dict) -> int | None:
 
 
 def fit_folder(layout: Layout, rig: str) -> Path:
-    return layout.latent_models(rig) / "fit"
+    return layout.app_models(rig, LATENT) / "fit"
 
 
 def match_folder(layout: Layout, rig: str) -> Path:
-    return layout.latent_models(rig) / "match"
+    return layout.app_models(rig, LATENT) / "match"
 
 
 def _written(path: Path, stage: str) -> Path:
@@ -213,7 +214,7 @@ def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
     """Used-control values ``(F, C)`` of one script's run by ``latent_synthesize``."""
     from rigmap.store.table_file import read_table_file
 
-    path = layout.latent_data(rig.name) / f"{Path(script).stem}-seed{seed}.parquet"
+    path = layout.app_data(rig.name, LATENT) / f"{Path(script).stem}-seed{seed}.parquet"
     if not path.is_file():
         raise FileNotFoundError(f"{path} does not exist; run the latent_synthesize stage first")
     table, _ = read_table_file(path, CONTROLS_KEY, what="controls")
@@ -238,7 +239,7 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
     for name in script_names(config, rig):  # every script checked before the models load
         read_script(script_path(name), max_frames=cap)
     fitted, table = load_fitted(layout, rig.name), load_table(layout, rig.name)
-    folder = layout.latent_data(rig.name)
+    folder = layout.app_data(rig.name, LATENT)
     log = {}
     for name in script_names(config, rig):
         for seed in config["seeds"]:
@@ -383,7 +384,7 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
     for name in script_names(config, rig):  # the synthesize stage's runs of each script
         played = [read_controls(layout, rig, name, int(seed)) for seed in config["seeds"]]
         summary.setdefault("seed_repeats", {})[Path(name).stem] = seed_spread(rig, played)
-    folder = layout.latent_metrics(rig.name)
+    folder = layout.app_metrics(rig.name, LATENT)
     write_tables(folder, tables)
     from rigmap.latent.figures import draw_latent_spaces
 

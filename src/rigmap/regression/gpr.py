@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -44,6 +45,7 @@ _PREDICT_CHUNK = 8192
 OutputScale = Literal["per_output", "shared"]
 
 
+@dataclass(eq=False, repr=False)
 class GaussianProcessRegressor(Regressor):
     """GPR inverse mapping: joint positions ``(N, D)`` -> controls ``(N, C)`` (§4.1-4.2).
 
@@ -89,41 +91,22 @@ class GaussianProcessRegressor(Regressor):
     name = "gpr"
     kernel_params = ("kernel",)
 
-    def __init__(
-        self,
-        kernel: Kernel | None = None,
-        regularization: float = 1e-5,
-        n_points: int | None = 750,
-        search_length_scale: bool = True,
-        length_scale_range: Sequence[float] | None = None,
-        n_length_scales: int = 25,
-        cv_splits: int = 10,
-        search_points: int | None = None,
-        cv_max_outputs: int | None = 256,
-        n_farthest: int = 10,
-        max_candidates: int | None = 20_000,
-        normalize: bool = True,
-        output_scale: OutputScale = "per_output",
-        seed: int = 0,
-        progress: bool = False,
-        fit_threads: int | None = 1,
-    ):
-        self.kernel = kernel
-        self.regularization = regularization
-        self.n_points = n_points
-        self.search_length_scale = search_length_scale
-        self.length_scale_range = length_scale_range
-        self.n_length_scales = n_length_scales
-        self.cv_splits = cv_splits
-        self.search_points = search_points
-        self.cv_max_outputs = cv_max_outputs
-        self.n_farthest = n_farthest
-        self.max_candidates = max_candidates
-        self.normalize = normalize
-        self.output_scale = output_scale
-        self.seed = seed
-        self.progress = progress
-        self.fit_threads = fit_threads
+    kernel: Kernel | None = None
+    regularization: float = 1e-5
+    n_points: int | None = 750
+    search_length_scale: bool = True
+    length_scale_range: Sequence[float] | None = None
+    n_length_scales: int = 25
+    cv_splits: int = 10
+    search_points: int | None = None
+    cv_max_outputs: int | None = 256
+    n_farthest: int = 10
+    max_candidates: int | None = 20_000
+    normalize: bool = True
+    output_scale: OutputScale = "per_output"
+    seed: int = 0
+    progress: bool = False
+    fit_threads: int | None = 1
 
     def __repr__(self) -> str:
         return (

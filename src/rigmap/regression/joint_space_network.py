@@ -46,6 +46,7 @@ import hashlib
 import itertools
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -148,6 +149,7 @@ class SquashedNetwork(torch.nn.Module):
         return np.where(bounded, np.clip(targets, lower, upper), targets)
 
 
+@dataclass(eq=False, repr=False)
 class JointSpaceNetworkRegressor(Regressor):
     """Pose inputs ``(N, D)`` -> placement targets ``(N, C)``, trained through the rig.
 
@@ -175,49 +177,26 @@ class JointSpaceNetworkRegressor(Regressor):
 
     name = "nn_joint_space"
 
-    def __init__(
-        self,
-        hidden: int = 512,
-        layers: int = 2,
-        n_gaussian: int = 3000,
-        gaussian_scale: float = 1.0,
-        n_wide: int = 3000,
-        n_local: int = 0,
-        local_scale: float = 2.0,
-        pretrain_epochs: int = 20,
-        pretrain_batch: int = 128,
-        epochs: int = 2,
-        batch_size: int = 512,
-        control_weight: float = 0.05,
-        control_rows: str = "natural",
-        learning_rate: float = 1e-3,
-        joint_learning_rate: float | None = None,
-        warmup: float = 0.0,
-        final_fraction: float = 0.1,
-        seed: int = 0,
-        progress: bool = True,
-        threads: int | None = 1,
-    ):
-        self.hidden = hidden
-        self.layers = layers
-        self.n_gaussian = n_gaussian
-        self.gaussian_scale = gaussian_scale
-        self.n_wide = n_wide
-        self.n_local = n_local
-        self.local_scale = local_scale
-        self.pretrain_epochs = pretrain_epochs
-        self.pretrain_batch = pretrain_batch
-        self.epochs = epochs
-        self.batch_size = batch_size
-        self.control_weight = control_weight
-        self.control_rows = control_rows
-        self.learning_rate = learning_rate
-        self.joint_learning_rate = joint_learning_rate
-        self.warmup = warmup
-        self.final_fraction = final_fraction
-        self.seed = seed
-        self.progress = progress
-        self.threads = threads
+    hidden: int = 512
+    layers: int = 2
+    n_gaussian: int = 3000
+    gaussian_scale: float = 1.0
+    n_wide: int = 3000
+    n_local: int = 0
+    local_scale: float = 2.0
+    pretrain_epochs: int = 20
+    pretrain_batch: int = 128
+    epochs: int = 2
+    batch_size: int = 512
+    control_weight: float = 0.05
+    control_rows: str = "natural"
+    learning_rate: float = 1e-3
+    joint_learning_rate: float | None = None
+    warmup: float = 0.0
+    final_fraction: float = 0.1
+    seed: int = 0
+    progress: bool = True
+    threads: int | None = 1
 
     def __repr__(self) -> str:
         return (

@@ -124,19 +124,46 @@ class JointSpaceData:
         known[: len(X)] = True
         natural = np.ones(len(inputs), dtype=bool)
         natural[len(inputs) - n_wide :] = False
-        joints, cog = forward.input_pose(inputs)
-        points = np.concatenate([joints, cog[:, None, :]], axis=1)
         _, std = column_scale(Y)
         _, spread = column_scale(targets)
-        scale = float(points[: len(X)].reshape(len(X), -1).var(axis=0).mean())
+        return cls.from_rows(
+            forward,
+            inputs,
+            targets,
+            known,
+            natural,
+            target_std=float32_tensor(std),
+            spread=float32_tensor(spread),
+            scale_rows=slice(None, len(X)),
+        )
+
+    @classmethod
+    def from_rows(
+        cls,
+        forward: PlacedRigForward,
+        inputs: np.ndarray,
+        targets: np.ndarray,
+        known: np.ndarray,
+        natural: np.ndarray,
+        *,
+        target_std: torch.Tensor,
+        spread: torch.Tensor,
+        scale_rows: slice,
+    ) -> JointSpaceData:
+        """The rows as tensors, with the joints and COG ``forward`` puts at each input row;
+        ``joint_scale`` is the mean joint-coordinate variance over ``scale_rows``."""
+        joints, cog = forward.input_pose(inputs)
+        points = np.concatenate([joints, cog[:, None, :]], axis=1)
+        rows = points[scale_rows]
+        scale = float(rows.reshape(len(rows), -1).var(axis=0).mean())
         return cls(
             inputs=float32_tensor(inputs),
             targets=float32_tensor(targets),
             known=torch.from_numpy(known),
             natural=torch.from_numpy(natural),
             joints=float32_tensor(points),
-            target_std=float32_tensor(std),
-            spread=float32_tensor(spread),
+            target_std=target_std,
+            spread=spread,
             joint_scale=max(scale, 1e-12),
         )
 

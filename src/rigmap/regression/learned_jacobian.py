@@ -15,6 +15,7 @@ kernel methods approximate values much better than derivatives (§7.1).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -42,6 +43,7 @@ GPR_SETTINGS = (
 )
 
 
+@dataclass(eq=False, repr=False)
 class LearnedJacobian(Regressor):
     """GPR from poses ``(N, D)`` to Jacobians ``(N, R, C)`` (R = 3 x joints, C = used controls).
 
@@ -56,27 +58,15 @@ class LearnedJacobian(Regressor):
     name = "learned_jacobian"
     kernel_params = ("kernel",)
 
-    def __init__(
-        self,
-        kernel: Kernel | None = None,
-        regularization: float = 1e-5,
-        search_length_scale: bool = True,
-        length_scale_range: Sequence[float] = (1e-4, 1e2),
-        n_length_scales: int = 25,
-        cv_splits: int = 10,
-        cv_max_outputs: int | None = 256,
-        normalize: bool = True,
-        seed: int = 0,
-    ):
-        self.kernel = kernel
-        self.regularization = regularization
-        self.search_length_scale = search_length_scale
-        self.length_scale_range = length_scale_range
-        self.n_length_scales = n_length_scales
-        self.cv_splits = cv_splits
-        self.cv_max_outputs = cv_max_outputs
-        self.normalize = normalize
-        self.seed = seed
+    kernel: Kernel | None = None
+    regularization: float = 1e-5
+    search_length_scale: bool = True
+    length_scale_range: Sequence[float] = (1e-4, 1e2)
+    n_length_scales: int = 25
+    cv_splits: int = 10
+    cv_max_outputs: int | None = 256
+    normalize: bool = True
+    seed: int = 0
 
     def _regressor(self) -> GaussianProcessRegressor:
         """The GPR on the flattened Jacobians: every support pose, one shared output scale."""

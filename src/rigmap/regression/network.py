@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -81,6 +82,7 @@ class OneHiddenLayer(torch.nn.Module):
         return torch.addmm(self.b1, hidden, self.W1.T)
 
 
+@dataclass(eq=False, repr=False)
 class FeedForwardRegressor(Regressor):
     """Network inverse mapping: joint positions ``(N, D)`` -> controls ``(N, C)`` (§5.3).
 
@@ -103,27 +105,15 @@ class FeedForwardRegressor(Regressor):
     name = "nn"
     legacy_names = ("network",)  # model folders written before the one-name change
 
-    def __init__(
-        self,
-        hidden: int = 2048,
-        alpha: float = 0.1,
-        cost_reduction: CostReduction = "mean",
-        learning_rate: float = 1e-3,
-        batch_size: int = 8,
-        epochs: int = 20,
-        seed: int = 0,
-        progress: bool = True,
-        threads: int | None = 1,
-    ):
-        self.hidden = hidden
-        self.alpha = alpha
-        self.cost_reduction = cost_reduction
-        self.learning_rate = learning_rate
-        self.batch_size = batch_size
-        self.epochs = epochs
-        self.seed = seed
-        self.progress = progress
-        self.threads = threads
+    hidden: int = 2048
+    alpha: float = 0.1
+    cost_reduction: CostReduction = "mean"
+    learning_rate: float = 1e-3
+    batch_size: int = 8
+    epochs: int = 20
+    seed: int = 0
+    progress: bool = True
+    threads: int | None = 1
 
     def __repr__(self) -> str:
         return (

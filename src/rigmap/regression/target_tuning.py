@@ -36,7 +36,7 @@ import torch
 
 from rigmap.regression.features import default_pose_features
 from rigmap.regression.joint_space_network import JointSpaceNetworkRegressor
-from rigmap.regression.joint_space_training import JointSpaceData, float32_tensor, joint_space_cost
+from rigmap.regression.joint_space_training import JointSpaceData, joint_space_cost
 from rigmap.regression.mapping import InverseMapping
 from rigmap.regression.network import _adam
 from rigmap.regression.rig_forward import PlacedRigForward
@@ -73,21 +73,19 @@ def _tuning_data(forward: PlacedRigForward, mapping: InverseMapping, X_pose) -> 
     rest_target = placement.targets(defaults, rest_row)
     targets_in = placement.inputs(X_pose, "target poses to tune on")
     inputs = np.concatenate([rest_in, targets_in])
-    joints, cog = forward.input_pose(inputs)
-    points = np.concatenate([joints, cog[:, None, :]], axis=1)
     network = mapping.regressor.network_
     scale = network.free_std.clamp_min(1e-12)  # the training corpus's target std
     anchors = np.concatenate([rest_target, mapping.regressor.predict(targets_in)])
     known = np.ones(len(inputs), dtype=bool)
-    return JointSpaceData(
-        inputs=float32_tensor(inputs),
-        targets=float32_tensor(anchors),
-        known=torch.from_numpy(known),
-        natural=torch.from_numpy(known),
-        joints=float32_tensor(points),
+    return JointSpaceData.from_rows(
+        forward,
+        inputs,
+        anchors,
+        known,
+        known,
         target_std=scale.float(),
         spread=scale.float(),
-        joint_scale=max(float(points[1:].reshape(len(targets_in), -1).var(axis=0).mean()), 1e-12),
+        scale_rows=slice(1, None),
     )
 
 

@@ -7,6 +7,7 @@ overfits the animator data and the network generalises worse from it.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from rigmap.sampling.base import Sampler, SamplerInputError
 COVARIANCE_TYPES = ("full", "tied", "diag", "spherical")
 
 
+@dataclass(eq=False, repr=False)
 class GaussianMixtureSampler(Sampler):
     """scikit-learn ``GaussianMixture`` fitted on standardised controls.
 
@@ -33,21 +35,12 @@ class GaussianMixtureSampler(Sampler):
     title = "Gaussian Mixture Model"  # the report's label (Table 2)
     paper_row = 4
 
-    def __init__(
-        self,
-        n_components: int = 25,
-        covariance_type: str = "full",
-        reg_covar: float = 1e-3,
-        max_iter: int = 100,
-        n_init: int = 1,
-        random_state: int = 0,
-    ):
-        self.n_components = n_components
-        self.covariance_type = covariance_type
-        self.reg_covar = reg_covar
-        self.max_iter = max_iter
-        self.n_init = n_init
-        self.random_state = random_state
+    n_components: int = 25
+    covariance_type: str = "full"
+    reg_covar: float = 1e-3
+    max_iter: int = 100
+    n_init: int = 1
+    random_state: int = 0
 
     def _fit(self, corpus: np.ndarray) -> None:
         from sklearn.exceptions import ConvergenceWarning

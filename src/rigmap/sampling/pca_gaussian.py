@@ -9,6 +9,9 @@ trains the best network (§6.2, Table 2).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 
 from rigmap.sampling.base import (
@@ -19,6 +22,7 @@ from rigmap.sampling.base import (
 )
 
 
+@dataclass(eq=False, repr=False)
 class PCAGaussianSampler(Sampler):
     """Random corpus frame + Gaussian offset along the corpus's principal axes.
 
@@ -61,10 +65,9 @@ class PCAGaussianSampler(Sampler):
     paper_row = 5
     min_corpus_frames = 2
 
-    def __init__(self, scale: float = 1.0, whiten: bool = True, n_components=None):
-        self.scale = scale
-        self.whiten = whiten
-        self.n_components = n_components
+    scale: float = 1.0
+    whiten: bool = True
+    n_components: Any = None
 
     def _fit(self, corpus: np.ndarray) -> None:
         who = type(self).__name__

@@ -6,6 +6,9 @@ Ignores how controls move together, which is why its poses look extreme
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 
 from rigmap.sampling.base import (
@@ -18,6 +21,7 @@ from rigmap.sampling.base import (
 RANGES = ("corpus", "soft")
 
 
+@dataclass(eq=False, repr=False)
 class UniformSampler(Sampler):
     """Uniform per control within the corpus range or a given soft range.
 
@@ -32,10 +36,9 @@ class UniformSampler(Sampler):
     title = "Uniform"  # the report's label (Table 2)
     paper_row = 1
 
-    def __init__(self, range: str = "corpus", lower=None, upper=None):
-        self.range = range
-        self.lower = lower
-        self.upper = upper
+    range: str = "corpus"
+    lower: Any = None
+    upper: Any = None
 
     def _fit(self, corpus: np.ndarray) -> None:
         who = type(self).__name__

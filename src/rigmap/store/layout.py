@@ -152,25 +152,18 @@ class Layout:
         return self.metrics / rig / metric_set
 
     # --- one application's folders --------------------------------------------------
-    def edits_data(self, rig: str) -> Path:
-        """Edited clips: ``data/<rig>/edits/``."""
-        return self.rig_data(rig) / EDITS
+    def app_data(self, rig: str, app: str) -> Path:
+        """An application's data (``EDITS``: edited clips; ``LATENT``: synthesised clips and
+        their log): ``data/<rig>/<app>/``."""
+        return self.rig_data(rig) / app
 
-    def edits_models(self, rig: str) -> Path:
-        return self.rig_models(rig) / EDITS
+    def app_models(self, rig: str, app: str) -> Path:
+        """An application's fitted models: ``models/<rig>/<app>/``."""
+        return self.rig_models(rig) / app
 
-    def edits_metrics(self, rig: str) -> Path:
-        return self.metrics_folder(rig, EDITS)
-
-    def latent_data(self, rig: str) -> Path:
-        """Synthesised clips and their log: ``data/<rig>/latent/``."""
-        return self.rig_data(rig) / LATENT
-
-    def latent_models(self, rig: str) -> Path:
-        return self.rig_models(rig) / LATENT
-
-    def latent_metrics(self, rig: str) -> Path:
-        return self.metrics_folder(rig, LATENT)
+    def app_metrics(self, rig: str, app: str) -> Path:
+        """An application's metrics: ``metrics/<rig>/<app>/`` (see :meth:`metrics_folder`)."""
+        return self.metrics_folder(rig, app)
 
     def map_model(self, rig: str, subset: str) -> Path:
         """A map subset's model cache: ``models/<rig>/map-<subset>/``."""

@@ -225,8 +225,28 @@ def check_spec_fits_rig(spec: dict, rig, where: Path) -> None:
 
 
 # --------------------------------------------------------------------------- saving
-def _write_artifacts(scratch: Path, rig, mapping, settings, control_std, hold_values, fps) -> str:
+@dataclasses.dataclass(frozen=True, eq=False)
+class MapModelParts:
+    """What a map model is made of, one object for ``save_map_model`` and ``log_map_model``.
+
+    ``control_std``/``hold_values``: per used control, as :func:`map_clip` takes them.
+    ``input_example`` (a few frames, :func:`input_frame`) is stored as the model's serving
+    example, and MLflow maps it once while saving: a check that the saved model works.
+    """
+
+    rig: Any
+    mapping: SubsetMapping
+    settings: MapSettings
+    control_std: np.ndarray
+    hold_values: np.ndarray
+    fps: float = DEFAULT_FPS
+    input_example: pd.DataFrame | None = None
+
+
+def _write_artifacts(scratch: Path, parts: MapModelParts) -> str:
     """The model's data folder in ``scratch``: the mapping and ``map_model.json``."""
+    rig, mapping, settings, fps = parts.rig, parts.mapping, parts.settings, parts.fps
+    control_std, hold_values = parts.control_std, parts.hold_values
     scratch = scratch / DATA_FOLDER
     scratch.mkdir()
     mapping.subset.check_rig(rig)
@@ -255,67 +275,41 @@ def _write_artifacts(scratch: Path, rig, mapping, settings, control_std, hold_va
     return str(scratch)
 
 
-def _signature(rig, mapping, settings: MapSettings, fps: float) -> ModelSignature:
-    refine = ParamSpec("refine_iterations", "long", settings.refine_iterations)
-    params = ParamSchema([ParamSpec("fps", "double", float(fps)), refine])
+def _signature(parts: MapModelParts) -> ModelSignature:
+    refine = ParamSpec("refine_iterations", "long", parts.settings.refine_iterations)
+    params = ParamSchema([ParamSpec("fps", "double", float(parts.fps)), refine])
     return ModelSignature(
-        inputs=Schema([ColSpec("double", c) for c in joint_columns(mapping.subset.joints)]),
-        outputs=Schema([ColSpec("double", c) for c in rig.control_names]),
+        inputs=Schema([ColSpec("double", c) for c in joint_columns(parts.mapping.subset.joints)]),
+        outputs=Schema([ColSpec("double", c) for c in parts.rig.control_names]),
         params=params,
     )
 
 
 @contextlib.contextmanager
-def _model_arguments(rig, mapping, settings, control_std, hold_values, fps, input_example):
+def _model_arguments(parts: MapModelParts):
     """What ``save_model`` and ``log_model`` both take, its artifacts in a scratch folder
     that lasts as long as the ``with`` block."""
     with tempfile.TemporaryDirectory(prefix="rigmap-map-pyfunc-") as scratch:
-        data = _write_artifacts(
-            Path(scratch), rig, mapping, settings, control_std, hold_values, fps
-        )
         yield {
             "loader_module": LOADER_MODULE,
-            "data_path": data,
-            "signature": _signature(rig, mapping, settings, fps),
-            "input_example": input_example,
+            "data_path": _write_artifacts(Path(scratch), parts),
+            "signature": _signature(parts),
+            "input_example": parts.input_example,
             "pip_requirements": pinned_requirements(SubsetMapping),
         }
 
 
-def save_map_model(
-    path: str | os.PathLike,
-    rig,
-    mapping: SubsetMapping,
-    settings: MapSettings,
-    *,
-    control_std: np.ndarray,
-    hold_values: np.ndarray,
-    fps: float = DEFAULT_FPS,
-    input_example: pd.DataFrame | None = None,
-) -> Path:
-    """Save the map model in folder ``path`` (replaced atomically; nothing half-written).
-
-    ``control_std``/``hold_values``: per used control, as :func:`map_clip` takes them.
-    ``input_example`` (a few frames, :func:`input_frame`) is stored as the model's serving
-    example, and MLflow maps it once while saving: a check that the saved model works.
-    """
-    with _model_arguments(
-        rig, mapping, settings, control_std, hold_values, fps, input_example
-    ) as arguments:
+def save_map_model(path: str | os.PathLike, parts: MapModelParts) -> Path:
+    """Save the map model in folder ``path`` (replaced atomically; nothing half-written)."""
+    with _model_arguments(parts) as arguments:
         return write_folder_atomic(
             path, lambda staging: mlflow.pyfunc.save_model(str(staging), **arguments)
         )
 
 
 def log_map_model(
-    rig,
-    mapping: SubsetMapping,
-    settings: MapSettings,
+    parts: MapModelParts,
     *,
-    control_std: np.ndarray,
-    hold_values: np.ndarray,
-    fps: float = DEFAULT_FPS,
-    input_example: pd.DataFrame | None = None,
     name: str = "map_model",
     registered_model_name: str | None = None,
 ):
@@ -323,9 +317,7 @@ def log_map_model(
 
     Registered as ``registered_model_name`` if given (e.g. ``rigmap-<rig>-map-<subset>``).
     """
-    with _model_arguments(
-        rig, mapping, settings, control_std, hold_values, fps, input_example
-    ) as arguments:
+    with _model_arguments(parts) as arguments:
         return mlflow.pyfunc.log_model(
             name=name, registered_model_name=registered_model_name, **arguments
         )
@@ -353,8 +345,7 @@ def export_map_model(
     rig = load(rig_name)
     mapping = SubsetMapping.load(mapping_folder, rig)
     Y = read_corpus_split(rig, layout or Layout(), "train").values()
-    return save_map_model(
-        out,
+    parts = MapModelParts(
         rig,
         mapping,
         settings or MapSettings(),
@@ -362,3 +353,4 @@ def export_map_model(
         hold_values=np.median(Y, axis=0),
         fps=fps,
     )
+    return save_map_model(out, parts)

@@ -20,7 +20,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -73,24 +73,20 @@ def experiment_name(rig: str, prefix: str = EXPERIMENT_PREFIX) -> str:
     return f"{prefix}-{safe_name(rig)}"
 
 
+@dataclass(eq=False, repr=False)
 class Tracker:
     """A checked connection to one tracking store; build with ``open`` or ``from_config``."""
 
-    def __init__(
-        self,
-        uri: str,
-        *,
-        root: Path,
-        experiment_prefix: str = EXPERIMENT_PREFIX,
-        register_models: bool = True,
-        system_metrics_interval_s: float | None = None,
-    ):
-        self.uri = uri
-        self.system_metrics_interval_s = system_metrics_interval_s
-        self.experiment_prefix = experiment_prefix
-        self.register_models = register_models
-        self.root = root
-        self.client = MlflowClient(tracking_uri=uri, registry_uri=uri)
+    uri: str
+    _: KW_ONLY
+    root: Path
+    experiment_prefix: str = EXPERIMENT_PREFIX
+    register_models: bool = True
+    system_metrics_interval_s: float | None = None
+    client: MlflowClient = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.client = MlflowClient(tracking_uri=self.uri, registry_uri=self.uri)
 
     @classmethod
     def open(

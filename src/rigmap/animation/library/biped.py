@@ -114,6 +114,99 @@ class Human(BodyKeys):
         self._fk_joints(frame, ARM_JOINTS, side, angles, looseness, loose=("rx", "rz"))
         self._mirrored(f"clavicle_{side}_ctrl", side, {"ry": clavicle[0], "rz": clavicle[1]}, frame)
 
+    def drawn_sides(self) -> tuple[str, str]:
+        """``(side, other)``: the side this take favours, drawn by ``ClipBuilder.sign`` (so a
+        held-out take can keep its training take's), and the other side."""
+        side = "r" if self.b.sign() > 0 else "l"
+        return side, "l" if side == "r" else "r"
+
+    def walk_steps(
+        self,
+        side: str,
+        phase: float,
+        period: float,
+        grid: float,
+        cycles: int,
+        end: float,
+        *,
+        reach: float,
+        height: float,
+        strike_roll,
+        toe_off_roll,
+        scale=None,
+    ) -> None:
+        """A walk's leg keys on one side: strike, mid-stance, toe-off and passing pose of
+        every cycle that falls in ``[0, end]``. ``strike_roll()``/``toe_off_roll()`` give
+        the foot roll at each strike/toe-off (called when keyed, so a drawn roll keeps its
+        place in the clip's random stream); ``scale(t)`` (default 1) shrinks reach, rolls
+        and foot lift (a walk starting or stopping)."""
+        b = self.b
+
+        def w(t: float) -> float:
+            return 1.0 if scale is None else scale(t)
+
+        for k in range(-1, cycles + 1):
+            strike = phase + k * period
+            toe_off, mid = strike + 18.0, strike + 9.0
+            passing = toe_off + 6.0
+            if 0.0 <= strike <= end:
+                b.key(f"leg_{side}_ik.tz", strike, reach * w(strike), "linear")
+                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
+                self.leg(strike, side, roll=strike_roll() * w(strike))
+                self.foot(strike, side, rx=0.0)
+            if 0.0 <= strike + grid <= end:
+                self.leg(strike + grid, side, roll=0.0)
+            if 0.0 <= mid <= end:
+                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
+                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
+            if 0.0 <= toe_off - grid <= end:
+                self.leg(toe_off - grid, side, roll=0.2 * w(toe_off - grid))
+            if 0.0 <= toe_off <= end:
+                b.key(f"leg_{side}_ik.tz", toe_off, -reach * w(toe_off), "bezier")
+                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
+                self.leg(toe_off, side, roll=toe_off_roll() * w(toe_off))
+                self.foot(toe_off, side, rx=0.0)
+            if 0.0 <= passing <= end:
+                lift = w(passing)
+                self.foot(passing, side, ty=height * lift, tz=0.0, rx=-0.25 * lift)
+                self.leg(passing, side, roll=0.0)
+
+    def walk_arm_swing(
+        self,
+        side: str,
+        phase: float,
+        period: float,
+        cycles: int,
+        end: float,
+        swing: float,
+        scale=None,
+    ) -> None:
+        """A walk's arm swing: this side's arm forward while the other leg strikes, back half
+        a cycle later; ``scale(t)`` (default 1) shrinks each swing (a walk starting or
+        stopping)."""
+        for k in range(cycles + 1):
+            forward = phase + period / 2 + k * period - period
+            for t, amount in ((forward, 1.0), (forward + period / 2, -1.0)):
+                if 0.0 <= t <= end:
+                    a = amount if scale is None else amount * scale(t)
+                    self.arm(
+                        t,
+                        side,
+                        [
+                            (0.0, -swing * a - 0.05, -1.42),
+                            (0.0, -0.35 - 0.15 * max(a, 0.0), 0.0),
+                            (0.0, 0.0, -0.1),
+                        ],
+                    )
+
+    def relaxed_hands(self, end: float) -> None:
+        """Both arms in FK with relaxed hands at the first and last frame."""
+        for side in SIDES:
+            self.ik_fk(0.0, side, 0.0)
+            self.ik_fk(end, side, 0.0)
+            self.hand(0.0, side, "relaxed")
+            self.hand(end, side, "relaxed", amount=0.8)
+
     def hand_ik(self, frame: float, side: str, **channels) -> None:
         self._mirrored(f"arm_{side}_ik", side, channels, frame)
 
@@ -279,50 +372,20 @@ def walk(b: ClipBuilder) -> None:
     height = b.vary(12.0, 2.0)
     swing_arm = b.vary(0.25, 0.06)
     for side, phase in strikes.items():
-        for k in range(-1, cycles + 1):
-            strike = phase + k * period
-            toe_off = strike + 18.0
-            mid = strike + 9.0
-            passing = toe_off + 6.0
-            if 0.0 <= strike <= end:
-                b.key(f"leg_{side}_ik.tz", strike, reach, "linear")
-                b.key(f"leg_{side}_ik.ty", strike, 0.0, "linear")
-                h.leg(strike, side, roll=b.vary(-0.3, 0.05))
-                h.foot(strike, side, rx=0.0)
-            if 0.0 <= strike + grid <= end:
-                h.leg(strike + grid, side, roll=0.0)
-            if 0.0 <= mid <= end:
-                b.key(f"leg_{side}_ik.tz", mid, 0.0, "linear")
-                b.key(f"leg_{side}_ik.ty", mid, 0.0, "linear")
-            if 0.0 <= toe_off - grid <= end:
-                h.leg(toe_off - grid, side, roll=0.2)
-            if 0.0 <= toe_off <= end:
-                b.key(f"leg_{side}_ik.tz", toe_off, -reach, "bezier")
-                b.key(f"leg_{side}_ik.ty", toe_off, 0.0, "bezier")
-                h.leg(toe_off, side, roll=b.vary(0.9, 0.1))
-                h.foot(toe_off, side, rx=0.0)
-            if 0.0 <= passing <= end:
-                h.foot(passing, side, ty=height, tz=0.0, rx=-0.25)
-                h.leg(passing, side, roll=0.0)
-        # the arm of this side swings forward while the other leg strikes
-        for k in range(cycles + 1):
-            forward = phase + period / 2 + k * period - period
-            for t, amount in ((forward, 1.0), (forward + period / 2, -1.0)):
-                if 0.0 <= t <= end:
-                    h.arm(
-                        t,
-                        side,
-                        [
-                            (0.0, -swing_arm * amount - 0.05, -1.42),
-                            (0.0, -0.35 - 0.15 * max(amount, 0.0), 0.0),
-                            (0.0, 0.0, -0.1),
-                        ],
-                    )
-    for side in SIDES:
-        h.ik_fk(0.0, side, 0.0)
-        h.ik_fk(end, side, 0.0)
-        h.hand(0.0, side, "relaxed")
-        h.hand(end, side, "relaxed", amount=0.8)
+        h.walk_steps(
+            side,
+            phase,
+            period,
+            grid,
+            cycles,
+            end,
+            reach=reach,
+            height=height,
+            strike_roll=lambda: b.vary(-0.3, 0.05),
+            toe_off_roll=lambda: b.vary(0.9, 0.1),
+        )
+        h.walk_arm_swing(side, phase, period, cycles, end, swing_arm)
+    h.relaxed_hands(end)
     # body: lowest at double support, sways over the stance foot, hips rotate with legs
     for k, t in enumerate(np.arange(0.0, end + 1e-9, 7.5)):
         t = float(t)
@@ -342,8 +405,7 @@ def reach(b: ClipBuilder) -> None:
     """Reach for a box on a shelf: one arm rises in FK, switches to IK on a matched pose,
     grabs; the other arm joins the same way and both hands bring it in, then back to FK."""
     h = Human(b)
-    first = "r" if b.sign() > 0 else "l"
-    second = "l" if first == "r" else "r"
+    first, second = h.drawn_sides()
     end = 96.0
     h.stand(0.0)
     h.stand(end)
@@ -474,8 +536,7 @@ def crouch(b: ClipBuilder) -> None:
 def wave(b: ClipBuilder) -> None:
     """Raise a hand and wave hello (forearm swinging, fingers spread), then lower it."""
     h = Human(b)
-    side = "r" if b.sign() > 0 else "l"
-    other = "l" if side == "r" else "r"
+    side, other = h.drawn_sides()
     waves = round(b.vary(4.0, 1.0))
     up = 14.0
     end = up + 6.0 * waves + 22.0
@@ -647,8 +708,7 @@ def pick_up(b: ClipBuilder) -> None:
 def kick(b: ClipBuilder) -> None:
     """Kick a ball with one leg (switched to FK), recover, then a smaller kick with the other."""
     h = Human(b)
-    first = "r" if b.sign() > 0 else "l"
-    order = (first, "l" if first == "r" else "r")
+    order = h.drawn_sides()
     t = 8.0
     h.stand(0.0)
     for n, side in enumerate(order):
@@ -759,8 +819,7 @@ def look_around(b: ClipBuilder) -> None:
 def point_and_shrug(b: ClipBuilder) -> None:
     """Point at something far off, look, then shrug with both palms up."""
     h = Human(b)
-    side = "r" if b.sign() > 0 else "l"
-    other = "l" if side == "r" else "r"
+    side, other = h.drawn_sides()
     point, hold, drop, shrug, end = 12.0, 30.0, 38.0, 50.0, 74.0
     h.planted_feet(0.0, end)
     h.stand(0.0)

@@ -14,10 +14,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from rigmap.animation.keyframes import FCurve
+from rigmap.animation.library import Motion, MotionLibrary
 from rigmap.animation.library.clip_builder import ClipBuilder
 
 
@@ -108,3 +110,22 @@ def key_through_stand_in(
     stand_in = ClipBuilder(b.name, b.rng, variation=b.variation, description=b.description)
     design(stand_in)
     rekeyer(stand_in.nominal_curves()).key_onto(b)
+
+
+def library_through_stand_in(
+    rig: str,
+    source: MotionLibrary,
+    rekeyer: Callable[[Mapping[str, FCurve]], CurveRekeyer],
+) -> MotionLibrary:
+    """``source``'s motions, same names and splits, each keyed through its stand-in rig
+    and re-keyed onto ``rig`` by ``rekeyer`` (:func:`key_through_stand_in`)."""
+
+    def on_rig(motion: Motion) -> Motion:
+        keyframe = partial(key_through_stand_in, motion.keyframe, rekeyer)
+        return Motion(motion.name, keyframe, motion.description)
+
+    return MotionLibrary(
+        rig=rig,
+        train=tuple(on_rig(m) for m in source.train),
+        test=tuple(on_rig(m) for m in source.test),
+    )

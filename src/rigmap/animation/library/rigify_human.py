@@ -44,19 +44,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from rigmap.animation.library import Motion, MotionLibrary
 from rigmap.animation.library import biped as human
 from rigmap.animation.library.clip_builder import ClipBuilder
 from rigmap.animation.library.rekey import (
     CurveRekeyer,
     SettleChannel,
     Term,
-    key_through_stand_in,
+    library_through_stand_in,
     rest_value,
 )
 
@@ -355,13 +353,4 @@ class BipedToRigifyHuman(CurveRekeyer):
         self._write(b, channel.target, sources, frames, values)
 
 
-def _on_rigify_human(motion: Motion) -> Motion:
-    keyframe = partial(key_through_stand_in, motion.keyframe, BipedToRigifyHuman)
-    return Motion(motion.name, keyframe, motion.description)
-
-
-LIBRARY = MotionLibrary(
-    rig="rigify_human",
-    train=tuple(_on_rigify_human(m) for m in human.LIBRARY.train),
-    test=tuple(_on_rigify_human(m) for m in human.LIBRARY.test),
-)
+LIBRARY = library_through_stand_in("rigify_human", human.LIBRARY, BipedToRigifyHuman)

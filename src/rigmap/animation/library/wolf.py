@@ -40,18 +40,16 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
-from rigmap.animation.library import Motion, MotionLibrary
 from rigmap.animation.library import quadruped as dog
 from rigmap.animation.library.clip_builder import ClipBuilder
 from rigmap.animation.library.rekey import (
     CurveRekeyer,
     SettleChannel,
     Term,
-    key_through_stand_in,
+    library_through_stand_in,
     rest_value,
 )
 
@@ -343,13 +341,4 @@ def torso_rotation(rx, ry, rz) -> np.ndarray:
     return axes @ Rz @ Ry @ Rx @ axes.T
 
 
-def _on_wolf(motion: Motion) -> Motion:
-    keyframe = partial(key_through_stand_in, motion.keyframe, DogToWolf)
-    return Motion(motion.name, keyframe, motion.description)
-
-
-LIBRARY = MotionLibrary(
-    rig="rigify_wolf",
-    train=tuple(_on_wolf(m) for m in dog.LIBRARY.train),
-    test=tuple(_on_wolf(m) for m in dog.LIBRARY.test),
-)
+LIBRARY = library_through_stand_in("rigify_wolf", dog.LIBRARY, DogToWolf)

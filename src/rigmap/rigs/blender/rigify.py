@@ -48,6 +48,19 @@ _FACE_DEFORM = [
     "DEF-eye*",
 ]
 
+#: the used controls of the torso every Rigify meta-rig (human and wolf) has: the root
+#: places the body on the ground (Blender's X and Y, rigmap X and -Z, and the heading about
+#: Blender's Z); lifting and tilting are the torso's, then hips, chest, neck and head
+_RIGIFY_TORSO_USED = [
+    "root.t[xy]",
+    "root.rz",
+    "torso.[tr][xyz]",
+    "hips.[tr][xyz]",
+    "chest.[tr][xyz]",
+    "neck.r[xyz]",
+    "head.r[xyz]",
+]
+
 RIGIFY_HUMAN: dict = {
     "armature": "rig",
     "cog_bone": "torso",
@@ -62,15 +75,7 @@ RIGIFY_HUMAN: dict = {
     "joints": {"include": ["DEF-*"], "exclude": _FACE_DEFORM},
     "used": {
         "include": [
-            # the root places the body on the ground (Blender's X and Y, the heading about
-            # Blender's Z); lifting and tilting are the torso's
-            "root.t[xy]",
-            "root.rz",
-            "torso.[tr][xyz]",
-            "hips.[tr][xyz]",
-            "chest.[tr][xyz]",
-            "neck.r[xyz]",
-            "head.r[xyz]",
+            *_RIGIFY_TORSO_USED,
             "spine_fk*.r[xyz]",
             "shoulder.[LR].r[xyz]",
             "hand_ik.[LR].[tr][xyz]",
@@ -125,15 +130,7 @@ RIGIFY_WOLF: dict = {
     },
     "used": {
         "include": [
-            # the root places the wolf on the ground: the two horizontal translations (Blender's
-            # X and Y; rigmap X and -Z) and the heading about the vertical (Blender's Z)
-            "root.t[xy]",
-            "root.rz",
-            "torso.[tr][xyz]",
-            "hips.[tr][xyz]",
-            "chest.[tr][xyz]",
-            "neck.r[xyz]",
-            "head.r[xyz]",
+            *_RIGIFY_TORSO_USED,
             "spine_fk.00[45678].r[xyz]",
             "spine.r[xyz]",
             "spine.00[123].r[xyz]",
