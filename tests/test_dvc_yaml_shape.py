@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: today's length, so the file does not grow back; issue #35 asks for 200, which takes
 #: changing what DVC plans (docs/pipeline.md, "Why the file is not shorter")
-MAX_LINES = 410
+MAX_LINES = 395
 
 #: each stage family and the params.yaml lists (or literal sizes) its matrix multiplies
 FAMILIES: dict[str, tuple[str | int, ...]] = {
@@ -149,8 +149,8 @@ def test_the_plan_script_sees_a_dropped_dependency(tmp_path, stages):
     shutil.copytree(ROOT / "conf", project / "conf")
     shutil.copy(ROOT / "params.yaml", project / "params.yaml")
     text = (ROOT / "dvc.yaml").read_text()
-    dropped = "src/rigmap/reports,"
-    assert text.count(dropped) == 1  # only the report stage reads it
+    dropped = "pipelines/report.py,"
+    assert text.count(dropped) == 1  # only the report stage runs it
     (project / "dvc.yaml").write_text(text.replace(dropped, ""))
     subprocess.run(
         [sys.executable, "-m", "dvc", "init", "--no-scm", "-q"],
@@ -160,4 +160,4 @@ def test_the_plan_script_sees_a_dropped_dependency(tmp_path, stages):
     )
     after = dvc_stage_plan.plan(project)
     found = dvc_stage_plan.differences({"stages": stages}, {"stages": after["stages"]})
-    assert found == ["/stages/report/deps: removed ['src/rigmap/reports'], added []"]
+    assert found == ["/stages/report/deps: removed ['pipelines/report.py'], added []"]
