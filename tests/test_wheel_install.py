@@ -101,10 +101,11 @@ def test_wheel_in_a_fresh_venv_lists_rigs_and_fits(tmp_path):
 
     imported = _run([python, "-c", "import rigmap; print(rigmap.__file__)"], work).strip()
     assert Path(imported).is_relative_to(venv), imported
-    shipped = _run(
-        [python, "-c", "from rigmap.store import PACKAGED_CONF; print(PACKAGED_CONF)"], work
-    ).strip()
+    # the package's own conf/ is found beside the package, and no checkout is reached
+    where = "from rigmap.store.layout import packaged_conf as p, source_checkout as s"
+    shipped, checkout = _run([python, "-c", f"{where}; print(p()); print(s())"], work).split()
     assert Path(shipped).is_relative_to(venv) and (Path(shipped) / "config.yaml").is_file()
+    assert checkout == "None", checkout
 
     listed = _run([rigmap, "rigs", "list"], work).split()
     assert {"quadruped", "biped", "face", "squirrel"} <= set(listed), listed

@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import packaged_conf  # re-exported: the package's own conf/
 
 #: the config groups the catalogue reads, and the evaluate list that orders each
 KINDS = ("method", "sampler", "kernel")
@@ -80,11 +81,6 @@ class Catalogue:
         """The names the evaluate lists run, in table order (all rows if nothing is listed)."""
         listed = self.listed.get(kind)
         return tuple(listed) if listed else tuple(row.key for row in self.rows(kind))
-
-
-def packaged_conf() -> Path:
-    """The config folder shipped inside the package (``rigmap/conf``)."""
-    return Path(__file__).resolve().parent / "conf"
 
 
 @lru_cache(maxsize=1)

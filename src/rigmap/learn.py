@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import Layout
 from rigmap.user_outputs import USER_OUTPUTS, user_paths
 
 STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
@@ -63,7 +64,7 @@ def learn_commands(
     extra = list(overrides)
     out = Path(out).expanduser().resolve() if out is not None else project / USER_OUTPUTS
     extra = [*user_paths(extra, root=out), *extra]
-    cfg = compose([*rig, *extra], project / "conf")
+    cfg = compose([*rig, *extra], Layout.project_conf(project))
     samplers = list(cfg.pipeline.blender_samplers)
     kernels = list(cfg.pipeline.blender_kernels)
 

@@ -25,8 +25,9 @@ from typing import Any
 import yaml
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import ROOTS, Layout
 
-OUTPUT_FOLDERS = ("data", "models", "metrics", "reports")
+OUTPUT_FOLDERS = ROOTS
 
 
 class PreflightError(RigmapError, ValueError):
@@ -69,7 +70,7 @@ def blender_rigs(project: Path, params: Mapping[str, Any] | None = None) -> list
         matrix = stage.get("matrix") if isinstance(stage, Mapping) else None
         listed = (matrix or {}).get("rig", []) if isinstance(matrix, Mapping) else []
         for rig in _interpolated(listed, params or {}):
-            config = project / "conf" / "rig" / f"{rig}.yaml"
+            config = Layout.project_conf(project) / "rig" / f"{rig}.yaml"
             if rig not in rigs and config.is_file() and "blender" in config.read_text("utf-8"):
                 rigs.append(str(rig))
     return rigs

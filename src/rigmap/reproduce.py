@@ -47,6 +47,7 @@ from rigmap.app.params import (
 from rigmap.preflight import check_pipeline_needs
 from rigmap.stage_jobs import families_marked, plan_stages, run_side_by_side
 from rigmap.store import write_text_atomic
+from rigmap.store.layout import Layout
 
 # how DVC says a stage starts, or is restored from its run cache instead of running
 STAGE_STARTS = (
@@ -107,7 +108,7 @@ def plan_reproduce(
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ParamsError(f"--jobs {jobs!r}: expected a whole number of stages at a time, >= 1")
     root = find_project_root(project)
-    overrides = tuple(check_overrides(overrides, root / "conf"))
+    overrides = tuple(check_overrides(overrides, Layout.project_conf(root)))
     for target in targets:
         if not target or target.startswith("-") or "=" in target:
             raise ParamsError(
@@ -299,8 +300,7 @@ def _run(plan: ReproducePlan, update, out: TextIO) -> int:
         code = _run_side_by_side(plan, out)
     else:
         code = _stream(plan, out, total)
-    index = plan.project / str(update.params.get("paths", {}).get("reports", "reports"))
-    index = index / "index.html"
+    index = plan.project / Layout.from_paths(update.params.get("paths")).index_page()
     if code != 0:
         print(f"{PREFIX} dvc repro failed (exit code {code})", file=out)
     elif index.is_file():

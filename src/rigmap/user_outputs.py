@@ -14,9 +14,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from rigmap.store.layout import USER_OUTPUTS
+from rigmap.store.layout import ROOTS, USER_OUTPUTS
 
-PATH_KEYS = ("data", "models", "metrics", "reports")
+PATH_KEYS = ROOTS
 
 
 def user_paths(

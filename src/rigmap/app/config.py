@@ -11,9 +11,13 @@ from pathlib import Path
 def find_config_dir(explicit: Path | None = None) -> Path:
     """The Hydra ``conf/`` folder: ``explicit``, else ``./conf``, else the copy inside the
     package (``rigmap/conf``), so an installed rigmap runs from any folder."""
-    from rigmap.store import PACKAGED_CONF
+    from rigmap.store.layout import Layout, packaged_conf
 
-    candidates = [Path(explicit)] if explicit is not None else [Path.cwd() / "conf", PACKAGED_CONF]
+    candidates = (
+        [Path(explicit)]
+        if explicit is not None
+        else [Layout.project_conf(Path.cwd()), packaged_conf()]
+    )
     for candidate in candidates:
         if (candidate / "config.yaml").is_file():
             return candidate.resolve()

@@ -84,8 +84,8 @@ def earlier_records(config: dict, rig: str, step: str, layout) -> dict[str, Path
     (``latent.mlflow_steps``), so the run that is logged carries them too."""
     own = set(config.get("mlflow_steps", STEPS))
     paths = {
-        "fit": steps.fit_folder(layout, rig) / "fit.json",
-        "match": steps.match_folder(layout, rig) / "match.json",
+        "fit": layout.latent_fit(rig) / "fit.json",
+        "match": layout.latent_match(rig) / "match.json",
         "synthesize": layout.app_data(rig, LATENT) / "log.json",
     }
     before = STEPS[: STEPS.index(step)]

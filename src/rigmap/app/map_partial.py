@@ -33,8 +33,9 @@ from rigmap.map.partial_evaluation import (
     training_data,
 )
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic
+from rigmap.store.layout import MAP_PARTIAL
 
-METRIC_SET = "map_partial"
+METRIC_SET = MAP_PARTIAL
 EDIT_REFINE_ITERATIONS = 3  # refinement of the edited clip (ours)
 
 
@@ -96,7 +97,7 @@ def map_partial(
         control_std=training.std,
         hold_values=training.median,
     )
-    folder = layout.metrics_folder(rig.name, METRIC_SET)
+    folder = layout.map_partial_metrics(rig.name)
     table = pd.DataFrame([r.to_dict() for r in rows])
     meta = {
         "rig": rig.name,

@@ -21,10 +21,10 @@ import pandas as pd
 
 from rigmap.app.map_job import Log, MappedClip, map_from_config
 from rigmap.store import Layout, atomic_file, json_ready, write_json_atomic
+from rigmap.store.layout import MAP
 
-METRICS_SET = "map"
+METRICS_SET = MAP
 METRICS_FORMAT = "rigmap.map_metrics/1"
-MODEL_FOLDER = "model"  # the stage's map model, inside its own output (refitted each run)
 
 
 def map_mocap(
@@ -38,29 +38,33 @@ def map_mocap(
     for clip in stage["clips"]:
         window = {"first_frame": stage["first_frame"], "frames": stage["frames"]}
         source = Path(stage["folder"]) / f"{clip}.bvh"
-        out = layout.rig_data(rig_name) / METRICS_SET
-        mapped = map_stage_clip(config, source, out, window, config_dir=config_dir, log=log)
-        written.append(write_clip_metrics(layout.metrics_folder(rig_name, METRICS_SET), mapped))
+        mapped = map_stage_clip(
+            config, source, layout, (rig_name, MAP), window, config_dir=config_dir, log=log
+        )
+        written.append(write_clip_metrics(layout.map_metrics(rig_name, MAP), mapped))
     return written
 
 
 def map_stage_clip(
     config: Mapping[str, Any],
     source: Path,
-    out: Path,
+    layout: Layout,
+    rig_stage: tuple[str, str],
     overrides: Mapping[str, Any],
     *,
     config_dir: str | os.PathLike,
     log: Log,
 ) -> MappedClip:
-    """One clip of a map stage into ``out/<clip>/``, with ``overrides`` over ``map`` and the
-    stage's map model cached in ``out/`` (:data:`MODEL_FOLDER`)."""
+    """One clip of a map stage (``rig_stage``: rig and stage name) into
+    :meth:`Layout.map_data` ``/<clip>/``, with ``overrides`` over ``map`` and the stage's map
+    model cached in :meth:`Layout.map_stage_model`."""
+    rig_name, stage = rig_stage
     clip_config = {
         **config,
         "map": {**config["map"], **overrides},
         "input": str(source),
-        "out": str(out),
-        "model_cache": str(out / MODEL_FOLDER),
+        "out": str(layout.map_data(rig_name, stage)),
+        "model_cache": str(layout.map_stage_model(rig_name, stage)),
     }
     (mapped,) = map_from_config(clip_config, config_dir=config_dir, log=log)
     return mapped

@@ -25,8 +25,9 @@ from typing import Any
 from rigmap.app.map_job import Log
 from rigmap.app.map_stage import clip_metrics, map_stage_clip
 from rigmap.store import Layout, write_json_atomic, write_text_atomic
+from rigmap.store.layout import MAP_SUITE
 
-METRICS_SET = "map_suite"
+METRICS_SET = MAP_SUITE
 BARS = {  # issue #37's bars on the biped (walks: joint RMS at most 1 cm)
     "joint_error_rms_cm": 1.5,
     "largest_jump_training_std": 5.0,
@@ -56,19 +57,20 @@ def map_suite(
     options = config["map"]["mocap_suite"]
     layout = Layout.from_paths(config.get("paths"))
     rig_name = config["rig"]["name"]
-    out = layout.rig_data(rig_name) / METRICS_SET
     kinds = dict(options.get("kinds") or {})
     rows = []
     for source in suite_clips(options):
         whole = {"first_frame": 0, "frames": None, "preview": False}
-        mapped = map_stage_clip(config, source, out, whole, config_dir=config_dir, log=log)
+        mapped = map_stage_clip(
+            config, source, layout, (rig_name, MAP_SUITE), whole, config_dir=config_dir, log=log
+        )
         row = {**clip_metrics(mapped), "clip": source.stem, "kind": kinds.get(source.stem, "")}
         row["euler_flips"] = mapped.summary["euler_flips"]
-        folder = layout.metrics_folder(rig_name, METRICS_SET)
+        folder = layout.map_metrics(rig_name, MAP_SUITE)
         write_json_atomic(folder / f"{source.stem}.json", row)
         rows.append(row)
     # beside the report, not in reports/tables/ (the report stage owns that folder whole)
-    page = layout.reports / "map_suite" / f"{rig_name}.md"
+    page = layout.map_suite_page(rig_name)
     return write_text_atomic(page, suite_page(rig_name, rows))
 
 

@@ -25,6 +25,7 @@ from typing import Any
 from rigmap.errors import RigmapError
 from rigmap.params_checks import param_problems
 from rigmap.store import write_text_atomic
+from rigmap.store.layout import PARAMS_STAMP, Layout
 
 PARAMS_FILE = "params.yaml"
 CONFIG_NAME = "config"
@@ -50,7 +51,8 @@ def find_project_root(start: str | Path | None = None) -> Path:
     start = Path.cwd() if start is None else Path(start)
     start = start.resolve()
     for folder in (start, *start.parents):
-        if (folder / "dvc.yaml").is_file() and (folder / "conf" / f"{CONFIG_NAME}.yaml").is_file():
+        conf = Layout.project_conf(folder) / f"{CONFIG_NAME}.yaml"
+        if (folder / "dvc.yaml").is_file() and conf.is_file():
             return folder
     raise ParamsError(
         f"no project found: expected dvc.yaml and conf/{CONFIG_NAME}.yaml in {start} or a "
@@ -123,7 +125,7 @@ def write_params(
     import yaml
 
     project = Path(project)
-    config_dir = project / "conf"
+    config_dir = Layout.project_conf(project)
     text = compose_params(config_dir, overrides)
     params = yaml.safe_load(text)
     flat, flat_plain = flatten(params), flatten(yaml.safe_load(compose_params(config_dir, ())))
@@ -196,7 +198,7 @@ def reaching_stages(keys: Sequence[str], dvc_yaml: str | Path) -> list[str]:
     return [k for k in keys if any(k == r or k.startswith(f"{r}.") for r in read)]
 
 
-CHECKED_STAMP = "params_checked.txt"  # the check_params stage's output, which every stage reads
+CHECKED_STAMP = PARAMS_STAMP  # the check_params stage's output (Layout.params_stamp)
 
 
 def check_params_file(project: str | Path, params_file: str | Path = PARAMS_FILE) -> None:
@@ -215,10 +217,10 @@ def check_params_file(project: str | Path, params_file: str | Path = PARAMS_FILE
         params = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError) as error:
         raise ParamsError(f"{path}: not readable as YAML ({error})") from None
-    plain = yaml.safe_load(compose_params(project / "conf", ()))
+    plain = yaml.safe_load(compose_params(Layout.project_conf(project), ()))
     verdict = f"{path} refused before any stage ran"
     check_params(flatten(params), flatten(plain), project / "dvc.yaml", verdict=verdict)
-    write_text_atomic(project / "data" / CHECKED_STAMP, "params.yaml checked\n")
+    write_text_atomic(Layout.of_project(project).params_stamp(), "params.yaml checked\n")
 
 
 def stale_params(project: str | Path, params_file: str | Path = PARAMS_FILE) -> list[str]:
@@ -231,7 +233,7 @@ def stale_params(project: str | Path, params_file: str | Path = PARAMS_FILE) -> 
 
     project = Path(project)
     path = project / params_file
-    composed = compose_params(project / "conf", ())
+    composed = compose_params(Layout.project_conf(project), ())
     try:
         text = path.read_text(encoding="utf-8")
         flat = flatten(yaml.safe_load(text) or {})

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import Layout
 
 USER_ERROR_EXIT = 2  # the exit status of an error the user can fix (as argparse's usage errors)
 DEBUG_VARIABLE = "RIGMAP_DEBUG"
@@ -56,7 +57,9 @@ def run_stage(
 
     script = Path(inspect.getfile(task)).resolve()
     name = name or script.stem
-    config_dir = Path(config_dir) if config_dir is not None else script.parent.parent / "conf"
+    config_dir = (
+        Path(config_dir) if config_dir is not None else Layout.project_conf(script.parent.parent)
+    )
 
     from rigmap.app.placeholders import apply_params, resolve_argv
 

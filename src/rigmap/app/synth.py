@@ -128,13 +128,13 @@ def _loaded(args, compose_config, script: str | None = None):
     from rigmap.app.latent import latent_config
     from rigmap.latent import steps
     from rigmap.store import Layout
-    from rigmap.user_outputs import USER_OUTPUTS, user_paths
+    from rigmap.user_outputs import user_paths
 
     # only --out is written; the models are your own `synth fit` and `match`'s under
     # outputs/ when there, else the pipeline's (models/), unless paths.models=DIR names them
     cfg = compose_config(list(args.overrides), args.config_dir)
     own = user_paths(args.overrides, keys=("models",))
-    if own and steps.fit_folder(Layout(models=USER_OUTPUTS / "models"), str(cfg.rig.name)).is_dir():
+    if own and Layout(models=Layout.user_root("models")).latent_fit(str(cfg.rig.name)).is_dir():
         cfg = compose_config([*own, *args.overrides], args.config_dir)
     config = latent_config(cfg)
     if script is not None:

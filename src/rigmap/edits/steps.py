@@ -152,7 +152,7 @@ def refine_settings(config: dict) -> dict:
 
 def _add(config: dict, subject: str, layout: Layout, settings: dict) -> Path:
     subject, data, edits = _setup(config, subject)
-    folder = layout.app_metrics(subject, EDITS) / "refinement"
+    folder = layout.edits_refinement(subject)
     mirror = subject_mirror(data.subject) if config.get("mirror", False) else None
     cm = data.subject.cm_per_unit
 

@@ -32,11 +32,11 @@ from rigmap.latent.library import FittedModels, fit_models, rig_sets
 from rigmap.latent.scripts import MAX_SCRIPT_FRAMES, MAX_SCRIPT_FRAMES_LIMIT, read_script
 from rigmap.latent.synthesis import Controller, SynthesisSettings
 from rigmap.latent.transitions import TransitionTable, match_models
-from rigmap.store import PACKAGED_CONF, Layout, json_ready, write_json_atomic, write_text_atomic
+from rigmap.store import Layout, json_ready, write_json_atomic, write_text_atomic
 from rigmap.store.layout import LATENT
 from rigmap.store.table_file import write_table_file
 
-SCRIPTS_DIR = PACKAGED_CONF / "latent" / "scripts"
+SCRIPTS_DIR = Layout.latent_scripts()
 CONTROLS_KEY = b"rigmap.latent_controls"
 
 
@@ -53,14 +53,6 @@ def settings_of(config: dict, **changes) -> GPLVMSettings:
 def n_pca_of(config: dict) -> int | None:
     n = config.get("n_pca")
     return None if n is None else int(n)
-
-
-def fit_folder(layout: Layout, rig: str) -> Path:
-    return layout.app_models(rig, LATENT) / "fit"
-
-
-def match_folder(layout: Layout, rig: str) -> Path:
-    return layout.app_models(rig, LATENT) / "match"
 
 
 def _written(path: Path, stage: str) -> Path:
@@ -90,7 +82,7 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
         variance=float(config["variance"]),
         n_pca=n_pca_of(config),
     )
-    folder = fit_folder(layout, rig.name)
+    folder = layout.latent_fit(rig.name)
     files.save_fitted(folder, fitted)
     info = {
         label: {
@@ -110,12 +102,12 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
 
 def load_fitted(layout: Layout, rig: str) -> FittedModels:
     """The ``latent_fit`` stage's models (arrays + JSON, checked; never unpickled)."""
-    return files.load_fitted(_written(fit_folder(layout, rig) / "models.json", "latent_fit"))
+    return files.load_fitted(_written(layout.latent_fit(rig) / "models.json", "latent_fit"))
 
 
 def load_table(layout: Layout, rig: str) -> TransitionTable:
     """The ``latent_match`` stage's matching points (arrays + JSON, checked)."""
-    folder = _written(match_folder(layout, rig) / "transitions.json", "latent_match")
+    folder = _written(layout.latent_match(rig) / "transitions.json", "latent_match")
     return files.load_table(folder)
 
 
@@ -135,7 +127,7 @@ def run_match(config: dict, rig, layout: Layout) -> Path:
         max_iter=int(config["match_max_iter"]),
     )
     seconds = time.perf_counter() - start
-    folder = match_folder(layout, rig.name)
+    folder = layout.latent_match(rig.name)
     files.save_table(folder, table)
     from rigmap.latent.measures import matching_rows
 

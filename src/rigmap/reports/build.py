@@ -41,9 +41,7 @@ from rigmap.reports.tables import (
     sampling_table,
     splits_table,
 )
-
-TABLES_FOLDER = "tables"
-RESULT_FIGURES_FOLDER = Path("figures") / "results"
+from rigmap.store.layout import Layout
 
 
 @dataclass
@@ -69,7 +67,7 @@ def _load_rig(name: str, data_root: Path | None = None):
     if data_root is not None:
         from rigmap.animation.blend_corpus import IMPORT_FILE
 
-        imported = Path(data_root) / name / "corpus" / IMPORT_FILE
+        imported = Layout(data=data_root).corpus_folder(name) / IMPORT_FILE
         if imported.is_file():
             return load(json.loads(imported.read_text())["rig_config"])
     return load(name)
@@ -81,7 +79,7 @@ def every_rigs_facts(rigs, data_root: Path, load_rig: Callable[[str], object]) -
     for name in rigs:
         rig = load_rig(name)
         try:
-            facts.append(rig_facts(rig, data_root / name / "corpus" / "train.parquet"))
+            facts.append(rig_facts(rig, Layout(data=data_root).corpus(name, "train")))
         finally:
             getattr(rig, "close", lambda: None)()  # a Blender rig's workers
     return facts
@@ -102,6 +100,7 @@ def build_report(
     """
     settings = settings or ReportSettings()
     metrics_root, data_root, reports_root = map(Path, (metrics_root, data_root, reports_root))
+    layout = Layout(data=data_root, metrics=metrics_root, reports=reports_root)
     tree = load_metrics(metrics_root, data_root, settings)
     facts = every_rigs_facts(
         settings.rigs, data_root, load_rig or functools.partial(_load_rig, data_root=data_root)
@@ -110,22 +109,10 @@ def build_report(
         for method in settings.methods_for(metrics.rig):
             metrics.methods[method].per_frame()
 
-    tables: list[Table] = [
-        methods_table(tree, settings),
-        sampling_table(tree, settings),
-        rigs_table(facts),
-        kernels_table(tree, settings),
-    ]
-    splits = splits_table(tree, settings)
-    if splits is not None:  # only when the evaluate_splits stage ran
-        tables.append(splits)
-    # the mapping stages' tables, when map_mocap and map_partial ran
-    tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
-    tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
-    tables += edits_tables(metrics_root)  # when the edit stages ran (#17)
-    written_tables = {t.name: write_table(t, reports_root / TABLES_FOLDER) for t in tables}
+    tables = _tables(tree, facts, settings, metrics_root)
+    written_tables = {t.name: write_table(t, layout.tables()) for t in tables}
 
-    figures_folder = reports_root / RESULT_FIGURES_FOLDER
+    figures_folder = layout.result_figures()
     method_tree = {rig: tree[rig] for rig in settings.method_rigs}
     figures = [
         per_frame_figure(tree[rig], settings, figures_folder / f"per_frame_{file_stem(rig)}.png")
@@ -146,12 +133,12 @@ def build_report(
     else:
         figures.append(sweep)
     _remove_stale_figures(figures_folder, {f.path.resolve() for f in figures})
-    grids, grid_notes = sample_grid_figures(reports_root / "figures", settings.sampler_rigs)
-    grids += latent_figures(reports_root / "figures")  # the latent stages' Fig 2
+    grids, grid_notes = sample_grid_figures(layout.figures(), settings.sampler_rigs)
+    grids += latent_figures(layout.figures())  # the latent stages' Fig 2
     notes += grid_notes
 
     index = write_index(
-        reports_root / "index.html",
+        layout.index_page(),
         tables=[(t, written_tables[t.name]) for t in tables],
         result_figures=figures,
         sample_grids=grids,
@@ -167,6 +154,24 @@ def build_report(
         },
     )
     return ReportFiles(index=index, tables=written_tables, figures=[*figures, *grids], notes=notes)
+
+
+def _tables(tree: dict, facts: list, settings: ReportSettings, metrics_root: Path) -> list[Table]:
+    """The report's tables: the paper's four, then those of the stages that ran."""
+    tables: list[Table] = [
+        methods_table(tree, settings),
+        sampling_table(tree, settings),
+        rigs_table(facts),
+        kernels_table(tree, settings),
+    ]
+    splits = splits_table(tree, settings)
+    if splits is not None:  # only when the evaluate_splits stage ran
+        tables.append(splits)
+    # the mapping stages' tables, when map_mocap and map_partial ran
+    tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
+    tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
+    tables += edits_tables(metrics_root)  # when the edit stages ran (#17)
+    return tables
 
 
 def _remove_stale_figures(folder: Path, keep: set[Path]) -> None:

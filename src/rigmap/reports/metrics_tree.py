@@ -29,6 +29,7 @@ from rigmap.error_measures import joint_rms
 from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import RESULT_FORMAT
 from rigmap.reports.settings import ReportSettings
+from rigmap.store.layout import Layout
 
 #: Table 1's rows whose guess is a trained network (re-fitted per replicate seed)
 NETWORK_METHODS = (
@@ -282,18 +283,20 @@ def corpus_clip_names(corpus_file: str | Path) -> tuple[str, ...]:
 
 def expected_files(metrics_root: str | Path, rig: str, settings: ReportSettings) -> list[tuple]:
     """``(table, key, path, method, sampler)`` for every file the tables need on ``rig``."""
-    root = Path(metrics_root) / rig
+    layout = Layout(metrics=metrics_root)
     files = []
     for method in settings.methods_for(rig):
         sampler = settings.method_sampler(method)
-        path = root / "methods" / f"{method}-{sampler}.json"
+        path = layout.metrics_file(rig, "methods", f"{method}-{sampler}")
         files.append(("methods", method, path, method, sampler))
     if rig not in settings.sampler_rigs:
         return files
     for sampler in settings.samplers:
-        files.append(("samplers", sampler, root / "samplers" / f"nn-{sampler}.json", "nn", sampler))
+        path = layout.metrics_file(rig, "samplers", f"nn-{sampler}")
+        files.append(("samplers", sampler, path, "nn", sampler))
     for kernel in settings.kernels:
-        files.append(("kernels", kernel, root / "kernels" / f"gpr-{kernel}.json", "gpr", "none"))
+        path = layout.metrics_file(rig, "kernels", f"gpr-{kernel}")
+        files.append(("kernels", kernel, path, "gpr", "none"))
     return files
 
 
@@ -323,9 +326,7 @@ def load_metrics(
         )
     tree = {}
     for rig in settings.rigs:
-        clips = settings.clips or corpus_clip_names(
-            Path(data_root) / rig / "corpus" / "test.parquet"
-        )
+        clips = settings.clips or corpus_clip_names(Layout(data=data_root).corpus(rig, "test"))
         metrics = RigMetrics(rig, clips)
         for table, key, path, method, sampler in expected_files(metrics_root, rig, settings):
             result = read_result(path, rig=rig, method=method, sampler=sampler, clips=clips)

@@ -1,8 +1,13 @@
 """Every path of an experiment, in one place, and the name of a fitted mapping.
 
 Stages, the CLI and the report ask a :class:`Layout` for paths instead of joining
-strings, so a folder moves in one edit. The four roots come from the ``paths`` config
-(``data``, ``models``, ``metrics``, ``reports``), relative to the working directory.
+strings, so a folder moves in one edit (issue #35: nothing else joins a project folder's
+name or walks up from ``__file__``; ``tests/test_layout_paths.py`` checks both). The four
+roots come from the ``paths`` config (``data``, ``models``, ``metrics``, ``reports``),
+relative to the working directory. Besides them it names the checkout's files
+(:meth:`Layout.project_conf`, :meth:`Layout.tracking_store`), the package's own config
+(:func:`packaged_conf`, the one place that looks beside the package), a user's own runs
+(``outputs/``) and the Blender cache.
 """
 
 from __future__ import annotations
@@ -17,9 +22,9 @@ SPLITS = ("train", "test")  # what the animate and pose stages write
 #: new takes of the training motions (other seeds): the in-distribution test set (issue #15)
 HELDOUT = "heldout"
 _NAME = re.compile(r"^[a-z0-9_]+$")
-#: the Hydra config shipped inside the package (a symlink to the checkout's conf/ in a
-#: source tree, copied files in a wheel): found beside the package, never by climbing
-PACKAGED_CONF = Path(__file__).resolve().parents[1] / "conf"
+#: the four roots of the ``paths`` config, in this order
+ROOTS = ("data", "models", "metrics", "reports")
+CONF = "conf"  # the Hydra config folder: the checkout's, and the copy inside the package
 #: where a user's own runs write by default (``/outputs/`` is git-ignored; ours)
 USER_OUTPUTS = Path("outputs")
 EDITS = "edits"  # the edit-propagation folder under data/, models/ and metrics/ of a subject
@@ -30,6 +35,36 @@ MAP_PREFIX = "map-"  # a map subset's model folder: models/<rig>/map-<subset>
 REPLICATED_REGRESSORS = ("nn", "nn_joint_space")
 #: replicate networks: models/seeds/<k>/<rig>/<model id> (beside, not in, models/<rig>)
 SEEDS = "seeds"
+MAP = "map"  # the map_mocap stage's folder under data/<rig> and metrics/<rig>
+MAP_SUITE = "map_suite"  # the map_suite stage's, likewise (and its page under reports/)
+MAP_PARTIAL = "map_partial"  # the map_partial stage's metrics set
+MAP_STAGE_MODEL = "model"  # a map stage's own map model, inside its output (refitted each run)
+#: the check_params stage's output, which every stage reads (``data/params_checked.txt``)
+PARAMS_STAMP = "params_checked.txt"
+TRACKING_STORE = "mlruns.db"  # the project's own MLflow store, at the checkout's root
+CACHE_ENV_VAR = "RIGMAP_CACHE"  # where generated rigs are cached (default ~/.cache/rigmap)
+
+
+def packaged_conf() -> Path:
+    """The Hydra config shipped inside the package, ``rigmap/conf``: a symlink to the
+    checkout's ``conf/`` in a source tree, copied files in a wheel (pyproject's
+    package-data). The one lookup beside the package; nothing climbs to a checkout."""
+    return Path(__file__).resolve().parents[1] / CONF
+
+
+#: :func:`packaged_conf`'s folder, for callers that want a constant
+PACKAGED_CONF = packaged_conf()
+
+
+def source_checkout() -> Path | None:
+    """The checkout rigmap runs from when installed editable (its ``rigmap/conf`` symlink
+    leads there), else None (a wheel): where the project's own store and Blender live."""
+    root = packaged_conf().resolve().parent
+    try:
+        is_ours = 'name = "rigmap"' in (root / "pyproject.toml").read_text(encoding="utf-8")
+    except OSError:
+        return None
+    return root if is_ours else None
 
 
 @dataclass(frozen=True)
@@ -75,6 +110,8 @@ class ModelId:
 class Layout:
     """The experiment's folders: ``data/<rig>/…``, ``models/<rig>/…``, ``metrics/<rig>/…``."""
 
+    ROOTS = ROOTS
+
     data: Path = Path("data")
     models: Path = Path("models")
     metrics: Path = Path("metrics")
@@ -84,7 +121,7 @@ class Layout:
     replicate: int | None = None
 
     def __post_init__(self) -> None:
-        for field in ("data", "models", "metrics", "reports"):
+        for field in ROOTS:
             object.__setattr__(self, field, Path(getattr(self, field)))
         check_replicate(self.replicate)
 
@@ -93,11 +130,40 @@ class Layout:
         """From a ``paths`` config mapping (missing keys keep their defaults) and the
         ``replicate`` option."""
         paths = dict(paths or {})
-        unknown = sorted(set(paths) - {"data", "models", "metrics", "reports"})
+        unknown = sorted(set(paths) - set(ROOTS))
         if unknown:
             raise ValueError(f"paths config has unknown keys {unknown}")
         roots = {k: Path(os.fspath(v)) for k, v in paths.items() if v is not None}
         return cls(**roots, replicate=replicate)
+
+    @classmethod
+    def of_project(cls, project: str | os.PathLike) -> Layout:
+        """The default roots inside the checkout ``project`` (``<project>/data`` …)."""
+        return cls(**{root: Path(project) / root for root in ROOTS})
+
+    # --- the checkout and the package --------------------------------------------------
+    @staticmethod
+    def project_conf(project: str | os.PathLike) -> Path:
+        """The checkout's Hydra config: ``<project>/conf``."""
+        return Path(project) / CONF
+
+    @staticmethod
+    def tracking_store(project: str | os.PathLike) -> Path:
+        """The project's own MLflow SQLite store: ``<project>/mlruns.db``."""
+        return Path(project) / TRACKING_STORE
+
+    @staticmethod
+    def latent_scripts() -> Path:
+        """The shipped synthesis scripts: ``rigmap/conf/latent/scripts/``."""
+        return packaged_conf() / LATENT / "scripts"
+
+    @staticmethod
+    def blender_cache() -> Path:
+        """Generated rigs and rig descriptions: ``$RIGMAP_CACHE/blender``, by default
+        ``~/.cache/rigmap/blender`` (outside the project: shared by every checkout)."""
+        root = os.environ.get(CACHE_ENV_VAR)
+        base = Path(root).expanduser() if root else Path.home() / ".cache" / "rigmap"
+        return base / "blender"
 
     # --- data/<rig>/ -------------------------------------------------------------------
     def rig_data(self, rig: str) -> Path:
@@ -127,6 +193,11 @@ class Layout:
     def poses_folder(self, rig: str) -> Path:
         return self.rig_data(rig) / "poses"
 
+    def params_stamp(self) -> Path:
+        """What the check_params stage writes, and every stage reads:
+        ``data/params_checked.txt``."""
+        return self.data / PARAMS_STAMP
+
     def samples(self, rig: str, sampler: str) -> Path:
         """A sampler's posed supersamples: ``data/<rig>/samples/<sampler>.npz``."""
         return self.rig_data(rig) / "samples" / f"{sampler}.npz"
@@ -151,6 +222,11 @@ class Layout:
             return self.metrics / rig / replicate_set(metric_set, self.replicate)
         return self.metrics / rig / metric_set
 
+    def metrics_file(self, rig: str, metric_set: str, stem: str) -> Path:
+        """One evaluated row's scores: ``metrics/<rig>/<set>/<stem>.json`` (its per-frame
+        errors: the same path with ``.csv``)."""
+        return self.metrics_folder(rig, metric_set) / f"{stem}.json"
+
     # --- one application's folders --------------------------------------------------
     def app_data(self, rig: str, app: str) -> Path:
         """An application's data (``EDITS``: edited clips; ``LATENT``: synthesised clips and
@@ -165,20 +241,69 @@ class Layout:
         """An application's metrics: ``metrics/<rig>/<app>/`` (see :meth:`metrics_folder`)."""
         return self.metrics_folder(rig, app)
 
+    def edits_refinement(self, rig: str) -> Path:
+        """The edit_add stage's metrics: ``metrics/<rig>/edits/refinement/``."""
+        return self.app_metrics(rig, EDITS) / "refinement"
+
+    def latent_fit(self, rig: str) -> Path:
+        """The latent_fit stage's GPLVMs: ``models/<rig>/latent/fit/``."""
+        return self.app_models(rig, LATENT) / "fit"
+
+    def latent_match(self, rig: str) -> Path:
+        """The latent_match stage's transition table: ``models/<rig>/latent/match/``."""
+        return self.app_models(rig, LATENT) / "match"
+
     def map_model(self, rig: str, subset: str) -> Path:
         """A map subset's model cache: ``models/<rig>/map-<subset>/``."""
         return self.rig_models(rig) / f"{MAP_PREFIX}{subset}"
+
+    def map_data(self, rig: str, stage: str = MAP) -> Path:
+        """A map stage's mapped clips: ``data/<rig>/<stage>/<clip>/`` (``map``, ``map_suite``)."""
+        return self.rig_data(rig) / _map_stage(stage)
+
+    def map_stage_model(self, rig: str, stage: str = MAP) -> Path:
+        """A map stage's own map model, inside its output: ``data/<rig>/<stage>/model/`` (so
+        the stages reading ``models/<rig>/`` do not wait for it)."""
+        return self.map_data(rig, stage) / MAP_STAGE_MODEL
+
+    def map_metrics(self, rig: str, stage: str = MAP) -> Path:
+        """A map stage's scores: ``metrics/<rig>/<stage>/``."""
+        return self.metrics_folder(rig, _map_stage(stage))
+
+    def map_partial_metrics(self, rig: str) -> Path:
+        """The map_partial stage's tables: ``metrics/<rig>/map_partial/``."""
+        return self.metrics_folder(rig, MAP_PARTIAL)
+
+    def map_suite_page(self, rig: str) -> Path:
+        """The real-mocap suite's page: ``reports/map_suite/<rig>.md`` (beside the report,
+        not in ``reports/tables/``, which the report stage owns whole)."""
+        return self.reports / MAP_SUITE / f"{rig}.md"
 
     @staticmethod
     def user_output(*parts: str) -> Path:
         """A user's own run's folder: ``outputs/<parts>`` (``map/<rig>``, ``edits/<name>``)."""
         return USER_OUTPUTS.joinpath(*parts)
 
+    @staticmethod
+    def user_root(root: str) -> Path:
+        """Where a user's own run puts the ``paths.<root>`` it writes: ``outputs/<root>``."""
+        if root not in ROOTS:
+            raise ValueError(f"paths root {root!r} is not one of {', '.join(ROOTS)}")
+        return USER_OUTPUTS / root
+
     def figures(self) -> Path:
         return self.reports / "figures"
 
+    def result_figures(self) -> Path:
+        """The report's figures of results: ``reports/figures/results/``."""
+        return self.figures() / "results"
+
     def tables(self) -> Path:
         return self.reports / "tables"
+
+    def index_page(self) -> Path:
+        """The report's page: ``reports/index.html``."""
+        return self.reports / "index.html"
 
 
 def replicate_set(metric_set: str, replicate: int) -> str:
@@ -196,6 +321,12 @@ def check_replicate(replicate: object) -> None:
             f"replicate: expected null or a training seed from 1 to 2147483647 (0 is the "
             f"committed run's seed), got {replicate!r}"
         )
+
+
+def _map_stage(stage: str) -> str:
+    if stage not in (MAP, MAP_SUITE):
+        raise ValueError(f"map stage {stage!r} is not one of {MAP}, {MAP_SUITE}")
+    return stage
 
 
 def _split(split: str) -> str:

@@ -23,9 +23,10 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import TRACKING_STORE, Layout, source_checkout
 
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
-DEFAULT_STORE_FILE = "mlruns.db"
+DEFAULT_STORE_FILE = TRACKING_STORE
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
 DEFAULT_PROBE_TIMEOUT_S = 3.0
 MAX_PROBE_TIMEOUT_S = 10.0  # ours: a check that waits longer than this is no early check
@@ -45,10 +46,14 @@ class TrackingUnavailableError(RigmapError, RuntimeError):
 def find_project_root(start: str | os.PathLike | None = None) -> Path:
     """The checkout holding rigmap's ``pyproject.toml``, searched upward from ``start``.
 
-    Without ``start``: from the working directory, then from this package's
-    location (an editable install); falls back to the working directory.
+    Without ``start``: from the working directory, then the checkout an editable install
+    runs from (:func:`rigmap.store.layout.source_checkout`); falls back to the working
+    directory.
     """
-    starts = [Path(start)] if start is not None else [Path.cwd(), Path(__file__)]
+    if start is not None:
+        starts = [Path(start)]
+    else:
+        starts = [Path.cwd(), *filter(None, [source_checkout()])]
     for origin in starts:
         for folder in [origin.resolve(), *origin.resolve().parents]:
             if _is_rigmap_project(folder / "pyproject.toml"):
@@ -66,7 +71,7 @@ def _is_rigmap_project(pyproject: Path) -> bool:
 def default_tracking_uri(root: str | os.PathLike | None = None) -> str:
     """``sqlite:///<project root>/mlruns.db`` (an absolute path, so any working directory works)."""
     project = Path(root).resolve() if root is not None else find_project_root()
-    return f"sqlite:///{project / DEFAULT_STORE_FILE}"
+    return f"sqlite:///{Layout.tracking_store(project)}"
 
 
 def resolve_tracking_uri(

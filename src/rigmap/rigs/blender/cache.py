@@ -18,13 +18,12 @@ import os
 import tempfile
 from pathlib import Path
 
-CACHE_ENV_VAR = "RIGMAP_CACHE"
+from rigmap.store.layout import Layout
 
 
 def cache_dir() -> Path:
-    root = os.environ.get(CACHE_ENV_VAR)
-    base = Path(root).expanduser() if root else Path.home() / ".cache" / "rigmap"
-    folder = base / "blender"
+    """:meth:`rigmap.store.Layout.blender_cache`, made if missing."""
+    folder = Layout.blender_cache()
     folder.mkdir(parents=True, exist_ok=True)
     return folder
 

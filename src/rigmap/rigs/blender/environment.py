@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rigmap.errors import RigmapError
+from rigmap.store.layout import source_checkout
 
 ENV_VAR = "RIGMAP_BLENDER"
 ENV_DIR_NAME = ".venv-blender"
@@ -58,13 +59,12 @@ class BlenderCommand:
         return hashlib.sha256(str(self.executable).encode()).hexdigest()[:10]
 
 
-def _project_root() -> Path:
-    return Path(__file__).resolve().parents[4]
-
-
 def default_candidates() -> list[Path]:
+    """``.venv-blender/bin/python`` in the checkout an editable install runs from, then in
+    the working directory."""
     names = [Path(ENV_DIR_NAME) / "bin" / "python"]
-    return [root / name for root in (_project_root(), Path.cwd()) for name in names]
+    roots = [*filter(None, [source_checkout()]), Path.cwd()]
+    return [root / name for root in roots for name in names]
 
 
 def find_blender(blender: str | os.PathLike | None = None) -> BlenderCommand:
