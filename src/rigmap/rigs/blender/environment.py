@@ -61,9 +61,9 @@ class BlenderCommand:
 
 def default_candidates() -> list[Path]:
     """``.venv-blender/bin/python`` in the checkout an editable install runs from, then in
-    the working directory."""
+    the working directory (once, when they are the same folder)."""
     names = [Path(ENV_DIR_NAME) / "bin" / "python"]
-    roots = [*filter(None, [source_checkout()]), Path.cwd()]
+    roots = dict.fromkeys([*filter(None, [source_checkout()]), Path.cwd().resolve()])
     return [root / name for root in roots for name in names]
 
 
