@@ -12,6 +12,7 @@ its range at once: a scream, a full sneer, a grimace, shouting.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from importlib import resources
 
 import yaml
@@ -116,11 +117,11 @@ VISEMES: dict[str, dict[str, float]] = {
 }
 
 
+@dataclass(frozen=True)
 class Face:
     """Keys whole facial poses: every slider and the jaw, so a pose is a pose."""
 
-    def __init__(self, b: ClipBuilder):
-        self.b = b
+    b: ClipBuilder
 
     def pose(
         self,
