@@ -36,6 +36,18 @@ pose_corpora(rig, layout, batch_size=int(cfg.pose.batch_size), progress=False)
 """
 
 
+#: the data files the modules read at import (package-data in pyproject.toml), summarised
+SHIPPED_DATA = """
+from rigmap.animation.library import face
+from rigmap.reports import edits_tables, latent_tables, published
+from rigmap.rigs.blender import rigify
+from rigmap.rigs.characters import face as face_rig, squirrel
+
+print(published.TABLE1[-1], sorted(latent_tables.TABLES), sorted(edits_tables.TABLES))
+print(rigify.PRESETS, sorted(face.BEATS), face_rig.COLOURS, squirrel.COLOURS)
+"""
+
+
 def _run(command: list, cwd: Path) -> str:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     env["MLFLOW_TRACKING_URI"] = f"sqlite:///{cwd / 'mlruns.db'}"
@@ -106,6 +118,12 @@ def test_wheel_in_a_fresh_venv_lists_rigs_and_fits(tmp_path):
     shipped, checkout = _run([python, "-c", f"{where}; print(p()); print(s())"], work).split()
     assert Path(shipped).is_relative_to(venv) and (Path(shipped) / "config.yaml").is_file()
     assert checkout == "None", checkout
+
+    # the data files came with the wheel: the installed modules read what the tree's do
+    data = subprocess.run(
+        [sys.executable, "-c", SHIPPED_DATA], capture_output=True, text=True, check=True
+    ).stdout
+    assert _run([python, "-c", SHIPPED_DATA], work) == data
 
     listed = _run([rigmap, "rigs", "list"], work).split()
     assert {"quadruped", "biped", "face", "squirrel"} <= set(listed), listed

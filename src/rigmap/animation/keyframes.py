@@ -116,36 +116,36 @@ class FCurve:
         """A curve from ``(frame, value)`` pairs, all with one interpolation."""
         return cls([Key(f, v, interpolation) for f, v in pairs], control=control)
 
+    def _error(self, message: str) -> KeyframeError:
+        """A key check's error, naming this curve's control."""
+        return KeyframeError(message, control=self.control)
+
     def _check_keys(self) -> None:
         for key in self.keys:
             if key.interpolation not in INTERPOLATIONS:
-                raise KeyframeError(
+                raise self._error(
                     f"key at frame {key.frame}: interpolation {key.interpolation!r} is not one "
                     f"of {INTERPOLATIONS}",
-                    control=self.control,
                 )
         bad_frame = ~np.isfinite(self.frames)
         if bad_frame.any():
-            raise KeyframeError(
+            raise self._error(
                 f"key frame must be a finite number, got {self.frames[bad_frame][0]} "
                 f"(value {self.values[bad_frame][0]})",
-                control=self.control,
             )
         bad_value = ~np.isfinite(self.values)
         if bad_value.any():
             i = int(np.flatnonzero(bad_value)[0])
-            raise KeyframeError(
+            raise self._error(
                 f"key at frame {self.frames[i]:g} has value {self.values[i]}; keys must be "
                 "finite numbers",
-                control=self.control,
             )
         same = np.flatnonzero(np.diff(self.frames) == 0.0)
         if same.size:
             i = int(same[0])
-            raise KeyframeError(
+            raise self._error(
                 f"two keys at frame {self.frames[i]:g} (values {self.values[i]:g} and "
                 f"{self.values[i + 1]:g}); one key per frame is allowed",
-                control=self.control,
             )
         for key in self.keys:
             for side, handle in (("in", key.in_handle), ("out", key.out_handle)):
@@ -153,18 +153,16 @@ class FCurve:
                     continue
                 h = np.asarray(handle, dtype=np.float64)
                 if h.shape != (2,) or not np.isfinite(h).all():
-                    raise KeyframeError(
+                    raise self._error(
                         f"key at frame {key.frame:g}: {side}_handle must be a finite "
                         f"(frame, value) pair, got {handle!r}",
-                        control=self.control,
                     )
                 wrong_side = h[0] > key.frame if side == "in" else h[0] < key.frame
                 if wrong_side:
                     where = "at or before" if side == "in" else "at or after"
-                    raise KeyframeError(
+                    raise self._error(
                         f"key at frame {key.frame:g}: {side}_handle frame {h[0]:g} must be "
                         f"{where} the key",
-                        control=self.control,
                     )
 
     def _resolve_handles(self) -> tuple[np.ndarray, np.ndarray]:

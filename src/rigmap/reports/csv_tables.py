@@ -7,9 +7,11 @@ here is every character's rows of one CSV, with the columns a spec picks and for
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from importlib import resources
 from pathlib import Path
 
 import pandas as pd
+import yaml
 
 from rigmap.reports.catalog import rig_label
 from rigmap.reports.table import MISSING, Column, Table
@@ -18,6 +20,24 @@ from rigmap.reports.table import MISSING, Column, Table
 ColumnSpec = tuple[str, str, str]
 #: table name → (csv file name, title, column specs, note)
 TableSpecs = Mapping[str, tuple[str, str, list[ColumnSpec], str]]
+
+_SPEC_KEYS = ("csv", "title", "columns", "note")
+
+
+def read_table_specs(file_name: str) -> dict[str, tuple[str, str, list[ColumnSpec], str]]:
+    """The table specs in ``reports/data/<file_name>``: text and column names are data, so
+    they live in a YAML file shipped with the package rather than in code."""
+    path = resources.files("rigmap.reports").joinpath("data", file_name)
+    loaded = yaml.safe_load(path.read_text(encoding="utf-8"))
+    specs = {}
+    for name, entry in (loaded or {}).items():
+        if not isinstance(entry, dict) or sorted(entry) != sorted(_SPEC_KEYS):
+            raise ValueError(f"{file_name}: table {name!r} must have exactly {_SPEC_KEYS}")
+        columns = entry["columns"]
+        if not all(isinstance(c, list) and len(c) == 3 for c in columns):
+            raise ValueError(f"{file_name}: table {name!r}: a column is [column, label, format]")
+        specs[name] = (entry["csv"], entry["title"], [tuple(c) for c in columns], entry["note"])
+    return specs
 
 
 def format_cell(value, fmt: str) -> str:

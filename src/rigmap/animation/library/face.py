@@ -11,6 +11,12 @@ its range at once: a scream, a full sneer, a grimace, shouting.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import resources
+
+import yaml
+
 from rigmap.animation.library import Clips
 from rigmap.animation.library.clip_builder import ClipBuilder
 
@@ -111,11 +117,11 @@ VISEMES: dict[str, dict[str, float]] = {
 }
 
 
+@dataclass(frozen=True)
 class Face:
     """Keys whole facial poses: every slider and the jaw, so a pose is a pose."""
 
-    def __init__(self, b: ClipBuilder):
-        self.b = b
+    b: ClipBuilder
 
     def pose(
         self,
@@ -165,6 +171,35 @@ def _unit(value: float) -> float:
 clips = Clips()
 
 
+#: the clips that are only beats, by name: ``face_beats.yaml`` beside this module
+BEATS_FILE = "face_beats.yaml"
+
+
+def _read_beats() -> dict[str, list[tuple]]:
+    """Each beats-only clip's ``(frame, what, intensity, extras)`` rows from ``BEATS_FILE``."""
+    text = resources.files("rigmap.animation.library").joinpath(BEATS_FILE).read_text("utf-8")
+    beats = {}
+    for clip, rows in (yaml.safe_load(text) or {}).items():
+        if not all(isinstance(row, list) and len(row) == 4 for row in rows):
+            raise ValueError(
+                f"{BEATS_FILE}: clip {clip!r}: a beat is [frame, what, intensity, extras]"
+            )
+        beats[clip] = [tuple(row) for row in rows]
+    return beats
+
+
+BEATS = _read_beats()
+
+
+def _beats_clip(name: str) -> Callable[[ClipBuilder], None]:
+    """The keyframe function of a beats-only clip: its beats of ``BEATS_FILE``, keyed."""
+
+    def keyframe(b: ClipBuilder) -> None:
+        _expression_clip(b, BEATS[name])
+
+    return keyframe
+
+
 def _expression_clip(b: ClipBuilder, beats) -> None:
     """Key (frame, preset name / slider dict / list of (preset, weight), intensity, extras)
     beats; extras may fix the mouth ``shift`` and ``jaw_side``, else they wander a little."""
@@ -198,21 +233,7 @@ def smile_and_laugh(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
-@clips.train("Surprise to Fear", "startle, gasp, worry")
-def surprise_to_fear(b: ClipBuilder) -> None:
-    """Startled surprise, a gasp, then worry creeping in."""
-    beats = [
-        (0.0, "neutral", 0.0, None),
-        (6.0, "surprise", 0.3, None),
-        (10.0, "surprise", 1.0, None),
-        (18.0, [("surprise", 0.9), ("O", 0.4)], 1.0, None),
-        (30.0, "surprise", 0.6, None),
-        (40.0, "fear", 0.7, None),
-        (52.0, "fear", 0.9, None),
-        (64.0, [("fear", 0.5), ("sadness", 0.4)], 1.0, None),
-        (76.0, "sadness", 0.3, None),
-    ]
-    _expression_clip(b, beats)
+clips.train("Surprise to Fear", "startle, gasp, worry")(_beats_clip("Surprise to Fear"))
 
 
 @clips.train("Anger & Disgust", "anger builds, a sneer")
@@ -233,39 +254,10 @@ def anger_and_disgust(b: ClipBuilder) -> None:
     _expression_clip(b, beats)
 
 
-@clips.train("Sad Pout", "sadness, pout, puffed sigh, brave smile")
-def sad_pout(b: ClipBuilder) -> None:
-    """Sadness, a pout, a sigh with puffed cheeks, a small brave smile."""
-    beats = [
-        (0.0, "neutral", 0.0, None),
-        (12.0, "sadness", 0.7, None),
-        (24.0, [("sadness", 0.8), ("pout", 0.6)], 1.0, None),
-        (36.0, "pout", 0.9, None),
-        (44.0, "puff", 0.8, None),
-        (52.0, "puff", 1.0, None),
-        (58.0, [("O", 0.5)], 1.0, None),
-        (66.0, "sadness", 0.4, None),
-        (76.0, [("smile", 0.4), ("sadness", 0.3)], 1.0, None),
-    ]
-    _expression_clip(b, beats)
+clips.train("Sad Pout", "sadness, pout, puffed sigh, brave smile")(_beats_clip("Sad Pout"))
 
 
-@clips.train("Funny Faces", "cheeks sucked, lips rolled, jaw slid")
-def funny_faces(b: ClipBuilder) -> None:
-    """Pulling faces: cheeks sucked in, lips rolled, mouth pushed side to side, jaw slid."""
-    beats = [
-        (0.0, "neutral", 0.0, None),
-        (8.0, "suck", 0.9, None),
-        (18.0, "suck", 1.0, None),
-        (24.0, {"mouth_roll_upper": 0.8, "mouth_roll_lower": 0.8, "mouth_press": 0.4}, 1.0, None),
-        (32.0, {"mouth_pucker": 0.7, "mouth_shrug_upper": 0.5}, 1.0, {"shift": 0.8}),
-        (40.0, {"mouth_pucker": 0.7, "mouth_shrug_upper": 0.5}, 1.0, {"shift": -0.8}),
-        (48.0, {"jaw_open": 0.3, "lower_lip_depress": 0.5}, 1.0, {"jaw_side": 0.9}),
-        (56.0, {"jaw_open": 0.3, "lower_lip_depress": 0.5}, 1.0, {"jaw_side": -0.9}),
-        (64.0, {"jaw_forward": 0.8, "upper_lip_raise": 0.5, "nose_wrinkle": 0.4}, 1.0, None),
-        (72.0, "neutral", 0.0, None),
-    ]
-    _expression_clip(b, beats)
+clips.train("Funny Faces", "cheeks sucked, lips rolled, jaw slid")(_beats_clip("Funny Faces"))
 
 
 def _speech(

@@ -13,6 +13,7 @@ deformers to the ends of their soft ranges, fast.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from rigmap.animation.library import Clips
 from rigmap.animation.library.clip_builder import ClipBuilder
@@ -29,11 +30,11 @@ for _segment in ("neck_1", "neck_2"):
     REST.update({f"{_segment}.r{a}": 0.0 for a in "xyz"})
 
 
+@dataclass(frozen=True)
 class Squirrel:
     """Keys whole poses of the squirrel; the tail's segments follow with overlap."""
 
-    def __init__(self, b: ClipBuilder):
-        self.b = b
+    b: ClipBuilder
 
     def pose(
         self,

@@ -2,16 +2,20 @@
 
 ``rigify_human`` and ``rigify_wolf`` are generated from the metarigs that ship
 with Blender's Rigify the first time they are asked for, then cached as .blend
-files (see :mod:`.cache`). Their presets below say which controls animators
-key (§6.1) and which deform bones count as joints (the face is left out); the
-Hydra files ``conf/rig/rigify_*.yaml`` spell out the same options.
+files (see :mod:`.cache`). Their presets, in ``rigify_presets.yaml`` beside this
+module, say which controls animators key (§6.1) and which deform bones count as
+joints (the face is left out); the Hydra files ``conf/rig/rigify_*.yaml`` spell out
+the same options.
 """
 
 from __future__ import annotations
 
 import copy
 import time
+from importlib import resources
 from pathlib import Path
+
+import yaml
 
 from rigmap.rigs.blender.cache import (
     cache_dir,
@@ -29,156 +33,22 @@ from rigmap.rigs.blender.rig import RIGIFY_HELPER_BONES, BlenderRig
 GENERATION_VERSION = 1
 GENERATION_TIMEOUT_S = 600.0
 
-# The face is left out of the joints (its ~300 bones would cost more than the body), except
-# three points that ride on the head so head rotations stay observable: the jaw's base and
-# the base of each ear.
-_FACE_DEFORM = [
-    "DEF-forehead*",
-    "DEF-temple*",
-    "DEF-brow*",
-    "DEF-lid*",
-    "DEF-ear.?.*",
-    "DEF-tongue*",
-    "DEF-chin*",
-    "DEF-jaw.*",
-    "DEF-cheek*",
-    "DEF-nose*",
-    "DEF-lip*",
-    "DEF-teeth*",
-    "DEF-eye*",
-]
+#: the presets' file, beside this module: every value in it is a name, a glob or a range
+PRESETS_FILE = "rigify_presets.yaml"
 
-#: the used controls of the torso every Rigify meta-rig (human and wolf) has: the root
-#: places the body on the ground (Blender's X and Y, rigmap X and -Z, and the heading about
-#: Blender's Z); lifting and tilting are the torso's, then hips, chest, neck and head
-_RIGIFY_TORSO_USED = [
-    "root.t[xy]",
-    "root.rz",
-    "torso.[tr][xyz]",
-    "hips.[tr][xyz]",
-    "chest.[tr][xyz]",
-    "neck.r[xyz]",
-    "head.r[xyz]",
-]
 
-RIGIFY_HUMAN: dict = {
-    "armature": "rig",
-    "cog_bone": "torso",
-    # the corpus walks the root across the room, crouches the torso and reaches with the IK
-    # hands (the biped's motions: rigmap.animation.library.rigify_human)
-    "soft_ranges": {
-        "root.t[xy]": [-400.0, 400.0],
-        "torso.t[xyz]": [-80.0, 80.0],
-        "hand_ik.[LR].t[xyz]": [-60.0, 60.0],
-        "foot_ik.[LR].t[xyz]": [-45.0, 45.0],
-    },
-    "joints": {"include": ["DEF-*"], "exclude": _FACE_DEFORM},
-    "used": {
-        "include": [
-            *_RIGIFY_TORSO_USED,
-            "spine_fk*.r[xyz]",
-            "shoulder.[LR].r[xyz]",
-            "hand_ik.[LR].[tr][xyz]",
-            "upper_arm_ik.[LR].ry",
-            "foot_ik.[LR].[tr][xyz]",
-            "foot_heel_ik.[LR].r[xyz]",
-            "foot_spin_ik.[LR].r[xyz]",
-            "thigh_ik.[LR].ry",
-            "upper_arm_fk.[LR].r[xyz]",
-            "forearm_fk.[LR].r[xyz]",
-            "hand_fk.[LR].r[xyz]",
-            "thigh_fk.[LR].r[xyz]",
-            "shin_fk.[LR].r[xyz]",
-            "foot_fk.[LR].r[xyz]",
-            "*.01_master.[LR].r[xyz]",
-            "*.01_master.[LR].sy",
-            "f_*.0[12].[LR].rx",
-            "thumb.0[12].[LR].rx",
-            "*_parent.[LR].IK_FK",
-            "*_parent.[LR].IK_Stretch",
-            "torso.neck_follow",
-            "torso.head_follow",
-        ],
-        "exclude": [],
-    },
-    "retarget": [
-        {"bone": "torso", "type": "COPY_TRANSFORMS", "target": "cog"},
-        {"bone": "spine_fk.002", "type": "DAMPED_TRACK", "target": "DEF-spine.003"},
-        {"bone": "spine_fk.003", "type": "DAMPED_TRACK", "target": "DEF-spine.004"},
-        {"bone": "neck", "type": "DAMPED_TRACK", "target": "DEF-spine.006"},
-        {"bone": "hand_ik.L", "type": "COPY_LOCATION", "target": "DEF-hand.L"},
-        {"bone": "hand_ik.R", "type": "COPY_LOCATION", "target": "DEF-hand.R"},
-        {"bone": "foot_ik.L", "type": "COPY_LOCATION", "target": "DEF-foot.L"},
-        {"bone": "foot_ik.R", "type": "COPY_LOCATION", "target": "DEF-foot.R"},
-    ],
-}
+def _read_presets() -> dict[str, dict]:
+    """The presets of ``PRESETS_FILE`` by rig name (data, so kept out of the code)."""
+    text = resources.files("rigmap.rigs.blender").joinpath(PRESETS_FILE).read_text("utf-8")
+    presets = yaml.safe_load(text) or {}
+    if sorted(presets) != ["rigify_human", "rigify_wolf"]:
+        raise ValueError(f"{PRESETS_FILE}: expected presets rigify_human and rigify_wolf")
+    return presets
 
-RIGIFY_WOLF: dict = {
-    "armature": "rig",
-    "cog_bone": "torso",
-    # the corpus walks the root across the room and sits the torso down (the dog's motions,
-    # 1.3 times larger: rigmap.animation.library.wolf); the default ±30 cm fit a paw
-    "soft_ranges": {
-        "root.t[xy]": [-400.0, 400.0],
-        "torso.t[xyz]": [-80.0, 80.0],
-        "*foot_ik.[LR].t[xyz]": [-45.0, 45.0],
-    },
-    # Paw digits are left out like the face: they would double the bones evaluated per pose.
-    "joints": {
-        "include": ["DEF-*"],
-        "exclude": [*_FACE_DEFORM, "DEF-*_index*", "DEF-*_middle*", "DEF-*_ring*", "DEF-*_pinky*"],
-    },
-    "used": {
-        "include": [
-            *_RIGIFY_TORSO_USED,
-            "spine_fk.00[45678].r[xyz]",
-            "spine.r[xyz]",
-            "spine.00[123].r[xyz]",
-            "spine_master.003.r[xz]",
-            "shoulder.[LR].r[xyz]",
-            "front_foot_ik.[LR].[tr][xyz]",
-            "front_foot_heel_ik.[LR].r[xyz]",
-            "front_thigh_ik.[LR].ry",
-            "foot_ik.[LR].[tr][xyz]",
-            "foot_heel_ik.[LR].r[xyz]",
-            "thigh_ik.[LR].ry",
-            "toe.[LR].r[xyz]",
-            "front_toe.[LR].r[xyz]",
-            "thigh_fk.[LR].r[xyz]",
-            "shin_fk.[LR].r[xyz]",
-            "foot_fk.[LR].r[xyz]",
-            "front_thigh_fk.[LR].r[xyz]",
-            "front_shin_fk.[LR].r[xyz]",
-            "front_foot_fk.[LR].r[xyz]",
-            "*thigh_parent.[LR].IK_FK",
-            "*thigh_parent.[LR].IK_Stretch",
-            "torso.tail_follow",
-            "torso.neck_follow",
-            "torso.head_follow",
-        ],
-        "exclude": [],
-    },
-    "retarget": [
-        {"bone": "torso", "type": "COPY_TRANSFORMS", "target": "cog"},
-        {"bone": "spine_fk.006", "type": "DAMPED_TRACK", "target": "DEF-spine.007"},
-        {"bone": "spine_fk.007", "type": "DAMPED_TRACK", "target": "DEF-spine.008"},
-        {"bone": "neck", "type": "DAMPED_TRACK", "target": "DEF-spine.010"},
-        {
-            "bone": "front_foot_ik.L",
-            "type": "COPY_LOCATION",
-            "target": "DEF-front_toe.L",
-            "offset": True,
-        },
-        {
-            "bone": "front_foot_ik.R",
-            "type": "COPY_LOCATION",
-            "target": "DEF-front_toe.R",
-            "offset": True,
-        },
-        {"bone": "foot_ik.L", "type": "COPY_LOCATION", "target": "DEF-toe.L", "offset": True},
-        {"bone": "foot_ik.R", "type": "COPY_LOCATION", "target": "DEF-toe.R", "offset": True},
-    ],
-}
+
+_PRESETS = _read_presets()
+RIGIFY_HUMAN: dict = _PRESETS["rigify_human"]
+RIGIFY_WOLF: dict = _PRESETS["rigify_wolf"]
 
 PRESETS = {"rigify_human": ("human", RIGIFY_HUMAN), "rigify_wolf": ("wolf", RIGIFY_WOLF)}
 

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from rigmap.rigs.base import Control
+from rigmap.rigs.characters.palettes import palette
 from rigmap.rigs.engine.transforms import axis_rotation
 from rigmap.rigs.mesh.blendshapes import (
     Blendshapes,
@@ -75,14 +76,8 @@ SHOWCASE_POSE = {
     "nostril_flare_r": 0.5,
 }
 
-SKIN = (0.92, 0.76, 0.64)
-LIPS = (0.76, 0.40, 0.38)
-MOUTH_INSIDE = (0.30, 0.06, 0.08)
-EYE_WHITE = (0.96, 0.96, 0.94)
-IRIS = (0.22, 0.33, 0.50)
-PUPIL = (0.04, 0.04, 0.05)
-BROWS = (0.33, 0.22, 0.15)
-HAIR = (0.30, 0.19, 0.11)
+#: the named colours of the renders (``palettes.yaml``)
+COLOURS = palette("face")
 
 
 def build_face(*, chunk: int = 4096) -> FaceRig:
@@ -350,7 +345,7 @@ def _face_colors(base: np.ndarray, faces: np.ndarray, thetas, phis) -> np.ndarra
     x, y, z = centroid[:, 0], centroid[:, 1], centroid[:, 2]
     ax = np.abs(x)
     front = z > 2.0
-    colors = np.tile(SKIN, (len(faces), 1))
+    colors = np.tile(COLOURS["skin"], (len(faces), 1))
     # hair on the crown and the back of the head; its edges follow grid rings and
     # columns so whole quads change colour (no saw-tooth)
     ring_y = HEAD_RADII[1] * np.cos(thetas)
@@ -360,18 +355,18 @@ def _face_colors(base: np.ndarray, faces: np.ndarray, thetas, phis) -> np.ndarra
     back = np.arctan2(HEAD_RADII[0] * np.sin(column), HEAD_RADII[2] * np.cos(column))
     azimuth = np.abs(np.arctan2(x, z))
     hair = (y > hairline) | ((azimuth > back) & (y > nape))
-    colors[hair] = HAIR
+    colors[hair] = COLOURS["hair"]
     # brows: a band over the brow ridge
     brow_center = 3.05 - 0.12 * (ax - 3.0) ** 2
     brows = front & (np.abs(y - brow_center) < 0.28) & (ax > 0.9) & (ax < 4.8)
-    colors[brows] = BROWS
+    colors[brows] = COLOURS["brows"]
     # eyes: white almond, iris, pupil
     u, upper, lower = _eye_opening(ax, y)
     eye = front & (np.abs(u) < 1) & (y < upper) & (y > lower)
-    colors[eye] = EYE_WHITE
+    colors[eye] = COLOURS["eye_white"]
     r = np.hypot(ax - EYE[0], y - EYE[1] + 0.05)
-    colors[eye & (r < 0.5)] = IRIS
-    colors[eye & (r < 0.24)] = PUPIL
+    colors[eye & (r < 0.5)] = COLOURS["iris"]
+    colors[eye & (r < 0.24)] = COLOURS["pupil"]
     # lips and the inside of the mouth
     dy = y - MOUTH_Y
     lip_outline = (
@@ -380,8 +375,8 @@ def _face_colors(base: np.ndarray, faces: np.ndarray, thetas, phis) -> np.ndarra
         * (1 + 0.08 * np.where(dy > 0, 1, -1))
     )
     lips = front & (ax < lip_outline) & (dy < 0.85) & (dy > -1.0)
-    colors[lips] = LIPS
-    colors[front & (np.abs(dy) < 0.145) & (ax < MOUTH_HALF_WIDTH - 0.15)] = MOUTH_INSIDE
+    colors[lips] = COLOURS["lips"]
+    colors[front & (np.abs(dy) < 0.145) & (ax < MOUTH_HALF_WIDTH - 0.15)] = COLOURS["mouth_inside"]
     return colors
 
 

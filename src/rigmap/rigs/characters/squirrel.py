@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from rigmap.rigs.base import Control
+from rigmap.rigs.characters.palettes import palette
 from rigmap.rigs.engine.transforms import Transform, axis_rotation, euler_matrix, orthonormalize
 from rigmap.rigs.mesh.blendshapes import Blendshapes, ShapeSpec
 from rigmap.rigs.mesh.collision import CollisionSink
@@ -80,13 +81,9 @@ SHOWCASE_POSE = {
     "arm_r.rx": 0.4,
 }
 
-FUR = (0.74, 0.45, 0.22)
-BELLY = (0.93, 0.84, 0.66)
-TAIL_FUR = (0.66, 0.40, 0.20)
-DARK = (0.08, 0.06, 0.05)
-NOSE = (0.35, 0.18, 0.16)
-TEETH = (0.97, 0.95, 0.86)
-EAR_INNER = (0.86, 0.62, 0.52)
+#: the named colours of the renders (``palettes.yaml``)
+COLOURS = palette("squirrel")
+
 
 # whole-body lattice deformers: base height and length of the bent column (cm)
 # the snout in front of this depth (cm ahead of the head centre) also pushes the chest in
@@ -352,10 +349,10 @@ def build_squirrel_model() -> SquirrelModel:
     facing = np.minimum(column, BODY_COLUMNS - column) <= 3
     belly = (ring >= 1) & (ring <= 14) & facing
     belly[[0, -1]] = False  # the poles
-    colors = np.where(belly[body.faces].all(axis=1)[:, None], BELLY, FUR)
+    colors = np.where(belly[body.faces].all(axis=1)[:, None], COLOURS["belly"], COLOURS["fur"])
     assembly.add("body", body, colors)
     head = _head()
-    assembly.add("head", head, FUR)
+    assembly.add("head", head, COLOURS["fur"])
     nose_tip = _snout_point(1.0, 0.0, 0.0)
     assembly.add(
         "nose",
@@ -364,7 +361,7 @@ def build_squirrel_model() -> SquirrelModel:
             np.linspace(0.4, np.pi - 0.4, 3),
             7,
         ),
-        NOSE,
+        COLOURS["nose"],
     )
     for side, sign in (("l", 1.0), ("r", -1.0)):
         eye_center = _on_head((sign * 0.62, 0.30, 0.64), inset=0.45)
@@ -373,16 +370,16 @@ def build_squirrel_model() -> SquirrelModel:
             surface_of_revolution(
                 ellipsoid_point(eye_center, (0.95, 1.05, 0.95)), np.linspace(0.5, np.pi - 0.5, 4), 9
             ),
-            DARK,
+            COLOURS["dark"],
         )
     for side, sign in (("l", 1.0), ("r", -1.0)):
-        assembly.add(f"ear_{side}", _ear(sign), EAR_INNER)
+        assembly.add(f"ear_{side}", _ear(sign), COLOURS["ear_inner"])
     for side, sign in (("l", 1.0), ("r", -1.0)):
         tooth = _tooth(sign)
-        assembly.add(f"tooth_{side}", tooth, TEETH)
+        assembly.add(f"tooth_{side}", tooth, COLOURS["teeth"])
     for side, sign in (("l", 1.0), ("r", -1.0)):
         arm, _ = _arm(sign)
-        assembly.add(f"arm_{side}", arm, FUR)
+        assembly.add(f"arm_{side}", arm, COLOURS["fur"])
     for side, sign in (("l", 1.0), ("r", -1.0)):
         assembly.add(
             f"foot_{side}",
@@ -393,10 +390,10 @@ def build_squirrel_model() -> SquirrelModel:
                 np.linspace(0.45, np.pi - 0.45, 3),
                 8,
             ),
-            FUR,
+            COLOURS["fur"],
         )
     tail, tail_u = _tail()
-    assembly.add("tail", tail, TAIL_FUR)
+    assembly.add("tail", tail, COLOURS["tail_fur"])
     mesh = assembly.build()
 
     skeleton = _skeleton()
