@@ -191,6 +191,8 @@ def test_a_replicate_run_scores_only_the_network_rows_whatever_the_rig_lists():
     assert replicated_methods(list(catalog), catalog) == tuple(
         name for name in catalog if name.startswith("nn")
     )
+    # an unknown name is not dropped: the evaluation refuses it as without a replicate
+    assert replicated_methods(["nn", "no_such_method"], catalog) == ("nn", "no_such_method")
     with pytest.raises(EvaluationSetupError, match=r"evaluate\.methods: a replicate seed"):
         replicated_methods(["gpr", "mean"], catalog)
 

@@ -70,11 +70,12 @@ def evaluate_from_config(config: Mapping[str, Any], *, experiment: str | None = 
 def replicated_methods(methods, catalog) -> tuple[str, ...]:
     """Of ``methods``, those whose guess is a network a replicate seed re-trains: only they can
     differ from seed 0's rows, so a replicate run scores nothing else (whatever list a rig's
-    ``_overrides_`` gives); an error naming the option when none is left."""
+    ``_overrides_`` gives); an error naming the option when none is left. A name the
+    catalogue lacks is kept, so the evaluation refuses it as it would without a replicate."""
     kept = tuple(
         name
         for name in methods
-        if name in catalog and catalog[name].regressor in REPLICATED_REGRESSORS
+        if name not in catalog or catalog[name].regressor in REPLICATED_REGRESSORS
     )
     if not kept:
         raise EvaluationSetupError(
