@@ -20,11 +20,10 @@ from rigmap.store.atomic import (
 )
 from rigmap.store.data_file import read_data_file
 from rigmap.store.json_ready import json_ready
-from rigmap.store.layout import PACKAGED_CONF, USER_OUTPUTS, Layout, ModelId
+from rigmap.store.layout import USER_OUTPUTS, Layout, ModelId
 from rigmap.store.table_file import TableFileError, read_table_file, write_table_file
 
 __all__ = [
-    "PACKAGED_CONF",
     "USER_OUTPUTS",
     "Layout",
     "ModelId",

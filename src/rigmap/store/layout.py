@@ -52,10 +52,6 @@ def packaged_conf() -> Path:
     return Path(__file__).resolve().parents[1] / CONF
 
 
-#: :func:`packaged_conf`'s folder, for callers that want a constant
-PACKAGED_CONF = packaged_conf()
-
-
 def source_checkout() -> Path | None:
     """The checkout rigmap runs from when installed editable (its ``rigmap/conf`` symlink
     leads there), else None (a wheel): where the project's own store and Blender live."""
