@@ -150,7 +150,7 @@ def test_executor_choice_is_checked_and_only_blender_rigs_take_ray(quadruped):
 def test_executor_group_composes():
     from hydra import compose, initialize_config_dir
 
-    from rigmap.tracking import find_project_root
+    from rigmap.store.layout import find_project_root
 
     conf = find_project_root() / "conf"
     with initialize_config_dir(str(conf), version_base=None):

@@ -40,7 +40,7 @@ from typing import TextIO
 from rigmap.app.params import (
     ParamsError,
     check_overrides,
-    find_project_root,
+    project_root,
     reaching_stages,
     write_params,
 )
@@ -107,7 +107,7 @@ def plan_reproduce(
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ParamsError(f"--jobs {jobs!r}: expected a whole number of stages at a time, >= 1")
-    root = find_project_root(project)
+    root = project_root(project)
     overrides = tuple(check_overrides(overrides, Layout.project_conf(root)))
     for target in targets:
         if not target or target.startswith("-") or "=" in target:

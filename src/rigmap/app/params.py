@@ -25,10 +25,9 @@ from typing import Any
 from rigmap.errors import RigmapError
 from rigmap.params_checks import param_problems
 from rigmap.store import write_text_atomic
-from rigmap.store.layout import PARAMS_STAMP, Layout
+from rigmap.store.layout import CONFIG_NAME, PARAMS_STAMP, Layout, find_project_root
 
 PARAMS_FILE = "params.yaml"
-CONFIG_NAME = "config"
 EXPERIMENT_GROUP = "experiment"
 
 
@@ -46,18 +45,16 @@ class ParamsUpdate:
     differs_from_defaults: tuple[str, ...]
 
 
-def find_project_root(start: str | Path | None = None) -> Path:
-    """The nearest folder at or above ``start`` (default: cwd) holding dvc.yaml and conf/."""
-    start = Path.cwd() if start is None else Path(start)
-    start = start.resolve()
-    for folder in (start, *start.parents):
-        conf = Layout.project_conf(folder) / f"{CONFIG_NAME}.yaml"
-        if (folder / "dvc.yaml").is_file() and conf.is_file():
-            return folder
-    raise ParamsError(
-        f"no project found: expected dvc.yaml and conf/{CONFIG_NAME}.yaml in {start} or a "
-        "folder above it; run from the rigmap repository or pass --project DIR"
-    )
+def project_root(start: str | Path | None = None) -> Path:
+    """The project at or above ``start`` (default: cwd), or an error saying none is there."""
+    root = find_project_root(start)
+    if root is None:
+        start = (Path.cwd() if start is None else Path(start)).resolve()
+        raise ParamsError(
+            f"no project found: expected dvc.yaml and conf/{CONFIG_NAME}.yaml in {start} or a "
+            "folder above it; run from the rigmap repository or pass --project DIR"
+        )
+    return root
 
 
 def experiment_names(config_dir: str | Path) -> list[str]:

@@ -25,6 +25,7 @@ _NAME = re.compile(r"^[a-z0-9_]+$")
 #: the four roots of the ``paths`` config, in this order
 ROOTS = ("data", "models", "metrics", "reports")
 CONF = "conf"  # the Hydra config folder: the checkout's, and the copy inside the package
+CONFIG_NAME = "config"  # the Hydra primary config in it, ``conf/config.yaml``
 #: where a user's own runs write by default (``/outputs/`` is git-ignored; ours)
 USER_OUTPUTS = Path("outputs")
 EDITS = "edits"  # the edit-propagation folder under data/, models/ and metrics/ of a subject
@@ -61,6 +62,18 @@ def source_checkout() -> Path | None:
     except OSError:
         return None
     return root if is_ours else None
+
+
+def find_project_root(start: str | os.PathLike | None = None) -> Path | None:
+    """The nearest folder at or above ``start`` (default: cwd) holding ``dvc.yaml`` and
+    ``conf/config.yaml``, the checkout the pipeline and its tracking store live in; None if
+    there is none (each caller says what that means for it)."""
+    start = (Path.cwd() if start is None else Path(start)).resolve()
+    for folder in (start, *start.parents):
+        conf = Layout.project_conf(folder) / f"{CONFIG_NAME}.yaml"
+        if (folder / "dvc.yaml").is_file() and conf.is_file():
+            return folder
+    return None
 
 
 @dataclass(frozen=True)

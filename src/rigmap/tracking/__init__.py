@@ -34,7 +34,6 @@ from rigmap.tracking.store import (
     TrackingUnavailableError,
     check_reachable,
     default_tracking_uri,
-    find_project_root,
     resolve_tracking_uri,
 )
 
@@ -56,7 +55,6 @@ __all__ = [
     "check_reachable",
     "default_tracking_uri",
     "experiment_name",
-    "find_project_root",
     "flatten_config",
     "joint_columns",
     "load_pyfunc_model",

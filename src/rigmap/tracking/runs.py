@@ -47,9 +47,9 @@ from rigmap.tracking.store import (
     DEFAULT_REQUEST_TIMEOUT_S,
     bound_http_retries,
     check_reachable,
-    find_project_root,
     is_http_uri,
     local_artifact_root,
+    project_folder,
     resolve_tracking_uri,
 )
 
@@ -102,7 +102,7 @@ class Tracker:
         system_metrics_interval_s: float | None = None,
     ) -> Tracker:
         """Resolve the URI (argument > ``$MLFLOW_TRACKING_URI`` > local store) and check it."""
-        project = Path(root).resolve() if root is not None else find_project_root()
+        project = project_folder(root)
         resolved = resolve_tracking_uri(uri, root=project)
         check_reachable(resolved, probe_timeout_s)
         if is_http_uri(resolved):

@@ -23,7 +23,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from rigmap.errors import RigmapError
-from rigmap.store.layout import TRACKING_STORE, Layout, source_checkout
+from rigmap.store.layout import TRACKING_STORE, Layout, find_project_root, source_checkout
 
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 DEFAULT_STORE_FILE = TRACKING_STORE
@@ -43,35 +43,22 @@ class TrackingUnavailableError(RigmapError, RuntimeError):
     """The tracking store named by a URI cannot be used (server down, folder not writable)."""
 
 
-def find_project_root(start: str | os.PathLike | None = None) -> Path:
-    """The checkout holding rigmap's ``pyproject.toml``, searched upward from ``start``.
-
-    Without ``start``: from the working directory, then the checkout an editable install
-    runs from (:func:`rigmap.store.layout.source_checkout`); falls back to the working
-    directory.
-    """
-    if start is not None:
-        starts = [Path(start)]
-    else:
-        starts = [Path.cwd(), *filter(None, [source_checkout()])]
-    for origin in starts:
-        for folder in [origin.resolve(), *origin.resolve().parents]:
-            if _is_rigmap_project(folder / "pyproject.toml"):
-                return folder
-    return Path(start).resolve() if start is not None else Path.cwd().resolve()
-
-
-def _is_rigmap_project(pyproject: Path) -> bool:
-    try:
-        return 'name = "rigmap"' in pyproject.read_text(encoding="utf-8")
-    except OSError:
-        return False
+def project_folder(root: str | os.PathLike | None = None) -> Path:
+    """Where the project's own store lives: ``root`` if given, else the project at or above
+    the working directory, else the checkout an editable install runs from
+    (:func:`rigmap.store.layout.source_checkout`), else the working directory."""
+    if root is not None:
+        return Path(root).resolve()
+    for start in (Path.cwd(), source_checkout()):
+        found = find_project_root(start) if start is not None else None
+        if found is not None:
+            return found
+    return Path.cwd().resolve()
 
 
 def default_tracking_uri(root: str | os.PathLike | None = None) -> str:
     """``sqlite:///<project root>/mlruns.db`` (an absolute path, so any working directory works)."""
-    project = Path(root).resolve() if root is not None else find_project_root()
-    return f"sqlite:///{Layout.tracking_store(project)}"
+    return f"sqlite:///{Layout.tracking_store(project_folder(root))}"
 
 
 def resolve_tracking_uri(
