@@ -98,6 +98,30 @@ class Sampler:
         raise NotImplementedError
 
 
+class CorpusGaussianSampler(Sampler):
+    """A Gaussian around the corpus mean: unit normal draws spread by ``_spread``, then
+    shifted by the mean. The univariate and multivariate strategies differ only in the
+    spread (per-control standard deviations, or a factor of the full covariance)."""
+
+    min_corpus_frames = 2
+
+    def _fit(self, corpus: np.ndarray) -> None:
+        self.mean_ = corpus.mean(axis=0)
+        self._fit_spread(corpus)
+
+    def _sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        samples = self._spread(rng.standard_normal((n, self.mean_.size)))
+        samples += self.mean_
+        return samples
+
+    def _fit_spread(self, corpus: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _spread(self, draws: np.ndarray) -> np.ndarray:
+        """``(n, C)`` unit normal draws as offsets from the mean (may reuse ``draws``)."""
+        raise NotImplementedError
+
+
 def sampler_classes() -> list[type[Sampler]]:
     """Every imported sampler class that has a ``name`` (built-in ones and any other)."""
     found, pending = [], list(Sampler.__subclasses__())

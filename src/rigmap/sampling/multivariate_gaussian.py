@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigmap.sampling.base import RELATIVE_RANK_TOLERANCE, Sampler, sign_convention
+from rigmap.sampling.base import (
+    RELATIVE_RANK_TOLERANCE,
+    CorpusGaussianSampler,
+    sign_convention,
+)
 
 
-class MultivariateGaussianSampler(Sampler):
+class MultivariateGaussianSampler(CorpusGaussianSampler):
     """``N(mean, Σ)`` with ``Σ`` the corpus covariance (``ddof=1``).
 
     Animator corpora rarely span every control direction (constant controls,
@@ -20,10 +24,8 @@ class MultivariateGaussianSampler(Sampler):
     name = "multivariate_gaussian"
     title = "Multivariate Gaussian"  # the report's label (Table 2)
     paper_row = 3
-    min_corpus_frames = 2
 
-    def _fit(self, corpus: np.ndarray) -> None:
-        self.mean_ = corpus.mean(axis=0)
+    def _fit_spread(self, corpus: np.ndarray) -> None:
         self.covariance_ = np.atleast_2d(np.cov(corpus, rowvar=False, ddof=1))
         variances, vectors = np.linalg.eigh(self.covariance_)
         vectors = sign_convention(vectors.T).T
@@ -31,7 +33,5 @@ class MultivariateGaussianSampler(Sampler):
         variances[variances <= RELATIVE_RANK_TOLERANCE * variances.max()] = 0.0
         self.factor_ = vectors * np.sqrt(variances)
 
-    def _sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        samples = rng.standard_normal((n, self.mean_.size)) @ self.factor_.T
-        samples += self.mean_
-        return samples
+    def _spread(self, draws: np.ndarray) -> np.ndarray:
+        return draws @ self.factor_.T

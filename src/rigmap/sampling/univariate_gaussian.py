@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigmap.sampling.base import Sampler
+from rigmap.sampling.base import CorpusGaussianSampler
 
 
-class UnivariateGaussianSampler(Sampler):
+class UnivariateGaussianSampler(CorpusGaussianSampler):
     """Independent ``N(mean_c, std_c²)`` per control; ``std`` uses ``ddof=1``.
 
     ``ddof=1`` makes ``std_**2`` the diagonal of the multivariate strategy's
@@ -21,14 +21,10 @@ class UnivariateGaussianSampler(Sampler):
     name = "univariate_gaussian"
     title = "Univariate Gaussian"  # the report's label (Table 2)
     paper_row = 2
-    min_corpus_frames = 2
 
-    def _fit(self, corpus: np.ndarray) -> None:
-        self.mean_ = corpus.mean(axis=0)
+    def _fit_spread(self, corpus: np.ndarray) -> None:
         self.std_ = corpus.std(axis=0, ddof=1)
 
-    def _sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        samples = rng.standard_normal((n, self.mean_.size))
-        samples *= self.std_
-        samples += self.mean_
-        return samples
+    def _spread(self, draws: np.ndarray) -> np.ndarray:
+        draws *= self.std_
+        return draws
