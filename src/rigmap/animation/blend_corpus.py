@@ -46,7 +46,7 @@ from rigmap.animation.keyframes import FCurve, Key, KeyframeError
 from rigmap.errors import RigmapError
 from rigmap.rigs.blender.cache import cache_dir, file_sha256
 from rigmap.rigs.blender.environment import find_blender
-from rigmap.rigs.blender.rig import RIGIFY_HELPER_BONES, _patterns, select_names
+from rigmap.rigs.blender.rig import RIGIFY_HELPER_BONES, select_names, session_options
 from rigmap.rigs.blender.worker_process import WorkerError
 
 #: largest |rigmap − Blender| of a curve kept key for key, in Blender's units (m, rad); ours
@@ -179,40 +179,6 @@ def _escape(name: str) -> str:
     return "".join(f"[{ch}]" if ch in "*?[]" else ch for ch in name)
 
 
-def session_options(
-    path: Path,
-    *,
-    armature: str | None,
-    cog_bone: str | None,
-    joints,
-    control_bones,
-    exclude_bones: list[str] | None,
-    euler_order: str,
-    length_scale: float,
-    up_axis: str,
-    translate_range: float,
-    scale_range: Sequence[float],
-    use_scripts: bool,
-) -> dict:
-    """The worker's session options, spelled as
-    :class:`~rigmap.rigs.blender.rig.BlenderRig` spells them."""
-    include, exclude = _patterns(joints, f"{path.name} joints")
-    return {
-        "path": str(path),
-        "armature": armature,
-        "cog_bone": cog_bone,
-        "control_bones": _patterns(control_bones, f"{path.name} control_bones")[0],
-        "exclude_bones": list(RIGIFY_HELPER_BONES if exclude_bones is None else exclude_bones),
-        "joints": {"include": include, "exclude": exclude},
-        "euler_order": euler_order,
-        "length_scale": float(length_scale),
-        "up_axis": str(up_axis),
-        "translate_range": float(translate_range),
-        "scale_range": [float(s) for s in scale_range],
-        "use_scripts": bool(use_scripts),
-    }
-
-
 def import_blend_corpus(
     path: str | Path,
     *,
@@ -245,6 +211,7 @@ def import_blend_corpus(
     sha = file_sha256(path)
     options = session_options(
         path,
+        where=path.name,
         armature=armature,
         cog_bone=cog_bone,
         joints=joints,

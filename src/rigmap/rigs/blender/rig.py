@@ -56,6 +56,41 @@ def _patterns(selection, where: str) -> tuple[list[str], list[str]]:
     )
 
 
+def session_options(
+    path: Path,
+    *,
+    where: str,
+    armature: str | None,
+    cog_bone: str | None,
+    joints,
+    control_bones,
+    exclude_bones: list[str] | None,
+    euler_order: str,
+    length_scale: float,
+    up_axis: str,
+    translate_range: float,
+    scale_range: Sequence[float],
+    use_scripts: bool,
+) -> dict:
+    """The worker's ``load`` options for the armature in ``path``: one spelling for
+    :class:`BlenderRig` and the .blend corpus import (``where`` names it in errors)."""
+    include, exclude = _patterns(joints, f"{where} joints")
+    return {
+        "path": str(path),
+        "armature": armature,
+        "cog_bone": cog_bone,
+        "control_bones": _patterns(control_bones, f"{where} control_bones")[0],
+        "exclude_bones": list(RIGIFY_HELPER_BONES if exclude_bones is None else exclude_bones),
+        "joints": {"include": include, "exclude": exclude},
+        "euler_order": euler_order,
+        "length_scale": float(length_scale),
+        "up_axis": str(up_axis),
+        "translate_range": float(translate_range),
+        "scale_range": [float(s) for s in scale_range],
+        "use_scripts": bool(use_scripts),
+    }
+
+
 def select_names(names: list[str], selection, where: str) -> list[bool]:
     """Which ``names`` the glob selection picks; an include pattern that picks none is an error."""
     include, exclude = _patterns(selection, where)
@@ -200,25 +235,25 @@ class BlenderRig(Rig):
                 f"rig {name!r}: workers must be a whole number >= 1 (or null: one per core), "
                 f"got {workers!r}"
             )
-        include, exclude = _patterns(joints, f"rig {name!r} joints")
+        options = session_options(
+            path,
+            where=f"rig {name!r}",
+            armature=armature,
+            cog_bone=cog_bone,
+            joints=joints,
+            control_bones=control_bones,
+            exclude_bones=exclude_bones,
+            euler_order=euler_order,
+            length_scale=length_scale,
+            up_axis=up_axis,
+            translate_range=translate_range,
+            scale_range=scale_range,
+            use_scripts=use_scripts,
+        )
         self.name = name
         self.path = path
         self.description = description or f"{armature!r} in {path.name}, evaluated by Blender"
-        self.session_options = {
-            "path": str(path),
-            "armature": armature,
-            "control_bones": _patterns(control_bones, f"rig {name!r} control_bones")[0],
-            "exclude_bones": list(RIGIFY_HELPER_BONES if exclude_bones is None else exclude_bones),
-            "joints": {"include": include, "exclude": exclude},
-            "cog_bone": cog_bone,
-            "euler_order": euler_order,
-            "length_scale": float(length_scale),
-            "up_axis": str(up_axis),
-            "translate_range": float(translate_range),
-            "scale_range": [float(s) for s in scale_range],
-            "prune": bool(prune),
-            "use_scripts": bool(use_scripts),
-        }
+        self.session_options = {**options, "prune": bool(prune)}
         self.command: BlenderCommand = find_blender(blender)
         self.workers = workers
         self.timeout = float(timeout)
