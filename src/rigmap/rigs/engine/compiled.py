@@ -1,0 +1,71 @@
+"""The structured pass compiled by inductor: one fused forward and backward per batch size.
+
+The structured pass (:mod:`rigmap.rigs.engine.structured`) still runs about 2 600 small
+torch operations a pass and as many autograd nodes, each costing more in overhead than in
+arithmetic. Here the pass is recorded once per batch size and dtype as an aten graph
+(``make_fx``: it runs the Python once, the closures' constants becoming graph constants,
+so the rig's dict-based steps need no support from dynamo), and that graph is compiled by
+``torch.compile`` (inductor, C++ kernels): the elementwise chains fuse and AOTAutograd
+writes one backward graph, so a step pays a few dozen kernels instead of thousands of ops.
+
+Valid because no rig step branches on control values (the TorchScript traces rely on the
+same; checked against the reference in ``tests/test_rig_pass.py``). The cost is the compile:
+about 107 s per rig, dtype and size on a cold cache on this project's 2-core machines, about
+11 s once inductor's on-disk cache holds it (ours, ``benchmarks/joint_space_step.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+from torch.fx.experimental.proxy_tensor import make_fx
+
+#: torch.compile's backend (ours: inductor fuses the pass; "aot_eager" only removes Python)
+BACKEND = "inductor"
+
+
+class CompiledPass:
+    """``Y (n, C) -> (positions, cog, cog_rotation)`` through compiled graphs of ``size`` rows.
+
+    A batch of fewer rows is padded with default controls to ``size`` (rows do not mix, so
+    its rows' values and gradients are the unpadded ones); a larger batch runs in chunks.
+    """
+
+    def __init__(self, rig, size: int):
+        if size < 1:
+            raise ValueError(f"compiled pass: size must be at least 1, got {size}")
+        self._rig, self.size = rig, int(size)
+        self._graphs: dict[torch.dtype, Callable] = {}
+
+    def graph(self, dtype: torch.dtype) -> Callable:
+        """The compiled pass for ``size`` rows of ``dtype`` (recorded on first use; inductor
+        compiles it on its first call)."""
+        if dtype not in self._graphs:
+            rig = self._rig
+            _ = rig.structured_pass  # built (and checked, by value) before the recording
+            example = torch.as_tensor(rig.controls.defaults, dtype=dtype).expand(self.size, -1)
+
+            def pose_tuple(Y: torch.Tensor):
+                pose = rig.structured_pose(Y)
+                return pose.positions, pose.cog, pose.cog_rotation
+
+            recorded = make_fx(pose_tuple)(example.clone())
+            self._graphs[dtype] = torch.compile(
+                recorded, backend=BACKEND, dynamic=False, fullgraph=True
+            )
+        return self._graphs[dtype]
+
+    def __call__(self, Y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        parts = [self._padded(Y[i : i + self.size]) for i in range(0, len(Y), self.size)]
+        if len(parts) == 1:
+            return parts[0]
+        return tuple(torch.cat([p[k] for p in parts]) for k in range(3))
+
+    def _padded(self, Y: torch.Tensor):
+        n = len(Y)
+        if n < self.size:
+            defaults = torch.as_tensor(self._rig.controls.defaults, dtype=Y.dtype)
+            Y = torch.cat([Y, defaults.expand(self.size - n, -1)])
+        out = self.graph(Y.dtype)(Y)
+        return out if n == self.size else tuple(o[:n] for o in out)
