@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import pytest
 import torch
+from torch.fx.experimental.proxy_tensor import make_fx
 
 from rigmap.rigs import load
 from rigmap.rigs.engine import torch_rig
-from rigmap.rigs.engine.compiled import CompiledPass
+from rigmap.rigs.engine.compiled import CompiledPass, elementwise_products
 from rigmap.rigs.engine.structured import check_controls
 from rigmap.rigs.engine.torch_rig import TorchRig
 
@@ -64,3 +65,17 @@ def test_the_switch_sends_small_nonempty_batches_to_the_compiled_pass(quadruped,
 def test_a_compiled_pass_needs_a_positive_size(quadruped):
     with pytest.raises(ValueError, match="size must be at least 1"):
         CompiledPass(quadruped, 0)
+
+
+def test_small_batched_products_become_elementwise_and_keep_their_values():
+    """The 3 x 3 product is rewritten (equal to rounding), the 8-wide one stays a ``bmm``."""
+    generator = torch.Generator().manual_seed(0)
+    A, B = (torch.randn(6, 3, 3, dtype=torch.float64, generator=generator) for _ in range(2))
+    C, D = (torch.randn(6, 8, 8, dtype=torch.float64, generator=generator) for _ in range(2))
+    graph = make_fx(lambda a, b, c, d: (a @ b @ a[..., :1], c @ d))(A, B, C, D)
+    assert elementwise_products(graph, 4) == 2
+    kinds = [node.target for node in graph.graph.nodes if node.op == "call_function"]
+    assert kinds.count(torch.ops.aten.bmm.default) == 1
+    got = graph(A, B, C, D)
+    torch.testing.assert_close(got[0], A @ B @ A[..., :1], rtol=0, atol=1e-14)
+    torch.testing.assert_close(got[1], C @ D, rtol=0, atol=0)

@@ -9,9 +9,10 @@ so the rig's dict-based steps need no support from dynamo), and that graph is co
 writes one backward graph, so a step pays a few dozen kernels instead of thousands of ops.
 
 Valid because no rig step branches on control values (the TorchScript traces rely on the
-same; checked against the reference in ``tests/test_rig_pass.py``). The cost is the compile:
-about 107 s per rig, dtype and size on a cold cache on this project's 2-core machines, about
-11 s once inductor's on-disk cache holds it (ours, ``benchmarks/joint_space_step.py``).
+same; checked against the reference in ``tests/test_rig_compiled.py``). The cost is the
+compile: 98-118 s per rig, dtype and size on a cold cache on this project's 2-core machines,
+about 12 s (4 s recording, the rest loading) once inductor's on-disk cache holds it (ours,
+session 37; ``benchmarks/joint_space_step.py``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,34 @@ from torch.fx.experimental.proxy_tensor import make_fx
 
 #: torch.compile's backend (ours: inductor fuses the pass; "aot_eager" only removes Python)
 BACKEND = "inductor"
+#: batched products whose inner size is at most this become broadcast products and sums
+#: before compiling (ours: the rig's 3 x 3 and 3 x 1 products; inductor fuses those into
+#: its loops, where a ``bmm`` stays an external call of ~13 µs each); 0 keeps every ``bmm``
+ELEMENTWISE_PRODUCTS = 4
+
+
+def elementwise_products(graph: torch.fx.GraphModule, largest: int) -> int:
+    """Rewrite ``graph``'s ``bmm`` nodes with inner size at most ``largest`` as
+    ``(A[:, :, :, None] * B[:, None]).sum(2)``: the same sums of products (summed in
+    another order, so equal to rounding). Returns how many were rewritten."""
+    aten, count = torch.ops.aten, 0
+    for node in list(graph.graph.nodes):
+        if node.target is not aten.bmm.default:
+            continue
+        a, b = node.args
+        if a.meta["val"].shape[-1] > largest:
+            continue
+        with graph.graph.inserting_before(node):
+            left = graph.graph.call_function(aten.unsqueeze.default, (a, 3))
+            right = graph.graph.call_function(aten.unsqueeze.default, (b, 1))
+            product = graph.graph.call_function(aten.mul.Tensor, (left, right))
+            summed = graph.graph.call_function(aten.sum.dim_IntList, (product, [2]))
+        summed.meta = dict(node.meta)
+        node.replace_all_uses_with(summed)
+        graph.graph.erase_node(node)
+        count += 1
+    graph.recompile()
+    return count
 
 
 class CompiledPass:
@@ -51,6 +80,8 @@ class CompiledPass:
                 return pose.positions, pose.cog, pose.cog_rotation
 
             recorded = make_fx(pose_tuple)(example.clone())
+            if ELEMENTWISE_PRODUCTS:
+                elementwise_products(recorded, ELEMENTWISE_PRODUCTS)
             self._graphs[dtype] = torch.compile(
                 recorded, backend=BACKEND, dynamic=False, fullgraph=True
             )
