@@ -3,7 +3,7 @@
 One step of ``JointSpaceNetworkRegressor``'s joint-space phase, as it runs: a
 ``SquashedNetwork`` (2 x 512 ReLU, the conf/regressor/nn_joint_space defaults, float32)
 maps 128 rows of joint positions to controls, the rig poses them, the mean squared joint
-error goes back through the rig and the network, and Adam steps. Per rig and engine
+error goes back through the rig and the network, and the fit's fused Adam steps. Per rig and engine
 (``reference``: ``STRUCTURED`` off; ``structured``: the default; ``compiled``:
 ``COMPILED`` on, :mod:`rigmap.rigs.engine.compiled`), the engines alternating in one process
 on one torch thread, the median of ``--repeats``; also the rig alone (forward and backward
@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from rigmap.regression.joint_space_network import SquashedNetwork
+from rigmap.regression.network import _adam
 from rigmap.rigs.characters.biped import build_biped
 from rigmap.rigs.characters.quadruped import build_quadruped
 from rigmap.rigs.engine import torch_rig
@@ -101,7 +102,7 @@ def fit_step(rig, Y: np.ndarray) -> Callable[[], None]:
         np.ones(len(controls.defaults)),
         np.ones(len(controls.defaults)),
     )
-    optimizer = torch.optim.Adam(network.parameters(), lr=1e-4)
+    optimizer = _adam(list(network.parameters()), 1e-4)  # the fit's (fused) Adam
 
     def run() -> None:
         optimizer.zero_grad(set_to_none=True)
