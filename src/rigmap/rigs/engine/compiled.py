@@ -10,16 +10,21 @@ writes one backward graph, so a step pays a few dozen kernels instead of thousan
 
 Valid because no rig step branches on control values (the TorchScript traces rely on the
 same; checked against the reference in ``tests/test_rig_compiled.py``). The cost is the
-compile: 98-118 s per rig, dtype and size on a cold cache on this project's 2-core machines,
-about 12 s (4 s recording, the rest loading) once inductor's on-disk cache holds it (ours,
-session 37; ``benchmarks/joint_space_step.py``).
+compile: about 85 s per rig, dtype and size on a cold cache on this project's 2-core
+machines, about 10 s (4 s recording, the rest loading) once inductor's on-disk cache holds
+it (ours, session 38). Processes that would compile the same graph at once take turns
+(:func:`_compile_turn`): the second then loads the first's result from the cache instead of
+compiling it again beside it.
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
+from pathlib import Path
 
 import torch
+from filelock import FileLock
 from torch.fx.experimental.proxy_tensor import make_fx
 
 #: torch.compile's backend (ours: inductor fuses the pass; "aot_eager" only removes Python)
@@ -28,6 +33,10 @@ BACKEND = "inductor"
 #: before compiling (ours: the rig's 3 x 3 and 3 x 1 products; inductor fuses those into
 #: its loops, where a ``bmm`` stays an external call of ~13 µs each); 0 keeps every ``bmm``
 ELEMENTWISE_PRODUCTS = 4
+#: inductor's C++ options (ours, session 38, quadruped forward+backward at 128 float32 rows,
+#: one thread, same run): scalar kernels (``simdlen`` 1) compile in 85 s against the
+#: vectorised ones' 142 s, and run faster at these row counts (6.6 against 7.9 ms)
+INDUCTOR_OPTIONS = {"cpp.simdlen": 1}
 
 
 def elementwise_products(graph: torch.fx.GraphModule, largest: int) -> int:
@@ -52,6 +61,35 @@ def elementwise_products(graph: torch.fx.GraphModule, largest: int) -> int:
         count += 1
     graph.recompile()
     return count
+
+
+def _compile_turn(graph: torch.fx.GraphModule, rig_name: str) -> FileLock:
+    """A lock in inductor's cache folder named by the recorded graph's code: one process at
+    a time compiles (or loads) a given graph."""
+    from torch._inductor.runtime.cache_dir_utils import cache_dir
+
+    digest = hashlib.sha256(graph.code.encode()).hexdigest()[:16]
+    folder = Path(cache_dir()) / "rigmap_locks"
+    folder.mkdir(parents=True, exist_ok=True)
+    return FileLock(str(folder / f"{rig_name}-{digest}.lock"))
+
+
+def _first_call_in_turn(compiled: Callable, recorded: torch.fx.GraphModule, rig_name: str):
+    """``compiled``, its first call (where inductor compiles, forward and backward) taken
+    under :func:`_compile_turn`'s lock."""
+    state = {"first": True}
+
+    def call(Y: torch.Tensor):
+        if not state["first"]:
+            return compiled(Y)
+        with _compile_turn(recorded, rig_name):
+            out = compiled(Y)
+            if Y.requires_grad and torch.is_grad_enabled():  # the backward compiles lazily
+                torch.autograd.grad(sum(o.sum() for o in out), Y, retain_graph=True)
+        state["first"] = False
+        return out
+
+    return call
 
 
 class CompiledPass:
@@ -82,9 +120,10 @@ class CompiledPass:
             recorded = make_fx(pose_tuple)(example.clone())
             if ELEMENTWISE_PRODUCTS:
                 elementwise_products(recorded, ELEMENTWISE_PRODUCTS)
-            self._graphs[dtype] = torch.compile(
-                recorded, backend=BACKEND, dynamic=False, fullgraph=True
+            compiled = torch.compile(
+                recorded, backend=BACKEND, dynamic=False, fullgraph=True, options=INDUCTOR_OPTIONS
             )
+            self._graphs[dtype] = _first_call_in_turn(compiled, recorded, rig.name)
         return self._graphs[dtype]
 
     def __call__(self, Y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
