@@ -25,6 +25,7 @@ from rigmap.regression.joint_space_training import (
 from rigmap.regression.mapping import InverseMapping
 from rigmap.regression.placement import find_placement, heading, turn_matrix
 from rigmap.regression.rig_forward import NotDifferentiableRigError, PlacedRigForward
+from rigmap.rigs import load
 from rigmap.rigs.engine.builder import RigBuilder
 from rigmap.rigs.engine.torch_rig import TorchRig
 
@@ -328,3 +329,66 @@ def test_the_joint_space_schedule_warms_up_to_its_peak_and_decays_to_its_final_f
     for bad in ({"warmup": 1.5}, {"final_fraction": -0.1}, {"joint_learning_rate": 0.0}):
         with pytest.raises(ValueError, match="must be"):
             JointSpaceNetworkRegressor(**bad)._check_params()
+
+
+def test_the_compiled_forward_equals_the_eager_one_with_its_gradient(tiny):
+    """``compiled_rows`` pads a short batch and chunks a long one: same poses, same gradients."""
+    rig, placement, X, Y = tiny
+    eager, compiled = (
+        PlacedRigForward(rig, placement),
+        PlacedRigForward(rig, placement, compiled_rows=8),
+    )
+    for n in (5, 11):
+        targets = torch.from_numpy(placement.targets(Y[:n], X[:n]))
+        results = []
+        for forward in (eager, compiled):
+            t = targets.clone().requires_grad_(True)
+            posed = forward(t)
+            loss = posed.joints.square().sum() + posed.cog.square().sum()
+            results.append((posed, torch.autograd.grad(loss, t)[0]))
+        (want, want_grad), (got, got_grad) = results
+        torch.testing.assert_close(got.joints, want.joints, rtol=0, atol=1e-10)
+        torch.testing.assert_close(got.cog, want.cog, rtol=0, atol=1e-10)
+        assert want_grad.abs().max() > 1e-3
+        torch.testing.assert_close(got_grad, want_grad, rtol=0, atol=1e-10)
+
+
+def test_a_long_enough_joint_space_phase_trains_through_the_compiled_rig(tiny, monkeypatch):
+    """Past ``compiled_rig_min_steps`` the fit poses through ``compiled_pose`` and learns
+    what the eager fit learns (float32: equal up to rounding carried through the steps)."""
+    rig = tiny[0]
+    sizes = []
+    original = type(rig).compiled_pose
+    monkeypatch.setattr(
+        type(rig),
+        "compiled_pose",
+        lambda self, Y, size: (sizes.append(size), original(self, Y, size))[1],
+    )
+    eager = fitted(tiny, epochs=20, compiled_rig_min_steps=21)  # 20 steps: below the bar
+    assert sizes == []
+    compiled = fitted(tiny, epochs=20, compiled_rig_min_steps=20)
+    assert set(sizes) == {40} and len(sizes) == 20
+    inputs = tiny[2]
+    np.testing.assert_allclose(compiled.predict(inputs), eager.predict(inputs), atol=1e-3)
+    assert compiled.regressor.history_["joint_space"][-1]["joint"] == pytest.approx(
+        eager.regressor.history_["joint_space"][-1]["joint"], rel=1e-3
+    )
+
+
+def test_compiled_rig_min_steps_must_be_a_step_count_or_null():
+    for bad in (0, -3, True):
+        with pytest.raises(ValueError, match="compiled_rig_min_steps must be a step count"):
+            JointSpaceNetworkRegressor(compiled_rig_min_steps=bad)._check_params()
+    JointSpaceNetworkRegressor(compiled_rig_min_steps=None)._check_params()
+
+
+def test_a_rig_without_a_compiled_pass_is_refused_by_name_and_run_eagerly_by_the_fit():
+    """The face rig (differentiable, no compiled pass): asked directly, a one-line error; the
+    fit's threshold leaves it eager."""
+    face = load("face")
+    used = len(face.controls.used_indices)
+    placement = find_placement(face, np.zeros((2, used)))
+    with pytest.raises(NotDifferentiableRigError, match="'face' has no compiled pass"):
+        PlacedRigForward(face, placement, compiled_rows=8)
+    assert not JointSpaceNetworkRegressor(compiled_rig_min_steps=1)._compiles(face, 100)
+    assert JointSpaceNetworkRegressor(compiled_rig_min_steps=1)._compiles(tiny_rig(), 100)

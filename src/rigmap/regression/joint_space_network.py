@@ -172,6 +172,10 @@ class JointSpaceNetworkRegressor(Regressor):
       the first ``warmup`` fraction of its steps, then cosine-decayed to ``final_fraction``
       of it (``warmup=0, final_fraction=0.1``: plain cosine to a tenth; a warm-up and a
       small final fraction: a one-cycle schedule).
+    - ``compiled_rig_min_steps``: a joint-space phase of at least this many steps runs the
+      rig through its inductor-compiled pass (:mod:`rigmap.rigs.engine.compiled`), whose
+      compile (about 100 s on a cold cache, about 10 s warm) only a long loop repays; ``None``
+      never compiles. Rigs without a compiled pass (the mesh rigs) run eagerly.
     - ``seed``, ``progress``, ``threads``: as the paper's network.
     """
 
@@ -194,6 +198,7 @@ class JointSpaceNetworkRegressor(Regressor):
     joint_learning_rate: float | None = None
     warmup: float = 0.0
     final_fraction: float = 0.1
+    compiled_rig_min_steps: int | None = None
     seed: int = 0
     progress: bool = True
     threads: int | None = 1
@@ -224,6 +229,12 @@ class JointSpaceNetworkRegressor(Regressor):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and 0 <= value <= 1):
                 raise ValueError(f"{type(self).__name__}: {name} must be in [0, 1], got {value}")
+        steps = self.compiled_rig_min_steps
+        if steps is not None and (isinstance(steps, bool) or int(steps) < 1):
+            raise ValueError(
+                f"{type(self).__name__}: compiled_rig_min_steps must be a step count >= 1 "
+                f"or null, got {steps!r}"
+            )
         if self.control_rows not in CONTROL_ROWS:
             raise ValueError(
                 f"{type(self).__name__}: control_rows must be one of {CONTROL_ROWS}, "
@@ -257,11 +268,17 @@ class JointSpaceNetworkRegressor(Regressor):
                 f"{type(self).__name__}.fit needs the rig and its placement (rig=, placement=); "
                 "the fit stage passes them through Regressor.rig_fit_options"
             )
-        forward = PlacedRigForward(rig, placement, who=f"regressor {self.name!r}")
         X, Y = check_training_data(X, Y, type(self).__name__)
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y.shape[1], rig_name, control_names)
         drawn_X, drawn_Y = self._draw(rig, placement, Y)
         self.draws_digest_ = _digest(drawn_X)
+        rows = len(X) + len(drawn_X)
+        forward = PlacedRigForward(
+            rig,
+            placement,
+            who=f"regressor {self.name!r}",
+            compiled_rows=int(self.batch_size) if self._compiles(rig, rows) else None,
+        )
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = self._new_network(rig, placement, data, generator)
@@ -272,6 +289,13 @@ class JointSpaceNetworkRegressor(Regressor):
             }
         self.network_.eval()
         return self
+
+    def _compiles(self, rig, rows: int) -> bool:
+        """Whether the joint-space phase over ``rows`` rows runs ``rig`` compiled."""
+        least = self.compiled_rig_min_steps
+        if least is None or not hasattr(rig, "compiled_pose"):
+            return False
+        return int(self.epochs) * math.ceil(rows / int(self.batch_size)) >= int(least)
 
     def _draw(self, rig, placement, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The fit's own posed draws around the targets ``Y``, from the model's seed."""

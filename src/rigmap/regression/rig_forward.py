@@ -68,11 +68,27 @@ def _turn(angle: torch.Tensor) -> torch.Tensor:
 
 
 class PlacedRigForward:
-    """``targets (N, C_used) -> PlacedPose``: the differentiable rig behind a placement."""
+    """``targets (N, C_used) -> PlacedPose``: the differentiable rig behind a placement.
 
-    def __init__(self, rig, placement: Placement, who: str = "training through the rig"):
+    ``compiled_rows``: run the rig through its inductor-compiled pass of that many rows
+    (:meth:`TorchRig.compiled_pose`) instead of its eager one; ``None`` keeps the eager pass.
+    """
+
+    def __init__(
+        self,
+        rig,
+        placement: Placement,
+        who: str = "training through the rig",
+        compiled_rows: int | None = None,
+    ):
         require_differentiable(rig, who)
+        if compiled_rows is not None and not hasattr(rig, "compiled_pose"):
+            raise NotDifferentiableRigError(
+                f"{who}: rig {rig.name!r} has no compiled pass (only the built-in torch rigs "
+                "have one); run it eagerly"
+            )
         self.rig = rig
+        self.compiled_rows = compiled_rows
         self.placement = placement
         self.root_columns = [c.index for c in placement.channels]
         self.ground = [c.index for c in placement.ground] if placement.ground else None
@@ -87,7 +103,11 @@ class PlacedRigForward:
             mask = torch.ones(targets.shape[1], dtype=targets.dtype)
             mask[self.root_columns] = 0.0
             zeroed = targets * mask
-        pose = self.rig.pose(self.rig.expand_used(zeroed))
+        controls = self.rig.expand_used(zeroed)
+        if self.compiled_rows is None:
+            pose = self.rig.pose(controls)
+        else:
+            pose = self.rig.compiled_pose(controls, self.compiled_rows)
         joints, cog = pose.positions, pose.cog
         if self.ground is None:
             return PlacedPose(joints, cog)
