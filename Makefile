@@ -8,7 +8,7 @@ SWEEPER := $(VENV)/.optuna-sweeper-1.3.0
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender postgres tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
+.PHONY: setup blender postgres compiler tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
 
 setup: $(STAMP) $(SWEEPER)
 
@@ -41,6 +41,14 @@ postgres:
 	       && { apt-get install -y -q postgresql || { apt-get update -q && apt-get install -y -q postgresql; }; }; } \
 	  || { echo "PostgreSQL is missing: apt-get install postgresql (as root)" >&2; exit 1; }
 
+# A C++ compiler for inductor, which compiles the rig pass of the joint-space fit
+# (rigmap.rigs.engine.compiled); installed from Debian's packages when missing (needs root).
+compiler:
+	@command -v g++ >/dev/null 2>&1 \
+	  || { [ "$$(id -u)" = 0 ] && export DEBIAN_FRONTEND=noninteractive \
+	       && { apt-get install -y -q g++ || { apt-get update -q && apt-get install -y -q g++; }; }; } \
+	  || { echo "A C++ compiler is missing: apt-get install g++ (as root)" >&2; exit 1; }
+
 # MLflow on PostgreSQL on this machine (then: tracking=server, or MLFLOW_TRACKING_URI).
 tracking-server: setup postgres
 	bash scripts/tracking_server.sh start
@@ -48,7 +56,7 @@ tracking-server: setup postgres
 # The main job: the quick replication of the paper's tables (dvc repro; reports/index.html).
 # It needs both environments: the wolf's stages evaluate a Rigify rig in Blender workers.
 # --jobs 2: independent stages two at a time; the ones that time methods run alone.
-reproduce: setup blender
+reproduce: setup blender compiler
 	$(BIN)/rigmap reproduce --jobs 2
 
 # Table 1 at the paper's budget for the quadruped and the biped (about 2 h on 2 cores, nearly
@@ -82,7 +90,7 @@ demo: setup
 
 # The Blender backend's tests need .venv-blender too, the tracking tests PostgreSQL:
 # nothing is skipped for a missing environment.
-test: setup blender postgres
+test: setup blender postgres compiler
 	$(BIN)/python -m pytest -q
 
 lint: setup
