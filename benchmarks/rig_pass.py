@@ -10,6 +10,10 @@ the pipeline's rig work uses), each time the median of ``--repeats``. Per rig:
 - ``forward_512`` / ``forward_16384``: positions without gradient (``TorchRig`` runs
   batches above ``STRUCTURED_MAX_POSES`` = 512 by the reference, since the structured pass
   is slower there);
+- ``compiled`` (forward + backward at 100 rows, forward at 16 384 in chunks of
+  ``COMPILED_CHUNK``): the structured pass compiled by inductor
+  (``TorchRig.compiled_pose``, ``rigmap.rigs.engine.compiled``); its compile is the first,
+  untimed call, reported as ``compiled_first_call_s``;
 - with ``STRUCTURED`` off (old) and on (new), everything else as the pipeline runs it:
   ``tuning_step_100``, one Adam step of a joint-space network (3 x 256 ReLU, float32,
   ours: a stand-in of ``regression.target_tuning``'s network) through the rig on 100
@@ -42,6 +46,8 @@ from rigmap.rigs.engine.structured import check_controls
 
 BUILDERS = {"quadruped": build_quadruped, "biped": build_biped}
 ENGINES = ("old", "new")
+#: the compiled pass's graph size for the 16 384-pose forward (ours: one graph, 8 chunks)
+COMPILED_CHUNK = 2048
 #: conf/refine/computed_jacobian.yaml's settings at the quick experiment's 3 iterations
 REFINE = {
     "damping": "auto",
@@ -67,9 +73,12 @@ def engine(name: str):
 def timed(runs: dict[str, Callable[[], None]], repeats: int) -> dict:
     """Median seconds of each engine's run, the engines alternating (after one warm-up each)."""
     samples: dict[str, list[float]] = {name: [] for name in runs}
+    first: dict[str, float] = {}
     for name, run in runs.items():
         with engine(name):
+            started = time.perf_counter()
             run()
+            first[name] = time.perf_counter() - started
     for _ in range(repeats):
         for name, run in runs.items():
             with engine(name):
@@ -77,13 +86,19 @@ def timed(runs: dict[str, Callable[[], None]], repeats: int) -> dict:
                 run()
                 samples[name].append(time.perf_counter() - started)
     medians = {name: statistics.median(s) for name, s in samples.items()}
-    return {
+    out = {
         **{f"{name}_ms": round(1e3 * m, 3) for name, m in medians.items()},
         "speedup": round(medians["old"] / medians["new"], 2),
     }
+    if "compiled" in medians:
+        out["compiled_speedup"] = round(medians["old"] / medians["compiled"], 2)
+        out["compiled_first_call_s"] = round(first["compiled"], 1)
+    return out
 
 
-def _pass(rig, engine_name: str) -> Callable:
+def _pass(rig, engine_name: str, chunk: int | None = None) -> Callable:
+    if engine_name == "compiled":
+        return lambda Y: rig.compiled_pose(Y, chunk or len(Y))
     return rig.reference_pose if engine_name == "old" else rig.structured_pose
 
 
@@ -98,7 +113,7 @@ def forward_backward(rig, engine_name: str, Y: np.ndarray, dtype) -> Callable[[]
 def forward(rig, engine_name: str, Y: np.ndarray) -> Callable[[], None]:
     def run() -> None:
         with torch.no_grad():
-            _pass(rig, engine_name)(torch.from_numpy(Y))
+            _pass(rig, engine_name, COMPILED_CHUNK)(torch.from_numpy(Y))
 
     return run
 
@@ -144,16 +159,17 @@ def refinement(rig, Y: np.ndarray) -> Callable[[], None]:
 
 
 def measure(name: str, repeats: int) -> dict:
-    rigs = {engine_name: BUILDERS[name]() for engine_name in ENGINES}
+    rigs = {engine_name: BUILDERS[name]() for engine_name in (*ENGINES, "compiled")}
     Y100 = check_controls(rigs["old"].controls, 100, seed=0)
     Y16k = check_controls(rigs["old"].controls, 16_384, seed=1)
     out = {}
+    with_compiled = (*ENGINES, "compiled")
     for label, dtype in (("float64", torch.float64), ("float32", torch.float32)):
         out[f"forward_backward_100_{label}"] = timed(
-            {e: forward_backward(rigs[e], e, Y100, dtype) for e in ENGINES}, repeats
+            {e: forward_backward(rigs[e], e, Y100, dtype) for e in with_compiled}, repeats
         )
     out["forward_512"] = timed({e: forward(rigs[e], e, Y16k[:512]) for e in ENGINES}, repeats)
-    out["forward_16384"] = timed({e: forward(rigs[e], e, Y16k) for e in ENGINES}, 3)
+    out["forward_16384"] = timed({e: forward(rigs[e], e, Y16k) for e in with_compiled}, 3)
     out["tuning_step_100"] = timed({e: tuning_step(rigs[e], Y100) for e in ENGINES}, repeats)
     runs = {e: refinement(rigs[e], Y100) for e in ENGINES}
     result = timed(runs, 3)

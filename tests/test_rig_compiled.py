@@ -79,3 +79,20 @@ def test_small_batched_products_become_elementwise_and_keep_their_values():
     got = graph(A, B, C, D)
     torch.testing.assert_close(got[0], A @ B @ A[..., :1], rtol=0, atol=1e-14)
     torch.testing.assert_close(got[1], C @ D, rtol=0, atol=0)
+
+
+def test_the_recorded_graph_does_not_depend_on_the_eager_passes_before_it(monkeypatch):
+    """The structured pass builds tables per batch size on first use; recorded inside the
+    graph they would give another graph (and a cold compile) in a process whose rig already
+    ran eagerly at that size before. Both rigs here record the same code."""
+    from rigmap.rigs.characters.quadruped import build_quadruped
+    from rigmap.rigs.engine import compiled
+
+    codes = []
+    monkeypatch.setattr(compiled.torch, "compile", lambda graph, **_: codes.append(graph.code))
+    fresh, used = build_quadruped(), build_quadruped()
+    with torch.no_grad():
+        used.structured_pose(_controls(used, SIZE, 1).float())  # the size it records at
+    for rig in (fresh, used):
+        CompiledPass(rig, SIZE).graph(torch.float32)
+    assert len(codes) == 2 and codes[0] == codes[1]

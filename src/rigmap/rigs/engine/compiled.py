@@ -110,8 +110,9 @@ class CompiledPass:
         compiles it on its first call)."""
         if dtype not in self._graphs:
             rig = self._rig
-            _ = rig.structured_pass  # built (and checked, by value) before the recording
             example = torch.as_tensor(rig.controls.defaults, dtype=dtype).expand(self.size, -1)
+            with torch.no_grad():  # the pass's lazy per-size tables built before recording,
+                rig.structured_pose(example.clone())  # so every process records one graph
 
             def pose_tuple(Y: torch.Tensor):
                 pose = rig.structured_pose(Y)
