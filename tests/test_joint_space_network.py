@@ -376,7 +376,7 @@ def test_a_long_enough_joint_space_phase_trains_through_the_compiled_rig(tiny, m
 
 
 def test_compiled_rig_min_steps_must_be_a_step_count_or_null():
-    for bad in (0, -3, True):
+    for bad in (0, -3, True, "many", 1000.5):
         with pytest.raises(ValueError, match="compiled_rig_min_steps must be a step count"):
             JointSpaceNetworkRegressor(compiled_rig_min_steps=bad)._check_params()
     JointSpaceNetworkRegressor(compiled_rig_min_steps=None)._check_params()

@@ -174,8 +174,8 @@ class JointSpaceNetworkRegressor(Regressor):
       small final fraction: a one-cycle schedule).
     - ``compiled_rig_min_steps``: a joint-space phase of at least this many steps runs the
       rig through its inductor-compiled pass (:mod:`rigmap.rigs.engine.compiled`), whose
-      compile (about 100 s on a cold cache, about 10 s warm) only a long loop repays; ``None``
-      never compiles. Rigs without a compiled pass (the mesh rigs) run eagerly.
+      compile (70-85 s on a cold cache, about 10 s warm) only a long loop repays; ``None``
+      never compiles. Rigs without a compiled pass (the face and mesh rigs) run eagerly.
     - ``seed``, ``progress``, ``threads``: as the paper's network.
     """
 
@@ -230,7 +230,8 @@ class JointSpaceNetworkRegressor(Regressor):
             if not (math.isfinite(value) and 0 <= value <= 1):
                 raise ValueError(f"{type(self).__name__}: {name} must be in [0, 1], got {value}")
         steps = self.compiled_rig_min_steps
-        if steps is not None and (isinstance(steps, bool) or int(steps) < 1):
+        counts = isinstance(steps, int) and not isinstance(steps, bool)
+        if steps is not None and not (counts and steps >= 1):
             raise ValueError(
                 f"{type(self).__name__}: compiled_rig_min_steps must be a step count >= 1 "
                 f"or null, got {steps!r}"
