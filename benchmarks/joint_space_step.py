@@ -15,9 +15,6 @@ first call (recording plus inductor's compile, cold or from its on-disk cache).
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
 import statistics
 import time
 from collections.abc import Callable
@@ -26,14 +23,12 @@ from contextlib import contextmanager
 import numpy as np
 import torch
 
+from rig_pass import BUILDERS, run_cli  # benchmarks/: the rig-pass benchmarks' front end
 from rigmap.regression.joint_space_network import SquashedNetwork
 from rigmap.regression.network import _adam
-from rigmap.rigs.characters.biped import build_biped
-from rigmap.rigs.characters.quadruped import build_quadruped
 from rigmap.rigs.engine import torch_rig
 from rigmap.rigs.engine.structured import check_controls
 
-BUILDERS = {"quadruped": build_quadruped, "biped": build_biped}
 ENGINES = ("reference", "structured", "compiled")
 
 
@@ -129,18 +124,5 @@ def measure(name: str, repeats: int) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rigs", nargs="+", default=list(BUILDERS), choices=list(BUILDERS))
-    parser.add_argument("--repeats", type=int, default=15)
-    args = parser.parse_args()
-    torch.set_num_threads(1)
-    results = {"torch": torch.__version__, "threads": 1, "load_before": os.getloadavg()[0]}
-    for name in args.rigs:
-        results[name] = measure(name, args.repeats)
-    results["load_after"] = os.getloadavg()[0]
-    print(json.dumps(results, indent=2))
-
-
 if __name__ == "__main__":
-    main()
+    run_cli(__doc__.splitlines()[0], measure, repeats=15)

@@ -179,18 +179,21 @@ def measure(name: str, repeats: int) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def run_cli(description: str, measure_rig: Callable[[str, int], dict], repeats: int) -> None:
+    """``--rigs`` and ``--repeats`` from the command line; ``measure_rig(rig, repeats)`` per rig
+    on one torch thread, the load before and after; JSON on stdout (the rig-pass benchmarks'
+    shared front end)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--rigs", nargs="+", default=list(BUILDERS), choices=list(BUILDERS))
-    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--repeats", type=int, default=repeats)
     args = parser.parse_args()
     torch.set_num_threads(1)
     results = {"torch": torch.__version__, "threads": 1, "load_before": os.getloadavg()[0]}
     for name in args.rigs:
-        results[name] = measure(name, args.repeats)
+        results[name] = measure_rig(name, args.repeats)
     results["load_after"] = os.getloadavg()[0]
     print(json.dumps(results, indent=2))
 
 
 if __name__ == "__main__":
-    main()
+    run_cli(__doc__.splitlines()[0], measure, repeats=7)
