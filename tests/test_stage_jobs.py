@@ -142,3 +142,18 @@ def test_a_stage_marked_starts_early_takes_the_first_free_slot(tmp_path):
     started = [line.split("started: ")[1].split(",")[0] for line in after_a if "started: " in line]
     assert started[0] == "long" and len(started) > 1, lines  # before the stages still waiting
     assert _interval(tmp_path, "long")[0] >= _interval(tmp_path, "a")[1]
+
+
+def test_the_stages_a_starts_early_stage_waits_for_are_offered_first_too():
+    """``poses_b`` feeds the early ``long_b``: it is offered a slot before ``other``, which
+    comes first in DVC's order, so the long chain is not held up by short stages."""
+    from rigmap.stage_jobs import plan_stages
+
+    nodes = ["corpus_a", "corpus_b", "other", "long_a", "poses_b", "long_b", "after"]
+    edges = [("corpus_a", "long_a"), ("corpus_b", "poses_b"), ("poses_b", "long_b")]
+    edges += [("long_a", "after"), ("other", "after")]
+    plan = plan_stages(set(nodes), edges, nodes, early_families=frozenset({"long_a", "long_b"}))
+    assert plan.early == {"corpus_a", "corpus_b", "poses_b", "long_a", "long_b"}
+    offered = plan.start_order()
+    assert offered.index("poses_b") < offered.index("other") < offered.index("after")
+    assert offered[:5] == ["corpus_a", "corpus_b", "long_a", "poses_b", "long_b"]

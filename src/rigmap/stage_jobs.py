@@ -8,7 +8,9 @@ it has finished, at most ``jobs`` at once. Stages whose family carries
 ``meta: {runs_alone: true}`` in ``dvc.yaml`` (the ones that time methods: a frames-per-
 second figure must not share the CPUs with another stage) run with nothing beside them.
 Stages marked ``meta: {starts_early: true}`` (the long ones, whose chains set the wall
-time) take a free slot before any other ready stage.
+time), and the pending stages upstream of them, take a free slot before any other ready
+stage: a long chain waiting on a short stage that other ready stages keep from starting
+starts late (session 39: the biped's joint-space fit waited four minutes for its poses).
 """
 
 from __future__ import annotations
@@ -64,7 +66,8 @@ def plan_stages(
     """Order ``pending`` so every stage comes after the pending stages it depends on.
 
     ``edges`` are DVC's ``(upstream, downstream)`` pairs (``dvc dag --dot``); a stage waits
-    for a pending stage anywhere upstream of it, through stages that need not run.
+    for a pending stage anywhere upstream of it, through stages that need not run. The
+    plan's early stages are those of ``early_families`` and every pending stage they wait for.
     """
     upstream: dict[str, set[str]] = {}
     for a, b in edges:
@@ -89,7 +92,8 @@ def plan_stages(
         done.update(ready)
         remaining = [s for s in remaining if s not in done]
     alone = frozenset(s for s in pending if family(s) in alone_families)
-    early = frozenset(s for s in pending if family(s) in early_families)
+    marked = {s for s in pending if family(s) in early_families}
+    early = frozenset(marked.union(*(waits_for[s] for s in marked)))
     return StagePlan(tuple(order), waits_for, alone, early)
 
 
