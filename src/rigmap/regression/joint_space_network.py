@@ -45,6 +45,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -271,6 +272,7 @@ class JointSpaceNetworkRegressor(Regressor):
             )
         X, Y = check_training_data(X, Y, type(self).__name__)
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y.shape[1], rig_name, control_names)
+        clock = time.perf_counter()
         drawn_X, drawn_Y = self._draw(rig, placement, Y)
         self.draws_digest_ = _digest(drawn_X)
         rows = len(X) + len(drawn_X)
@@ -283,11 +285,15 @@ class JointSpaceNetworkRegressor(Regressor):
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = self._new_network(rig, placement, data, generator)
+        self.seconds_ = {"draws": time.perf_counter() - clock}
         with torch_threads(self.threads), _deterministic_algorithms():
-            self.history_ = {
-                "pretrain": self._pretrain(data, generator),
-                "joint_space": self._train_joint_space(forward, data, generator),
-            }
+            clock = time.perf_counter()
+            pretrain = self._pretrain(data, generator)
+            self.seconds_["control_space"] = time.perf_counter() - clock
+            clock = time.perf_counter()
+            joint_space = self._train_joint_space(forward, data, generator)
+            self.seconds_["joint_space"] = time.perf_counter() - clock
+        self.history_ = {"pretrain": pretrain, "joint_space": joint_space}
         self.network_.eval()
         return self
 
@@ -471,7 +477,13 @@ class JointSpaceNetworkRegressor(Regressor):
         ]
 
     def fit_facts(self) -> dict[str, Any]:
-        return {"joint_space_network": {"history": self.history_}}
+        """The fit's cost curves and where its time went (draws posed, control-space phase,
+        joint-space phase incl. any compile; in ``fit.json``, not in the model file, so a
+        refit writes the same model bytes)."""
+        facts = {"history": self.history_}
+        if getattr(self, "seconds_", None) is not None:
+            facts["seconds"] = {k: round(v, 3) for k, v in self.seconds_.items()}
+        return {"joint_space_network": facts}
 
     def _file_meta(self) -> dict[str, Any]:
         return {"history": self.history_, "draws_digest": self.draws_digest_}
