@@ -295,3 +295,22 @@ def test_stages_run_with_pinned_cpu_code_paths(project, fake_dvc):
     mine = {"PATH": "", "MKL_CBWR": "COMPATIBLE"}
     plan = plan_reproduce([], project=project, python=fake_dvc / "python", environ=mine)
     assert plan.env["MKL_CBWR"] == "COMPATIBLE"
+
+
+def test_stages_run_on_one_thread_unless_the_user_says_otherwise(project, fake_dvc):
+    """A stage process started with the plan's environment runs torch and numpy's BLAS on
+    one thread (side-by-side stages' threads would wait on each other); OMP_NUM_THREADS
+    set by the user wins."""
+    probe = (
+        "import torch, numpy, threadpoolctl; "
+        "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info() "
+        "if p['user_api'] == 'blas']; print(torch.get_num_threads(), max(blas))"
+    )
+    for mine, wanted in (({}, "1 1"), ({"OMP_NUM_THREADS": "2"}, "2")):
+        environ = {"PATH": "", **mine}
+        plan = plan_reproduce([], project=project, python=fake_dvc / "python", environ=environ)
+        env = {**plan.env, "PATH": os.environ["PATH"]}
+        shown = subprocess.run(
+            [sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True
+        ).stdout.split()
+        assert " ".join(shown[: len(wanted.split())]) == wanted, shown

@@ -63,6 +63,14 @@ PREFIX = "[rigmap reproduce]"
 #: reports AUTO); MKL_CBWR=COMPATIBLE pins it but costs 3.4x per matrix product, so network
 #: rows may still differ by 1-4 % across such hosts. A value already in the environment wins.
 CPU_CODE_PATHS = {"MKL_CBWR": "AVX2", "ATEN_CPU_CAPABILITY": "avx2"}
+#: One thread per stage in torch's and numpy's pools (OpenMP, MKL, OpenBLAS): ``--jobs``
+#: runs stages side by side, and a stage's two threads then wait on each other behind the
+#: other stage (measured beside a second job on this 2-core machine, session 39: the
+#: joint-space fit's 54 000 posed draws 28 s on two threads, 3.4 s on one; a GMM supersample
+#: stage 20.5 s against 6.9 s). Networks, refinement and tuning pinned one thread already;
+#: this pins the rest, and makes a stage's arithmetic the same on any core count. If the
+#: user set any of the three, none is set (torch takes the smallest).
+STAGE_THREADS = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
 @dataclass(frozen=True)
@@ -121,6 +129,8 @@ def plan_reproduce(
     environ["PATH"] = path
     for name, value in CPU_CODE_PATHS.items():
         environ.setdefault(name, value)
+    if not any(name in environ for name in STAGE_THREADS):  # torch reads all three
+        environ.update(STAGE_THREADS)
     dvc = shutil.which("dvc", path=path)
     if dvc is None and params_only:
         dvc = "dvc"
