@@ -166,6 +166,7 @@ TEST_CATEGORY = {
     "test_reproduce_stops_before_dvc_and_keeps_params_yaml": "other",
     "test_reproduce_preflight_lines_then_dvc": "check",
     "test_stages_run_with_pinned_cpu_code_paths": "check",
+    "test_stages_run_on_one_thread_unless_the_user_says_otherwise": "check",
     # tests/test_faults_resume.py, test_faults_rigs.py, test_faults_stages.py
     "test_fingerprint_covers_behaviour_not_only_names": "check",
     "test_chunks_posed_by_an_older_rig_version_are_not_reused": "other",
