@@ -12,7 +12,8 @@
 # the medians over seeds of the two trees agree when they differ by no more than the larger
 # spread (max - min over seeds). Default stages: every network fit and evaluation of Table 1's
 # rigs (fit_nn, fit_nn_joint_space, their replicate seeds, evaluate, evaluate_seed), for the
-# built-in rigs and the Blender ones; one stage at a time (the values matter here, not the time).
+# built-in rigs and the Blender ones; one stage at a time (the values matter here, not the time),
+# each on one thread as `rigmap reproduce` runs them (rigmap.reproduce.STAGE_THREADS).
 set -euo pipefail
 [ $# -ge 1 ] || { echo "usage: bash scripts/cross_code_path.sh DIR [STAGE ...]" >&2; exit 2; }
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -37,7 +38,8 @@ else
 fi
 echo "cross_code_path: ${#stages[@]} stage(s) on ATEN_CPU_CAPABILITY=default"
 for stage in "${stages[@]}"; do
-    ATEN_CPU_CAPABILITY=default dvc repro --force --single-item "$stage" > "cross_code_path_${stage//[@:\/]/_}.log" 2>&1 \
+    ATEN_CPU_CAPABILITY=default OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+        dvc repro --force --single-item "$stage" > "cross_code_path_${stage//[@:\/]/_}.log" 2>&1 \
         || { echo "cross_code_path: $stage failed (see its log in $target)" >&2; exit 1; }
     echo "cross_code_path: done $stage"
 done
