@@ -315,25 +315,35 @@ def _check_table(table: pd.DataFrame, metadata: Mapping, source: str) -> None:
             f"{source}: clip {table['clip'].iloc[row]!r}, control {controls[col]!r}: value "
             f"{values.iat[row, col]} at frame {table['frame'].iloc[row]}; values must be finite"
         )
-    clip_column = table["clip"].to_numpy()
-    frames = table["frame"].to_numpy()
-    row = 0
-    for clip in metadata["clips"]:
-        count = clip["frames"]
-        rows = slice(row, row + count)
-        expected_frames = np.arange(clip["start"], clip["end"] + 1)
-        if (
-            row + count > len(table)
-            or not (clip_column[rows] == clip["name"]).all()
-            or not np.array_equal(frames[rows], expected_frames)
-        ):
-            raise CorpusError(
-                f"{source}: clip {clip['name']!r}: expected frames {clip['start']}..{clip['end']}"
-                f" ({count} rows) starting at row {row}; the table does not hold them there"
-            )
-        row += count
+    clip, row = misplaced_clip(table, metadata["clips"])
+    if clip is not None:
+        raise CorpusError(
+            f"{source}: clip {clip['name']!r}: expected frames {clip['start']}..{clip['end']}"
+            f" ({clip['frames']} rows) starting at row {row}; the table does not hold them there"
+        )
     if row != len(table):
         raise CorpusError(
             f"{source}: {len(table) - row} rows after the last clip in the metadata "
             f"({metadata['clips'][-1]['name'] if metadata['clips'] else 'none'})"
         )
+
+
+def misplaced_clip(table: pd.DataFrame, clips: Sequence[Mapping]) -> tuple[Mapping | None, int]:
+    """Walk ``clips`` (the metadata's summaries) down the ``clip`` and ``frame`` columns:
+    the first clip whose rows are not where the summaries put them and the row it should
+    start at, else ``(None, rows the clips cover)``. Corpus and poses files lay out their
+    clips alike, so both check them here; each words its own error."""
+    clip_column = table["clip"].to_numpy()
+    frames = table["frame"].to_numpy()
+    row = 0
+    for clip in clips:
+        count = clip["frames"]
+        rows = slice(row, row + count)
+        if (
+            row + count > len(table)
+            or not (clip_column[rows] == clip["name"]).all()
+            or not np.array_equal(frames[rows], np.arange(clip["start"], clip["end"] + 1))
+        ):
+            return clip, row
+        row += count
+    return None, row

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rigmap.animation.corpus import KEY_COLUMNS, Corpus
+from rigmap.animation.corpus import KEY_COLUMNS, Corpus, misplaced_clip
 from rigmap.errors import RigmapError
 from rigmap.store import read_table_file, write_table_file
 
@@ -267,21 +267,11 @@ def _check_table(table: pd.DataFrame, metadata: Mapping, source: str) -> None:
             f"{table['clip'].iloc[row]!r}, frame {table['frame'].iloc[row]}; joint positions "
             "and COG placement must be finite numbers"
         )
-    clip_column = table["clip"].to_numpy()
-    frames = table["frame"].to_numpy()
-    row = 0
-    for clip in metadata["clips"]:
-        count = clip["frames"]
-        rows = slice(row, row + count)
-        if (
-            row + count > len(table)
-            or not (clip_column[rows] == clip["name"]).all()
-            or not np.array_equal(frames[rows], np.arange(clip["start"], clip["end"] + 1))
-        ):
-            raise PosesError(
-                f"{source}: clip {clip['name']!r}: expected frames {clip['start']}..{clip['end']} "
-                f"({count} rows) from row {row}; the table does not hold them there"
-            )
-        row += count
+    clip, row = misplaced_clip(table, metadata["clips"])
+    if clip is not None:
+        raise PosesError(
+            f"{source}: clip {clip['name']!r}: expected frames {clip['start']}..{clip['end']} "
+            f"({clip['frames']} rows) from row {row}; the table does not hold them there"
+        )
     if row != len(table):
         raise PosesError(f"{source}: {len(table) - row} rows after the last clip in the metadata")
