@@ -15,7 +15,7 @@ from rigmap.evaluation.runner import _novelty_of
 from rigmap.regression import JointSpaceNetworkRegressor, load_regressor
 from rigmap.regression.errors import ModelFileError
 from rigmap.regression.features import inverse_features
-from rigmap.regression.joint_space_network import SquashedNetwork
+from rigmap.regression.joint_space_network import SquashedNetwork, draws_summary, same_draws
 from rigmap.regression.joint_space_training import (
     JointSpaceData,
     draw_training_poses,
@@ -228,7 +228,7 @@ def test_local_draws_join_the_fit_inside_the_soft_ranges(tiny):
         model._check_params()
 
 
-def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_digest(tiny, tmp_path):
+def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_summary(tiny, tmp_path):
     rig, placement, X, Y = tiny
     mapping = fitted(tiny, epochs=1, n_gaussian=20, n_local=15, n_wide=10, pretrain_epochs=1)
     inputs, targets = placement.inputs(X), placement.targets(Y, X)
@@ -238,15 +238,26 @@ def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_digest(ti
     learned = mapping.regressor.learned_inputs(inputs, targets, rig=rig, placement=placement)
     np.testing.assert_array_equal(learned, np.concatenate([inputs, drawn]))
     mapping.save(tmp_path)
-    loaded = load_regressor(tmp_path, rig=rig).regressor  # the digest travels in the file
+    loaded = load_regressor(tmp_path, rig=rig).regressor  # the summary travels in the file
     np.testing.assert_array_equal(
         loaded.learned_inputs(inputs, targets, rig=rig, placement=placement), learned
     )
     with pytest.raises(ModelFileError, match="differ from the fit's"):
         loaded.learned_inputs(inputs[1:], targets[1:], rig=rig, placement=placement)
-    loaded.draws_digest_ = None
-    with pytest.raises(ModelFileError, match="no digest of its draws"):
+    loaded.draws_summary_ = None
+    with pytest.raises(ModelFileError, match="no summary of its draws"):
         loaded.learned_inputs(inputs, targets, rig=rig, placement=placement)
+
+
+def test_draws_posed_a_few_ulps_away_are_the_same_draws_and_other_draws_are_not():
+    # another CPU code path (issue #36: ATEN_CPU_CAPABILITY=default) poses the same drawn
+    # controls a few ulps away; a model pulled from the remote must still evaluate there
+    draws = np.random.default_rng(0).normal(50.0, 20.0, (500, 12))
+    summary = draws_summary(draws)
+    assert same_draws(summary, draws * (1 + 4e-16) + 1e-14)
+    assert not same_draws(summary, draws[1:])  # one row fewer
+    assert not same_draws(summary, draws + 1e-4)  # other poses
+    assert not same_draws(summary, np.random.default_rng(1).normal(50.0, 20.0, (500, 12)))
 
 
 def test_novelty_averages_the_nearest_learned_frames():
