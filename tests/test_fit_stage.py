@@ -351,7 +351,7 @@ def test_joint_space_sweep_scales_the_networks_own_draws(data_dir, biped, tmp_pa
     # all the draws: the same seeded fit as the fit stage's, so the same scores
     fitted = _stage("fit").run(cfg)
     record = json.loads((fitted.folder / "fit.json").read_text())["joint_space_network"]
-    assert set(record["seconds"]) == {"draws", "control_space", "joint_space"}
+    assert set(record["seconds"]) == {"draws_and_setup", "control_space", "joint_space"}
     assert all(seconds > 0 for seconds in record["seconds"].values())
     assert "seconds" not in json.loads((fitted.folder / "nn_joint_space.json").read_text())
     test_set = TestSet.load(biped, data_dir / "biped")

@@ -16,53 +16,23 @@ in one pass. The warm-up time is reported separately, never added or hidden.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
 
+from rigmap.stopwatch import Stopwatch
+
 Result = TypeVar("Result")
-
-
-class Stopwatch:
-    """Wall-clock seconds accumulated over start/stop laps (``time.perf_counter``).
-
-    Use as a context manager for one lap: ``with Stopwatch() as watch: ...``,
-    then read ``watch.elapsed``.
-    """
-
-    def __init__(self) -> None:
-        self.elapsed = 0.0
-        self.laps = 0
-        self._started: float | None = None
-
-    @property
-    def running(self) -> bool:
-        return self._started is not None
-
-    def start(self) -> Stopwatch:
-        if self._started is not None:
-            raise RuntimeError("Stopwatch.start: already running; stop() it first")
-        self._started = time.perf_counter()
-        return self
-
-    def stop(self) -> float:
-        """End the current lap; return its seconds."""
-        if self._started is None:
-            raise RuntimeError("Stopwatch.stop: not running; start() it first")
-        lap = time.perf_counter() - self._started
-        self._started = None
-        self.elapsed += lap
-        self.laps += 1
-        return lap
-
-    def __enter__(self) -> Stopwatch:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
+__all__ = [
+    "CountingRig",
+    "RigEvaluationCount",
+    "ScriptCountingRig",
+    "Stopwatch",
+    "Timing",
+    "run_timed",
+]
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -71,6 +70,7 @@ from rigmap.regression.network import (
 from rigmap.regression.normalisation import column_scale
 from rigmap.regression.rig_forward import PlacedRigForward
 from rigmap.regression.validation import check_training_data
+from rigmap.stopwatch import Stopwatch
 from rigmap.torch_threads import torch_threads
 
 _PREDICT_CHUNK = 65_536
@@ -272,7 +272,7 @@ class JointSpaceNetworkRegressor(Regressor):
             )
         X, Y = check_training_data(X, Y, type(self).__name__)
         self.fingerprint_ = ModelFingerprint.build(X.shape[1], Y.shape[1], rig_name, control_names)
-        clock = time.perf_counter()
+        setup = Stopwatch().start()
         drawn_X, drawn_Y = self._draw(rig, placement, Y)
         self.draws_summary_ = draws_summary(drawn_X)
         rows = len(X) + len(drawn_X)
@@ -285,15 +285,14 @@ class JointSpaceNetworkRegressor(Regressor):
         data = JointSpaceData.build(forward, X, Y, drawn_X, drawn_Y, int(self.n_wide))
         generator = torch.Generator().manual_seed(int(self.seed))
         self.network_ = self._new_network(rig, placement, data, generator)
-        self.seconds_ = {"draws": time.perf_counter() - clock}
+        self.seconds_ = {"draws_and_setup": setup.stop()}
         with torch_threads(self.threads), _deterministic_algorithms():
-            clock = time.perf_counter()
-            pretrain = self._pretrain(data, generator)
-            self.seconds_["control_space"] = time.perf_counter() - clock
-            clock = time.perf_counter()
-            joint_space = self._train_joint_space(forward, data, generator)
-            self.seconds_["joint_space"] = time.perf_counter() - clock
-        self.history_ = {"pretrain": pretrain, "joint_space": joint_space}
+            with Stopwatch() as control_space:
+                pretrain = self._pretrain(data, generator)
+            with Stopwatch() as joint_space:
+                joint_space_history = self._train_joint_space(forward, data, generator)
+        self.seconds_.update(control_space=control_space.elapsed, joint_space=joint_space.elapsed)
+        self.history_ = {"pretrain": pretrain, "joint_space": joint_space_history}
         self.network_.eval()
         return self
 
@@ -479,9 +478,9 @@ class JointSpaceNetworkRegressor(Regressor):
         ]
 
     def fit_facts(self) -> dict[str, Any]:
-        """The fit's cost curves and where its time went (draws posed, control-space phase,
-        joint-space phase incl. any compile; in ``fit.json``, not in the model file, so a
-        refit writes the same model bytes)."""
+        """The fit's cost curves and where its time went (draws posed and the training
+        tensors and network built, control-space phase, joint-space phase incl. any compile;
+        in ``fit.json``, not in the model file, so a refit writes the same model bytes)."""
         facts = {"history": self.history_}
         if getattr(self, "seconds_", None) is not None:
             facts["seconds"] = {k: round(v, 3) for k, v in self.seconds_.items()}
