@@ -29,9 +29,39 @@ def draw_training_poses(
     n_local: int = 0,
     local_scale: float = 2.0,
 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`draw_training_controls` posed by ``rig``: their placement inputs and targets,
+    in that order (wide last)."""
+    controls = draw_training_controls(
+        rig, placement, Y_targets, n_gaussian, scale, n_wide, rng, n_local, local_scale
+    )
+    if not len(controls):
+        return np.empty((0, placement.input_width)), controls
+    pose = rig.pose(rig.expand_used(controls))
+    where = f"poses drawn for joint-space training of rig {rig.name!r}"
+    features = inverse_features(
+        np.asarray(pose.positions),
+        np.asarray(pose.cog),
+        np.asarray(pose.cog_rotation),
+        n_joints=rig.n_joints,
+        where=where,
+    )
+    return placement.inputs(features, where), placement.targets(controls, features, where)
+
+
+def draw_training_controls(
+    rig,
+    placement,
+    Y_targets: np.ndarray,
+    n_gaussian: int,
+    scale: float,
+    n_wide: int,
+    rng,
+    n_local: int = 0,
+    local_scale: float = 2.0,
+) -> np.ndarray:
     """``n_gaussian`` PCA-Gaussian draws around ``Y_targets``, ``n_local`` per-control
-    draws (:func:`local_draws`) and ``n_wide`` uniform draws over the soft ranges, posed by
-    ``rig``: their placement inputs and targets, in that order (wide last).
+    draws (:func:`local_draws`) and ``n_wide`` uniform draws over the soft ranges: used
+    controls ``(N, C_used)``, in that order (wide last), not posed.
 
     Draws are clamped into the soft ranges (the network's outputs cannot leave them, so a
     pose made outside them could not be reproduced). Root channels are zero.
@@ -54,21 +84,11 @@ def draw_training_poses(
         drawn.append(clamp_to_limits(local, lower, upper, copy=False).values)
     if n_wide:
         drawn.append(UniformSampler("soft", lower, upper).fit(base).sample(n_wide, rng))
-    width = placement.input_width
     if not drawn:
-        return np.empty((0, width)), np.empty((0, len(used)))
+        return np.empty((0, len(used)))
     controls = np.concatenate(drawn)
     controls[:, root] = 0.0
-    pose = rig.pose(rig.expand_used(controls))
-    where = f"poses drawn for joint-space training of rig {rig.name!r}"
-    features = inverse_features(
-        np.asarray(pose.positions),
-        np.asarray(pose.cog),
-        np.asarray(pose.cog_rotation),
-        n_joints=rig.n_joints,
-        where=where,
-    )
-    return placement.inputs(features, where), placement.targets(controls, features, where)
+    return controls
 
 
 def local_draws(pool: np.ndarray, std: np.ndarray, scale: float, n: int, rng) -> np.ndarray:
