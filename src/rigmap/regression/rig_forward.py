@@ -53,8 +53,8 @@ def require_differentiable(rig, who: str) -> None:
         raise NotDifferentiableRigError(
             f"{who} trains through the rig, but rig {rig.name!r} is not differentiable (it is "
             "evaluated by worker processes, e.g. Blender). Training it needs a learned forward "
-            "surrogate of the rig (a network fitted on posed samples), which rigmap does not "
-            "have yet; use regressor=nn or regressor=gpr for this rig"
+            "surrogate of the rig (rigmap.regression.stand_in fits one, but training through "
+            "it is not wired in yet); use regressor=nn or regressor=gpr for this rig"
         )
 
 
