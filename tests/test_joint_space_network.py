@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pytest
@@ -247,6 +248,15 @@ def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_summary(t
     loaded.draws_summary_ = None
     with pytest.raises(ModelFileError, match="no summary of its draws"):
         loaded.learned_inputs(inputs, targets, rig=rig, placement=placement)
+    # a hand-edited summary is refused when the file loads, naming the file
+    meta_path = tmp_path / "nn_joint_space.json"
+    meta = json.loads(meta_path.read_text())
+    meta["draws_summary"]["mean"] = "0; touch X"
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(
+        ModelFileError, match=r"not a valid nn_joint_space model \(draws_summary\['mean'\] must be"
+    ):
+        load_regressor(tmp_path, rig=rig)
 
 
 def test_draws_posed_a_few_ulps_away_are_the_same_draws_and_other_draws_are_not():

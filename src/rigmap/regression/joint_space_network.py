@@ -501,7 +501,7 @@ class JointSpaceNetworkRegressor(Regressor):
         )
         try:
             self.history_ = dict(meta["history"])
-            self.draws_summary_ = meta.get("draws_summary")
+            self.draws_summary_ = _checked_summary(meta.get("draws_summary"))
             names = list(network.state_dict())
             arrays = model_io.arrays_from_bytes(payload, source, names)
             network.load_state_dict({k: torch.from_numpy(v) for k, v in arrays.items()})
@@ -526,6 +526,23 @@ def draws_summary(values: np.ndarray) -> dict[str, Any]:
         "mean": array.mean(axis=0).tolist(),
         "std": array.std(axis=0).tolist(),
     }
+
+
+def _checked_summary(summary: Any) -> dict[str, Any] | None:
+    """A model file's draws summary as :func:`draws_summary` writes it (``None`` if absent);
+    anything else raises ``ValueError`` (the loader names the file)."""
+    if summary is None:
+        return None
+    shape = summary.get("shape") if isinstance(summary, dict) else None
+    if not (isinstance(shape, list) and len(shape) == 2 and all(type(n) is int for n in shape)):
+        raise ValueError(f"draws_summary must hold a shape [rows, columns], got {summary!r:.80}")
+    for key in ("mean", "std"):
+        values = summary.get(key)
+        if not (isinstance(values, list) and len(values) == shape[1]) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in values
+        ):
+            raise ValueError(f"draws_summary[{key!r}] must be {shape[1]} numbers")
+    return summary
 
 
 def same_draws(summary: dict[str, Any], values: np.ndarray) -> bool:
