@@ -19,9 +19,10 @@ from rigmap.regression.features import inverse_features
 from rigmap.regression.joint_space_network import SquashedNetwork, draws_summary, same_draws
 from rigmap.regression.joint_space_training import (
     JointSpaceData,
-    draw_training_poses,
+    draw_training_controls,
     joint_space_cost,
     local_draws,
+    pose_training_draws,
 )
 from rigmap.regression.mapping import InverseMapping
 from rigmap.regression.placement import find_placement, heading, turn_matrix
@@ -214,9 +215,10 @@ def test_local_draws_move_each_control_of_a_pool_row_by_its_own_noise():
 def test_local_draws_join_the_fit_inside_the_soft_ranges(tiny):
     rig, placement, _, Y = tiny
     rng = np.random.default_rng(1)
-    X_drawn, Y_drawn = draw_training_poses(
+    controls = draw_training_controls(
         rig, placement, Y, 20, 1.0, 10, rng, n_local=30, local_scale=50.0
     )
+    X_drawn, Y_drawn = pose_training_draws(rig, placement, controls)
     assert X_drawn.shape == (60, placement.input_width) and len(Y_drawn) == 60
     used = rig.controls.used_indices
     bounded = [i for i in range(len(used)) if i not in {c.index for c in placement.channels}]
@@ -233,9 +235,10 @@ def test_learned_inputs_are_the_rows_and_the_fits_own_draws_checked_by_summary(t
     rig, placement, X, Y = tiny
     mapping = fitted(tiny, epochs=1, n_gaussian=20, n_local=15, n_wide=10, pretrain_epochs=1)
     inputs, targets = placement.inputs(X), placement.targets(Y, X)
-    drawn, _ = draw_training_poses(
+    controls = draw_training_controls(
         rig, placement, targets, 20, 1.0, 10, np.random.default_rng(0), n_local=15, local_scale=2.0
     )
+    drawn, _ = pose_training_draws(rig, placement, controls)
     learned = mapping.regressor.learned_inputs(inputs, targets, rig=rig, placement=placement)
     np.testing.assert_array_equal(learned, np.concatenate([inputs, drawn]))
     mapping.save(tmp_path)

@@ -59,8 +59,9 @@ from rigmap.regression.errors import ModelFileError
 from rigmap.regression.fingerprint import ModelFingerprint
 from rigmap.regression.joint_space_training import (
     JointSpaceData,
-    draw_training_poses,
+    draw_training_controls,
     joint_space_cost,
+    pose_training_draws,
 )
 from rigmap.regression.network import (
     TrainingDivergedError,
@@ -85,6 +86,19 @@ _LAST_LEARNED: dict[str, Any] = {}
 _EDGE = 1e-4  # the fraction of a soft range the initial bias stays inside of its ends
 
 
+def linear_layers(sizes: Sequence[int], generator=None) -> torch.nn.ModuleList:
+    """Linear layers between consecutive ``sizes``, drawn from ``generator`` as torch draws
+    them by default (uniform within ``1 / sqrt(fan_in)``), so a seeded fit repeats."""
+    layers = torch.nn.ModuleList(torch.nn.Linear(a, b) for a, b in itertools.pairwise(sizes))
+    if generator is not None:
+        with torch.no_grad():
+            for layer in layers:
+                bound = 1.0 / math.sqrt(layer.in_features)
+                layer.weight.uniform_(-bound, bound, generator=generator)
+                layer.bias.uniform_(-bound, bound, generator=generator)
+    return layers
+
+
 class SquashedNetwork(torch.nn.Module):
     """Standardised inputs -> ReLU layers -> targets squashed into their ranges.
 
@@ -95,16 +109,7 @@ class SquashedNetwork(torch.nn.Module):
 
     def __init__(self, n_inputs: int, hidden: int, layers: int, n_outputs: int, generator=None):
         super().__init__()
-        sizes = [n_inputs] + [hidden] * layers + [n_outputs]
-        self.layers = torch.nn.ModuleList(
-            torch.nn.Linear(a, b) for a, b in itertools.pairwise(sizes)
-        )
-        if generator is not None:
-            with torch.no_grad():
-                for layer in self.layers:
-                    bound = 1.0 / math.sqrt(layer.in_features)
-                    layer.weight.uniform_(-bound, bound, generator=generator)
-                    layer.bias.uniform_(-bound, bound, generator=generator)
+        self.layers = linear_layers([n_inputs] + [hidden] * layers + [n_outputs], generator)
         for name, width in (("x_mean", n_inputs), ("x_std", n_inputs)):
             self.register_buffer(name, torch.zeros(width, dtype=torch.float64))
         for name in ("lower", "span", "free_mean", "free_std", "bounded"):
@@ -305,7 +310,7 @@ class JointSpaceNetworkRegressor(Regressor):
 
     def _draw(self, rig, placement, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The fit's own posed draws around the targets ``Y``, from the model's seed."""
-        return draw_training_poses(
+        controls = draw_training_controls(
             rig,
             placement,
             Y,
@@ -316,6 +321,7 @@ class JointSpaceNetworkRegressor(Regressor):
             n_local=int(self.n_local),
             local_scale=float(self.local_scale),
         )
+        return pose_training_draws(rig, placement, controls)
 
     def learned_inputs(self, X: Any, Y: Any, *, rig: Any, placement: Any) -> np.ndarray:
         """The inputs of every row the network was trained on: the given rows ``(X, Y)``

@@ -1,6 +1,6 @@
 """What the joint-space network trains on, and its cost: drawn poses and the rig in the loop.
 
-:func:`draw_training_poses` gives poses beyond the corpus (the corpus alone
+:func:`draw_training_controls` draws poses beyond the corpus (the corpus alone
 covers a sliver of what test motion does: issue #15 found 85-100 % of the
 extreme test frames more than 3 training stds outside it). :func:`joint_space_cost`
 is the cost of :mod:`rigmap.regression.joint_space_network` on one minibatch.
@@ -18,22 +18,9 @@ from rigmap.regression.normalisation import column_scale
 from rigmap.regression.rig_forward import PlacedRigForward
 
 
-def draw_training_poses(
-    rig,
-    placement,
-    Y_targets: np.ndarray,
-    n_gaussian: int,
-    scale: float,
-    n_wide: int,
-    rng,
-    n_local: int = 0,
-    local_scale: float = 2.0,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`draw_training_controls` posed by ``rig``: their placement inputs and targets,
-    in that order (wide last)."""
-    controls = draw_training_controls(
-        rig, placement, Y_targets, n_gaussian, scale, n_wide, rng, n_local, local_scale
-    )
+def pose_training_draws(rig, placement, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Used ``controls`` (:func:`draw_training_controls`) posed by ``rig``: their placement
+    inputs and targets, row for row."""
     if not len(controls):
         return np.empty((0, placement.input_width)), controls
     pose = rig.pose(rig.expand_used(controls))

@@ -19,7 +19,6 @@ of the real rig: a rig that poses them differently today is a changed rig, and r
 
 from __future__ import annotations
 
-import itertools
 import math
 import os
 from collections.abc import Sequence
@@ -33,6 +32,7 @@ from tqdm.auto import tqdm
 
 from rigmap.regression import model_io
 from rigmap.regression.errors import ModelFileError, ModelMismatchError, RegressionInputError
+from rigmap.regression.joint_space_network import linear_layers
 from rigmap.regression.network import _adam, _deterministic_algorithms
 from rigmap.rigs.base import Pose, Rig, RigInputError
 from rigmap.stopwatch import Stopwatch
@@ -96,16 +96,7 @@ class StandInNetwork(torch.nn.Module):
 
     def __init__(self, n_inputs: int, hidden: int, layers: int, n_outputs: int, generator=None):
         super().__init__()
-        sizes = [n_inputs] + [hidden] * layers + [n_outputs]
-        self.layers = torch.nn.ModuleList(
-            torch.nn.Linear(a, b) for a, b in itertools.pairwise(sizes)
-        )
-        if generator is not None:
-            with torch.no_grad():
-                for layer in self.layers:
-                    bound = 1.0 / math.sqrt(layer.in_features)
-                    layer.weight.uniform_(-bound, bound, generator=generator)
-                    layer.bias.uniform_(-bound, bound, generator=generator)
+        self.layers = linear_layers([n_inputs] + [hidden] * layers + [n_outputs], generator)
         for name, width in (("x_mean", n_inputs), ("x_std", n_inputs)):
             self.register_buffer(name, torch.zeros(width, dtype=torch.float64))
         for name in ("y_mean", "y_scale"):
