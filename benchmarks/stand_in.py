@@ -32,6 +32,7 @@ import torch
 import yaml
 
 from rigmap.animation.corpus import Corpus
+from rigmap.error_measures import joint_error, joint_rms
 from rigmap.regression.fitting import load_training_data, placement_of
 from rigmap.regression.joint_space_training import draw_training_controls
 from rigmap.regression.stand_in import StandInSettings, fit_stand_in
@@ -131,12 +132,11 @@ def _test_clip_rms(rig, stand_in, root: list[int]) -> dict:
     controls[:, root] = 0.0
     real = rig.pose(rig.expand_used(controls))
     guess = stand_in.pose(rig.expand_used(controls))
-    error = np.asarray(guess.positions) - np.asarray(real.positions)
-    per_frame = np.sqrt((error**2).sum(axis=2).mean(axis=1))
+    errors = joint_error(guess.positions, real.positions)
     return {
         "frames": len(controls),
-        "joint_rms_cm": round(float(np.sqrt((error**2).sum(axis=2).mean())), 4),
-        "worst_frame_rms_cm": round(float(per_frame.max()), 4),
+        "joint_rms_cm": round(joint_rms(errors.mean), 4),
+        "worst_frame_rms_cm": round(joint_rms(float(errors.per_frame.max())), 4),
     }
 
 

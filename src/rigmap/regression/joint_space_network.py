@@ -99,6 +99,20 @@ def linear_layers(sizes: Sequence[int], generator=None) -> torch.nn.ModuleList:
     return layers
 
 
+def one_cycle(steps: int, warm: int, final: float):
+    """The learning-rate factor at each step: a linear warm-up from a tenth over ``warm``
+    steps, then cosine down to ``final`` at ``steps`` (no warm-up: plain cosine)."""
+    rest = max(steps - warm, 1)
+
+    def factor(step: int) -> float:
+        if step < warm:
+            return 0.1 + 0.9 * step / warm
+        done = min((step - warm) / rest, 1.0)
+        return final + (1 - final) * 0.5 * (1 + math.cos(math.pi * done))
+
+    return factor
+
+
 class SquashedNetwork(torch.nn.Module):
     """Standardised inputs -> ReLU layers -> targets squashed into their ranges.
 
@@ -383,16 +397,8 @@ class JointSpaceNetworkRegressor(Regressor):
     def _joint_schedule(self, steps: int):
         """Adam at ``joint_rate``: a linear warm-up from a tenth, then cosine down to
         ``final_fraction`` of it."""
-        peak, warm = self.joint_rate, round(float(self.warmup) * steps)
-        final, rest = float(self.final_fraction), max(steps - warm, 1)
-
-        def factor(step: int) -> float:
-            if step < warm:
-                return 0.1 + 0.9 * step / warm
-            done = min((step - warm) / rest, 1.0)
-            return final + (1 - final) * 0.5 * (1 + math.cos(math.pi * done))
-
-        optimizer = _adam(list(self.network_.parameters()), peak)
+        optimizer = _adam(list(self.network_.parameters()), self.joint_rate)
+        factor = one_cycle(steps, round(float(self.warmup) * steps), float(self.final_fraction))
         return optimizer, torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
 
     def _schedule(self, steps: int):

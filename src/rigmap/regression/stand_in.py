@@ -30,10 +30,12 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from rigmap.error_measures import joint_error, joint_rms
 from rigmap.regression import model_io
 from rigmap.regression.errors import ModelFileError, ModelMismatchError, RegressionInputError
-from rigmap.regression.joint_space_network import linear_layers
+from rigmap.regression.joint_space_network import linear_layers, one_cycle
 from rigmap.regression.network import _adam, _deterministic_algorithms
+from rigmap.regression.normalisation import column_scale
 from rigmap.rigs.base import Pose, Rig, RigInputError
 from rigmap.stopwatch import Stopwatch
 from rigmap.torch_threads import torch_threads
@@ -255,11 +257,11 @@ def fit_stand_in(
     with torch.no_grad():
         guess = network(torch.from_numpy(inputs[heldout])).numpy()
     width = 3 * rig.n_joints
-    joint_error = (guess[:, :width] - outputs[heldout, :width]).reshape(n_heldout, -1, 3)
-    per_joint = np.sqrt((joint_error**2).sum(axis=2).mean(axis=0))
+    error = (guess[:, :width] - outputs[heldout, :width]).reshape(n_heldout, -1, 3)
+    per_joint = np.sqrt((error**2).sum(axis=2).mean(axis=0))
     cog_error = guess[:, width : width + 3] - outputs[heldout, width : width + 3]
     stand_in.fit = StandInFit(
-        heldout_rms_cm=float(np.sqrt((joint_error**2).sum(axis=2).mean())),
+        heldout_rms_cm=joint_rms(joint_error(guess[:, :width], outputs[heldout, :width]).mean),
         heldout_rms_per_joint_cm=dict(zip(rig.joint_names, map(float, per_joint), strict=True)),
         heldout_cog_rms_cm=float(np.sqrt((cog_error**2).sum(axis=1).mean())),
         train_rows=len(train),
@@ -275,7 +277,7 @@ def _new_network(inputs, outputs, n_joints: int, settings: StandInSettings, gene
     network = StandInNetwork(
         inputs.shape[1], settings.hidden, settings.layers, outputs.shape[1], generator
     )
-    x_std = inputs.std(axis=0)
+    x_mean, x_std = column_scale(inputs)
     width = 3 * n_joints + 3
     y_mean = outputs.mean(axis=0)
     y_scale = np.ones(outputs.shape[1])
@@ -283,8 +285,8 @@ def _new_network(inputs, outputs, n_joints: int, settings: StandInSettings, gene
     y_scale[:width] = max(float(outputs[:, :width].std(axis=0).mean()), 1e-6)
     y_mean[width:] = 0.0  # rotation columns are unit vectors already
     with torch.no_grad():
-        network.x_mean.copy_(torch.from_numpy(inputs.mean(axis=0)))
-        network.x_std.copy_(torch.from_numpy(np.where(x_std > 1e-12, x_std, 1.0)))
+        network.x_mean.copy_(torch.from_numpy(x_mean))
+        network.x_std.copy_(torch.from_numpy(x_std))
         network.y_mean.copy_(torch.from_numpy(y_mean))
         network.y_scale.copy_(torch.from_numpy(y_scale))
     return network
@@ -298,9 +300,8 @@ def _train(network, inputs, outputs, settings: StandInSettings, generator, progr
     n, batch = len(x), int(settings.batch_size)
     steps = int(settings.epochs) * math.ceil(n / batch)
     optimizer = _adam(list(network.parameters()), float(settings.learning_rate))
-    final = float(settings.final_fraction)
     decay = torch.optim.lr_scheduler.LambdaLR(
-        optimizer, lambda step: final + (1 - final) * 0.5 * (1 + math.cos(math.pi * step / steps))
+        optimizer, one_cycle(steps, 0, float(settings.final_fraction))
     )
     history = []
     for _ in tqdm(range(int(settings.epochs)), desc="stand-in", disable=not progress, leave=False):
