@@ -226,6 +226,10 @@ def test_a_glitch_frame_is_named_and_repaired_or_refused(tmp_path, capsys):
     assert not pair.examples[0] and not pair.examples[1] and pair.examples[2:].all()
     repaired = pair.source.motion.values[0]
     assert np.abs(repaired).max() > 0
+    # rebuilt from captured motion only: frame 2 held, not halfway to the T-pose at frame 0
+    # (halfway put the root 2 m from where the walk starts: lean_back's speed gate read it)
+    raw = read_bvh(MOCAP / "cmu_07_12.bvh").values
+    np.testing.assert_allclose(repaired, raw[2], atol=1e-9)
     with pytest.raises(ValueError, match=r"cmu_07_12\.bvh: frames \[1\] .* glitches"):
         read_clip(MOCAP / "cmu_07_12.bvh", glitch="refuse")
     # learned by the command: the output says what was repaired and left out

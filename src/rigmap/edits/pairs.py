@@ -86,6 +86,7 @@ def read_clip(
     )
     notes, values = [], motion.values.copy()
     bad = np.zeros(motion.n_frames, dtype=bool)
+    tpose_at_0 = check.tpose_at_0 if tpose is None else tpose
     if check.glitches:
         if glitch == "refuse":
             raise PairError(
@@ -93,13 +94,16 @@ def read_clip(
                 "glitches (every channel zero); --glitch repair rebuilds them"
             )
         bad[list(check.glitches)] = True
-        values = _repaired(motion, values, bad)
+        # a T-pose is not motion either: a glitch beside it is rebuilt from captured frames
+        not_motion = bad.copy()
+        not_motion[0] |= bool(tpose_at_0)
+        values = _repaired(motion, values, not_motion)
         notes.append(
             f"{where}: glitch frames {list(check.glitches)} (from 0, every channel "
             "zero) repaired from their neighbours"
         )
     start, stop = _frame_range(where, motion.n_frames, frames)
-    if (check.tpose_at_0 if tpose is None else tpose) and start == 0:
+    if tpose_at_0 and start == 0:
         start = 1
         notes.append(f"{where}: frame 0 is an added T-pose, not motion: cut")
     if stop - start < 3:

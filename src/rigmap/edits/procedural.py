@@ -158,6 +158,30 @@ class Edit:
             str(config.get("description", "")),
         )
 
+    def on_joints(self, aliases: Mapping[str, str]) -> Edit:
+        """This skeleton-mode edit on another conversion of the skeleton: every joint the
+        operations name (targets, the phase channel's joint) renamed by ``aliases``
+        (the edits in ``conf/edit/`` name the 131 conversion's joints: ``LeftHip``, …).
+        Names not in ``aliases`` (root channels such as ``dt``) stay."""
+        if not aliases:
+            return self
+        if self.mode != "skeleton":
+            raise EditConfigError(f"edit {self.name!r}: joint aliases apply to skeleton mode only")
+
+        def renamed_phase(channel: str) -> str:
+            joint, dot, axis = channel.rpartition(".")
+            return f"{aliases.get(joint, joint)}{dot}{axis}" if dot else channel
+
+        operations = tuple(
+            replace(
+                op,
+                targets=tuple(aliases.get(t, t) for t in op.targets),
+                phase=renamed_phase(op.phase) if op.phase else op.phase,
+            )
+            for op in self.operations
+        )
+        return replace(self, operations=operations)
+
     def full(self) -> Edit:
         """The edit at full strength on every frame (gates ``always``, no half mask): the
         direction the context measures project on."""

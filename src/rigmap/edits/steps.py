@@ -53,6 +53,16 @@ TABLE_COLUMNS = (
     "drift_std",
     "root_drift_cm",
 )
+#: per edit and held-out take (``takes.csv``): the issue's generalisation-across-takes numbers
+TAKE_COLUMNS = (
+    "edit_error_std",
+    "source_error_std",
+    "transfer",
+    "leak_std",
+    "leak_cm",
+    "joint_rmse_cm",
+    "source_joint_rmse_cm",
+)
 ABLATION_COLUMNS = ("edit_error_std", "transfer", "jerk_ratio", "drift_std", "leak_std")
 
 
@@ -85,7 +95,8 @@ def _name_list(config: dict, key: str) -> list[str]:
 
 def _setup(config: dict, subject: str):
     data = load_study(subject, config["subjects"][subject])
-    edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode)
+    aliases = config["subjects"][subject].get("joint_aliases")
+    edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode, aliases)
     for edit in edits.values():
         edit.check(data.train[0].track)
     return subject, data, edits
@@ -219,7 +230,7 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
     models = layout.app_models(subject, EDITS)
     applied = layout.app_data(subject, EDITS)
     folder = layout.app_metrics(subject, EDITS)
-    summary = {}
+    summary, takes = {}, {}
     for name, edit in edits.items():
         model = load_model(models / f"{name}.npz")
         with np.load(applied / f"{name}.npz", allow_pickle=False) as stored:
@@ -242,13 +253,23 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
         if report["context_transitions"] is not None:
             summary[name]["context_transitions"] = report["context_transitions"]
         summary[name]["out_of_distribution"] = report["out_of_distribution"]
-    _write_tables(folder, summary)
+        takes[name] = report["clips"]
+    _write_tables(folder, summary, takes)
+    if data.notes:  # a T-pose cut, capture glitches repaired: said where the numbers are
+        summary["clips_read"] = {"notes": list(data.notes)}
     return write_json_atomic(folder / "summary.json", json_ready(summary))
 
 
-def _write_tables(folder: Path, summary: dict) -> None:
+def _write_tables(folder: Path, summary: dict, takes: dict) -> None:
     rows = [{"edit": n, **{c: s[c] for c in TABLE_COLUMNS}} for n, s in summary.items()]
     write_text_atomic(folder / "edits.csv", _csv(rows))
+    rows = [
+        {"edit": n, "take": Path(source).stem, "frames": int(scores["frames"])}
+        | {c: scores[c] for c in TAKE_COLUMNS}
+        for n, clips in takes.items()
+        for source, scores in clips.items()
+    ]
+    write_text_atomic(folder / "takes.csv", _csv(rows))
     rows = [
         {"edit": n, "solve": solve, **{c: r[c] for c in ABLATION_COLUMNS}}
         for n, s in summary.items()

@@ -25,8 +25,10 @@ from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel, SourceClip
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
 from rigmap.edits.subjects import (
+    SkeletonClip,
     Subject,
     leg_length_cm_per_unit,
+    read_skeleton_clip,
     rig_clip,
     rig_subject,
     skeleton_clip,
@@ -49,6 +51,8 @@ class StudyData:
     # held-out walk <-> stand transitions, measured for Fig 6's context dependence only
     # (rig mode: rigmap.edits.transitions; the other measures stay on ``heldout``)
     transitions: list[SourceClip] = field(default_factory=list)
+    # what reading the clips did (a T-pose cut, capture glitches repaired), for the summary
+    notes: tuple[str, ...] = ()
 
 
 def load_study(name: str, spec: dict) -> StudyData:
@@ -89,27 +93,49 @@ def _rig_study(spec: dict) -> StudyData:
 
 def _skeleton_study(name: str, spec: dict) -> StudyData:
     reference = Path(spec["reference"])
-    cm_per_unit = leg_length_cm_per_unit(rigmap.rigs.load(spec["cm_per_unit_from_rig"]), reference)
+    aliases = dict(spec.get("joint_aliases") or {})
+    leg = tuple(aliases.get(joint, joint) for joint in ("LeftKnee", "LeftAnkle"))
+    rig = rigmap.rigs.load(spec["cm_per_unit_from_rig"])
+    cm_per_unit = leg_length_cm_per_unit(rig, reference, bvh_leg=leg)
     subject = skeleton_subject(reference, cm_per_unit, name, tuple(spec["heading_joints"]))
-    whole = {}
+    whole: dict[str, SkeletonClip] = {}
     for item in [*spec["train"], *({"file": f} for f in spec["heldout"])]:
-        whole.setdefault(item["file"], skeleton_clip(subject, item["file"]))
-    scale = ChannelScale.fit([whole[item["file"]] for item in spec["train"]])
-    train = [subject.source(whole[c["file"]].frames(*c["frames"])) for c in spec["train"]]
-    heldout = [subject.source(whole[f]) for f in spec["heldout"]]
+        if item["file"] not in whole:
+            whole[item["file"]] = read_skeleton_clip(subject, item["file"])
+    scale = ChannelScale.fit([whole[item["file"]].track for item in spec["train"]])
+    train = [subject.source(_file_frames(whole[c["file"]], c["frames"])) for c in spec["train"]]
+    heldout = [subject.source(whole[f].track) for f in spec["heldout"]]
     unlike = [
         subject.source(skeleton_clip(subject, item["file"], item.get("play", "forward")))
         for item in spec.get("unlike") or ()
     ]
-    return StudyData(subject, scale, train, heldout, unlike)
+    notes = tuple(note for clip in whole.values() for note in clip.notes)
+    return StudyData(subject, scale, train, heldout, unlike, notes=notes)
 
 
-def edits_for(catalogue: dict, names: list[str], mode: str) -> dict[str, Edit]:
-    """The named edits of the catalogue (``conf/edit/*.yaml``) for one mode."""
+def _file_frames(clip: SkeletonClip, frames) -> TargetTrack:
+    """The file's frames ``[start, stop)`` of a clip whose track may begin after a cut T-pose."""
+    start, stop = (int(v) for v in frames)
+    if start < clip.start:
+        raise TargetError(
+            f"{clip.track.source}: example frames {start}:{stop} include frame {clip.start - 1},"
+            " an added T-pose, not motion; start them at or after it"
+        )
+    return clip.track.frames(start - clip.start, stop - clip.start)
+
+
+def edits_for(
+    catalogue: dict, names: list[str], mode: str, joint_aliases: dict | None = None
+) -> dict[str, Edit]:
+    """The named edits of the catalogue (``conf/edit/*.yaml``) for one mode, their joints
+    renamed by the subject's ``joint_aliases`` (skeleton mode: another BVH conversion)."""
     unknown = sorted(set(names) - set(catalogue))
     if unknown:
         raise TargetError(f"edits {unknown} are not in conf/edit/ (known: {sorted(catalogue)})")
-    return {name: Edit.from_config(name, catalogue[name], mode) for name in names}
+    aliases = {str(k): str(v) for k, v in (joint_aliases or {}).items()}
+    return {
+        name: Edit.from_config(name, catalogue[name], mode).on_joints(aliases) for name in names
+    }
 
 
 def model_from(data: StudyData, settings: dict) -> EditModel:

@@ -26,6 +26,7 @@ from threadpoolctl import threadpool_limits
 
 from rigmap.animation import read_bvh
 from rigmap.animation.library import build_clip, motion_library
+from rigmap.edits.pairs import read_clip
 from rigmap.edits.propagation import FeatureJoints, SourceClip
 from rigmap.edits.representation import TargetError, TargetTrack
 from rigmap.edits.rig_mode import RigChannels, full_controls, rig_controls, rig_targets
@@ -132,18 +133,38 @@ PLAYS = ("forward", "reversed", "double_speed")
 
 
 def skeleton_clip(subject: Subject, path: str | Path, play: str = "forward") -> TargetTrack:
-    """A BVH clip as a target track, checked against the subject's skeleton. ``play``
-    ``"reversed"`` (walking backwards: the poses of the clip, its motion turned round) or
-    ``"double_speed"`` (every other frame) makes motion unlike the clip for Fig 4's
-    out-of-distribution test where no other clip of the skeleton exists (ours)."""
+    """A BVH clip as a target track (:func:`read_skeleton_clip` without its notes)."""
+    return read_skeleton_clip(subject, path, play).track
+
+
+@dataclass(frozen=True, eq=False)
+class SkeletonClip:
+    """A BVH clip of a skeleton-mode subject: its target track, the file frame that is the
+    track's frame 0 (1 when an added T-pose was cut), and what was done to the file."""
+
+    track: TargetTrack
+    start: int
+    notes: tuple[str, ...]
+
+
+def read_skeleton_clip(subject: Subject, path: str | Path, play: str = "forward") -> SkeletonClip:
+    """A BVH clip checked against the subject's skeleton (the same joints and hierarchy;
+    another performer's bone lengths are replaced by the subject's: the clip's rotations
+    and root path played on the subject's skeleton). An added T-pose at frame 0 is cut and
+    capture glitches are repaired from their neighbours (:func:`rigmap.edits.pairs.read_clip`),
+    each said in the notes. ``play`` ``"reversed"`` (walking backwards: the poses of the
+    clip, its motion turned round) or ``"double_speed"`` (every other frame) makes motion
+    unlike the clip for Fig 4's out-of-distribution test where no other clip of the
+    skeleton exists (ours)."""
     if play not in PLAYS:
         raise TargetError(f"{path}: play {play!r} must be one of {PLAYS}")
-    motion = read_bvh(path)
+    clip = read_clip(path)
+    motion = clip.motion
     subject.skeleton.check_same(Skeleton.of(motion), str(path))
     if play != "forward":
         values = motion.values[::-1] if play == "reversed" else motion.values[::2]
         motion = replace(motion, values=values.copy(), source=f"{motion.source} ({play})")
-    return skeleton_targets(motion)
+    return SkeletonClip(skeleton_targets(motion), clip.start, clip.notes)
 
 
 def leg_length_cm_per_unit(
