@@ -3,8 +3,12 @@
 One script for the three steps of :mod:`rigmap.edits.steps` (``run_fit``, ``run_apply``,
 ``run_evaluate``), chosen by ``+edits_step``:
 
-    python pipelines/edits.py +edits=default +edits_step=fit                    # both subjects
+    python pipelines/edits.py +edits=default +edits_step=fit       # the subjects of edits.run
     python pipelines/edits.py +edits=default +edits_step=apply 'edits.run=[cmu_131]'  # CMU only
+    python pipelines/edits.py +edits=default +edits_step=fit +edits_subject=cmu_07  # one subject
+
+The DVC stages run one subject each (``+edits_subject=@item.subject``: a matrix entry is a
+name, never a list pasted into a command).
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ def run(cfg: DictConfig):
     if step not in STEPS:
         raise TargetError(f"+edits_step: expected one of {STEPS}, got {step!r}")
     config = OmegaConf.to_container(cfg.edits, resolve=True)
+    subject = cfg.get("edits_subject")
+    if subject is not None:
+        config["run"] = [str(subject)]
     layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
     return getattr(steps, f"run_{step}")(config, layout)
 

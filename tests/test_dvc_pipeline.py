@@ -61,6 +61,11 @@ def test_params_yaml_is_composed_from_conf():
     assert (ROOT / "params.yaml").read_text() == compose_params(ROOT / "conf")
 
 
+#: the edit stages' subjects: every subject of conf/edits/default.yaml
+EDIT_SUBJECTS = sorted(
+    yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text(encoding="utf-8"))["subjects"]
+)
+
 #: rigs with a motion library that the quick pipeline leaves out, and why
 OUTSIDE_THE_PIPELINE: set[str] = set()
 
@@ -85,9 +90,11 @@ def test_the_planned_work_per_stage_kind(stages, params):
     """The 95 stages the hand-written 664-line dvc.yaml planned, counted by kind, plus the
     check_params stage every stage depends on, the mean predictor's fits, the held-out takes
     and their evaluations, the joint-space network's fits and samples sweeps, the three
-    edit-propagation stages,
+    edit-propagation stages per edits subject,
     the mocap maps, the corpus and poses of the Blender rigs only mapped (rigify_human)
     and the two map_partial stages (issue 14)."""
+    edited = sorted(name.split("@")[1] for name in stages if name.startswith("edit_fit@"))
+    assert edited == EDIT_SUBJECTS
     rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
     map_only = params["pipeline"]["blender_map_rigs"]
     table1, seeds = params["pipeline"]["table1_rigs"], len(params["pipeline"]["spread_seeds"])
@@ -113,9 +120,8 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "sample_sweep_joint_space": 2,
         "fit_nn_joint_space": 2,
         "report": 1,
-        "edit_fit": 1,
-        "edit_apply": 1,
-        "edit_evaluate": 1,
+        # one per subject conf/edits defines (the motion library, CMU 131, CMU 07 and 08)
+        **{f"edit_{step}": len(EDIT_SUBJECTS) for step in ("fit", "apply", "evaluate")},
         # latent synthesis (issue #18): four stages per rig of latent.rigs (quick: the face)
         **{f"latent_{step}": len(params["latent"]["rigs"]) for step in LATENT_STEPS},
         "map_mocap": len(params["pipeline"]["map_rigs"]),
@@ -134,7 +140,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "evaluate_seed_blend_file": seeds,
     }
     assert len(stages) == (
-        30 + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        27 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
         + (3 * len(table1) + 2 * len(blender) + 2) * seeds
