@@ -55,7 +55,7 @@ FAMILIES: dict[str, tuple[str | int, ...]] = {
     "sample_sweep": ("pipeline.table1_rigs",),
     "sample_sweep_joint_space": ("pipeline.table1_rigs",),
     "report": (),
-    **{f"edit_{step}": (3,) for step in ("fit", "apply", "evaluate")},  # conf/edits subjects
+    **{f"edit_{step}": (4,) for step in ("fit", "apply", "evaluate")},  # conf/edits subjects
     **{f"latent_{step}": ("latent.rigs",) for step in ("fit", "match", "synthesize", "evaluate")},
     "map_mocap": ("pipeline.map_rigs",),
     "fit_nn_joint_space": ("pipeline.table1_rigs",),

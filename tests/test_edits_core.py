@@ -202,12 +202,13 @@ def test_the_report_tables_the_edit_metrics_that_exist(tmp_path):
     folder.mkdir(parents=True)
     (folder / "edits.csv").write_text(
         "edit,edit_error_std,source_error_std,joint_rmse_cm,source_joint_rmse_cm,transfer,"
-        "leak_cm\narm_swing,0.000249,0.000345,2.37,2.84,0.376,\n"
+        "leak_cm,context_correlation_with_speed\narm_swing,0.000249,0.000345,2.37,2.84,0.376,,"
+        "0.912\n"
     )
     (table,) = edits_tables(tmp_path)
     assert table.name == "table_edits"
     assert table.rows == [
-        ["Biped", "arm_swing", "0.000249", "0.000345", "2.37", "2.84", "0.38", "—"]
+        ["Biped", "arm_swing", "0.000249", "0.000345", "2.37", "2.84", "0.38", "—", "0.91"]
     ]
 
 

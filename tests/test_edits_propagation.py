@@ -241,15 +241,18 @@ def test_the_cli_fits_applies_and_scores_an_edit(tmp_path, capsys):
         assert main(["edits", verb, *config, *chosen]) == 0
     summary = yaml.safe_load((tmp_path / "metrics/biped/edits/summary.json").read_text())
     scores = summary["arms_forward_walking"]
-    assert scores["transfer"] == pytest.approx(1.0, abs=0.1)  # 1.064 measured (see above)
+    assert scores["transfer"] == pytest.approx(1.0, abs=0.1)  # 0.98 measured
     assert scores["joint_rmse_cm"] < scores["source_joint_rmse_cm"]
-    # the held-out walk carries the edit (1.99 cm against the source's 27.5 measured); the
-    # pooled joint error (4.5 against 8.7 cm) is mostly leak on the kick and the turn in
-    # place, whose stepping poses look like walking (the features see speed weakly)
-    detail = yaml.safe_load(
+    # the held-out walk that starts and stops carries the edit (5.3 cm against the source's
+    # 17.5 measured); the pooled joint error (5.2 against 8.2 cm) is mostly leak on the
+    # kick and the turn in place, whose stepping poses look like walking (the features see
+    # speed weakly)
+    clips = yaml.safe_load(
         (tmp_path / "metrics/biped/edits/detail/arms_forward_walking.json").read_text()
-    )["clips"]["Walk (seed 1)"]
-    assert detail["joint_rmse_cm"] < 0.2 * detail["source_joint_rmse_cm"]
+    )["clips"]
+    walk = clips["Walk Start Stop (seed 1)"]
+    assert walk["joint_rmse_cm"] < 0.4 * walk["source_joint_rmse_cm"]
+    assert "Walk (seed 1)" not in clips  # held out: motions the examples never play
     assert set(scores["ablation"]) == {
         "kinematic_only",
         "acceleration_only_anchored",
@@ -349,4 +352,5 @@ def test_the_transition_clip_stands_starts_walks_stops_and_stands(biped):
     spec = yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text())["subjects"]["biped"]
     data = load_study("biped", spec)
     assert [s.track.source for s in data.transitions] == ["Walk Start Stop (seed 1)"]
-    assert "Walk Start Stop (seed 1)" not in {s.track.source for s in data.heldout}
+    # held out too (issue #40: held-out motions the examples never play), beside the library's
+    assert "Walk Start Stop (seed 1)" in {s.track.source for s in data.heldout}

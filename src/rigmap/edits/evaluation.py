@@ -5,7 +5,8 @@
   solved with other weights — kinematic only, acceleration only (anchored to the source
   by a tiny kinematic regulariser), both without regularisers, the full solve;
 - context dependence (Fig 6): the fraction of the full-strength edit carried, per root
-  speed band, predicted against the ground truth's; for the half-steps edit (Fig 7) the
+  speed band, predicted against the ground truth's, and its correlation per frame with
+  the ground truth's and with the root speed; for the half-steps edit (Fig 7) the
   same fraction on moving frames (root speed at least the walking gate's lower speed) is
   the averaging ratio (0.4–0.6 expected); the same per-band fractions on the study's
   walk ↔ stand transition clips (``context_transitions``, rig mode:
@@ -131,14 +132,19 @@ def context_dependence(data: StudyData, edit: Edit, truths, results, clips=None)
         )
     moving = (speed >= edit.walking_speeds_cm_s[0]) & np.isfinite(p)
     finite = np.isfinite(p) & np.isfinite(t)
-    correlation = None  # undefined where either side is constant (an ungated edit's truth)
-    if finite.sum() > 2 and p[finite].std() > 0 and t[finite].std() > 0:
-        correlation = float(np.corrcoef(p[finite], t[finite])[0, 1])
     return {
         "bands": bands,
         "moving_fraction": _mean(p[moving]),
-        "correlation_with_truth": correlation,
+        "correlation_with_truth": _correlation(p[finite], t[finite]),
+        "correlation_with_speed": _correlation(p[finite], speed[finite]),
     }
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float | None:
+    """Pearson's r; None where either side is constant (an ungated edit's truth)."""
+    if len(a) > 2 and a.std() > 0 and b.std() > 0:
+        return float(np.corrcoef(a, b)[0, 1])
+    return None
 
 
 def out_of_distribution(data: StudyData, model: EditModel) -> dict | None:

@@ -182,6 +182,18 @@ class Edit:
         )
         return replace(self, operations=operations)
 
+    def at_walking_speeds(self, speeds, where: str) -> Edit:
+        """This edit with the walking gate ramping between the two root speeds (cm/s) a
+        subject sets: where its standing ends and its walking begins (``where`` names the
+        option in errors)."""
+        try:
+            low, high = (float(v) for v in speeds)
+        except (TypeError, ValueError):
+            raise EditConfigError(f"{where}: expected two speeds in cm/s, got {speeds!r}") from None
+        if not (np.isfinite(low) and np.isfinite(high) and 0.0 <= low < high):
+            raise EditConfigError(f"{where}: expected 0 <= low < high (cm/s), got {speeds!r}")
+        return replace(self, walking_speeds_cm_s=(low, high))
+
     def full(self) -> Edit:
         """The edit at full strength on every frame (gates ``always``, no half mask): the
         direction the context measures project on."""

@@ -63,6 +63,9 @@ TAKE_COLUMNS = (
     "joint_rmse_cm",
     "source_joint_rmse_cm",
 )
+#: per edit on the held-out clips (``edits.csv``): Fig 6's context dependence, per frame the
+#: carried fraction's correlation with the ground truth's and with the root speed
+CONTEXT_COLUMNS = ("correlation_with_truth", "correlation_with_speed")
 ABLATION_COLUMNS = ("edit_error_std", "transfer", "jerk_ratio", "drift_std", "leak_std")
 
 
@@ -95,8 +98,8 @@ def _name_list(config: dict, key: str) -> list[str]:
 
 def _setup(config: dict, subject: str):
     data = load_study(subject, config["subjects"][subject])
-    aliases = config["subjects"][subject].get("joint_aliases")
-    edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode, aliases)
+    spec = config["subjects"][subject]
+    edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode, spec, subject)
     for edit in edits.values():
         edit.check(data.train[0].track)
     return subject, data, edits
@@ -261,7 +264,11 @@ def _evaluate(config: dict, subject: str, layout: Layout) -> Path:
 
 
 def _write_tables(folder: Path, summary: dict, takes: dict) -> None:
-    rows = [{"edit": n, **{c: s[c] for c in TABLE_COLUMNS}} for n, s in summary.items()]
+    rows = [
+        {"edit": n, **{c: s[c] for c in TABLE_COLUMNS}}
+        | {f"context_{c}": s["context"][c] for c in CONTEXT_COLUMNS}
+        for n, s in summary.items()
+    ]
     write_text_atomic(folder / "edits.csv", _csv(rows))
     rows = [
         {"edit": n, "take": Path(source).stem, "frames": int(scores["frames"])}

@@ -12,6 +12,7 @@ from a :class:`rigmap.store.Layout` (``models/<subject>/edits/``,
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel, SourceClip
 from rigmap.edits.representation import ChannelScale, TargetError, TargetTrack
 from rigmap.edits.subjects import (
+    BVH_LEG,
     SkeletonClip,
     Subject,
     leg_length_cm_per_unit,
@@ -79,7 +81,10 @@ def _rig_study(spec: dict) -> StudyData:
         for c in spec["train"]
     ]
     heldout_seed = int(spec["heldout_seed"])
-    heldout = [subject.source(rig_clip(rig, subject.channels, n, heldout_seed)) for n in names]
+    heldout = [
+        subject.source(rig_clip(rig, subject.channels, n, heldout_seed))
+        for n in _heldout_motions(spec, names)
+    ]
     unlike = [
         subject.source(rig_clip(rig, subject.channels, m.name, heldout_seed))
         for m in motion_library(rig.name).test
@@ -91,10 +96,27 @@ def _rig_study(spec: dict) -> StudyData:
     return StudyData(subject, scale, train, heldout, unlike, transitions=transitions)
 
 
+def _heldout_motions(spec: dict, library: list[str]) -> list[str]:
+    """The motions held out: ``heldout_motions`` (library or transition motions the examples
+    do not play, so the scores are not the examples replayed) or, unset, every training
+    motion of the library."""
+    chosen = spec.get("heldout_motions")
+    if chosen is None:
+        return library
+    known = [*library, *(str(n) for n in spec.get("transitions") or ())]
+    unknown = [str(n) for n in chosen if n not in known]
+    if unknown or not chosen:
+        raise TargetError(
+            f"edits subject {spec['rig']!r}: heldout_motions {unknown or '[]'} are not motions "
+            f"of its library or transitions (known: {known})"
+        )
+    return [str(n) for n in chosen]
+
+
 def _skeleton_study(name: str, spec: dict) -> StudyData:
     reference = Path(spec["reference"])
     aliases = dict(spec.get("joint_aliases") or {})
-    leg = tuple(aliases.get(joint, joint) for joint in ("LeftKnee", "LeftAnkle"))
+    leg = tuple(aliases.get(joint, joint) for joint in BVH_LEG)
     rig = rigmap.rigs.load(spec["cm_per_unit_from_rig"])
     cm_per_unit = leg_length_cm_per_unit(rig, reference, bvh_leg=leg)
     subject = skeleton_subject(reference, cm_per_unit, name, tuple(spec["heading_joints"]))
@@ -125,17 +147,25 @@ def _file_frames(clip: SkeletonClip, frames) -> TargetTrack:
 
 
 def edits_for(
-    catalogue: dict, names: list[str], mode: str, joint_aliases: dict | None = None
+    catalogue: dict, names: list[str], mode: str, spec: Mapping | None = None, subject: str = ""
 ) -> dict[str, Edit]:
-    """The named edits of the catalogue (``conf/edit/*.yaml``) for one mode, their joints
-    renamed by the subject's ``joint_aliases`` (skeleton mode: another BVH conversion)."""
+    """The named edits of the catalogue (``conf/edit/*.yaml``) for one mode, as the subject
+    ``spec`` (``edits.subjects.<subject>``) has them: their joints renamed by its
+    ``joint_aliases`` (skeleton mode: another BVH conversion), their walking gate at its
+    ``walking_speeds_cm_s`` where it sets them (its gait's standing and walking speeds)."""
     unknown = sorted(set(names) - set(catalogue))
     if unknown:
         raise TargetError(f"edits {unknown} are not in conf/edit/ (known: {sorted(catalogue)})")
-    aliases = {str(k): str(v) for k, v in (joint_aliases or {}).items()}
-    return {
+    spec = spec or {}
+    aliases = {str(k): str(v) for k, v in (spec.get("joint_aliases") or {}).items()}
+    edits = {
         name: Edit.from_config(name, catalogue[name], mode).on_joints(aliases) for name in names
     }
+    speeds = spec.get("walking_speeds_cm_s")
+    if speeds is not None:
+        where = f"edits.subjects.{subject}.walking_speeds_cm_s"
+        edits = {name: edit.at_walking_speeds(speeds, where) for name, edit in edits.items()}
+    return edits
 
 
 def model_from(data: StudyData, settings: dict) -> EditModel:

@@ -167,11 +167,16 @@ def read_skeleton_clip(subject: Subject, path: str | Path, play: str = "forward"
     return SkeletonClip(skeleton_targets(motion), clip.start, clip.notes)
 
 
+#: the BVH joints whose offsets make the left leg (the 131 conversion's names; the edits
+#: of conf/edit/ name that conversion's joints too)
+BVH_LEG = ("LeftKnee", "LeftAnkle")
+
+
 def leg_length_cm_per_unit(
     rig,
     bvh_path: str | Path,
     rig_leg=("thigh_l", "shin_l", "foot_l"),
-    bvh_leg=("LeftKnee", "LeftAnkle"),
+    bvh_leg=BVH_LEG,
 ) -> float:
     """cm per BVH unit: the rig's rest hip → knee → ankle length over the skeleton's."""
     rest = np.asarray(rig.evaluate(rig.default_controls(1)))[0]
