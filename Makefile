@@ -89,9 +89,10 @@ demo: setup
 	$(BIN)/rigmap rigs render biped --out reports/figures/rigs/biped.png
 
 # The Blender backend's tests need .venv-blender too, the tracking tests PostgreSQL:
-# nothing is skipped for a missing environment.
+# nothing is skipped for a missing environment. Two workers (pytest-xdist), one per core,
+# each running whole test files (--dist loadfile: a file's module fixtures stay in one process).
 test: setup blender postgres compiler
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 lint: setup
 	$(BIN)/ruff check $(CODE)
