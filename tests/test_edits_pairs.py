@@ -398,3 +398,38 @@ def test_a_fix_handed_in_as_a_file_is_learned_and_the_next_frames_suggested(
     fixes = json.loads((model / "learned.json").read_text())["fixes"]
     assert [f["file"] for f in fixes] == ["fixes/fix_0.bvh", "fixes/fix_1.bvh"]
     assert read_bvh(model / "fixes" / "fix_1.bvh").n_frames == stop - start
+
+
+def test_a_fix_over_a_capture_glitch_is_rebuilt_said_and_not_learned(learned, tmp_path, capsys):
+    """07_12's file frame 1 is all zeros, so the artist's edit of it (the arms turned, the
+    root still at the origin) corrects nothing: not a glitch by itself, it would teach a
+    jump of metres. Handed in over it, the fix's frame is rebuilt from its neighbours, said,
+    and kept out of the examples; the refit still carries the edit."""
+    import json
+    import shutil
+
+    model = tmp_path / "model"
+    shutil.copytree(learned[1], model)
+    clip = MOCAP / "cmu_07_12.bvh"
+    truth = arms_raised(read_bvh(clip))
+    fixed = _frames_file(truth, 1, 41, tmp_path / "fixed.bvh")
+    assert np.abs(read_bvh(fixed).values[0]).max() > 0  # the arms' turn: no glitch by itself
+    argv = ["edits", "fix", "--model", str(model), "--source", str(clip), "--fixed", str(fixed)]
+    assert main([*argv, "--frames", "1:41"]) == 0
+    printed = capsys.readouterr().out
+    assert "frames [1] of" in printed and "rebuilt from its neighbouring frames" in printed
+    (entry,) = json.loads((model / "learned.json").read_text())["fixes"]
+    assert entry["left_out"] == [1] and "capture glitches" in entry["notes"][0]
+    stored = read_bvh(model / entry["file"]).values
+    np.testing.assert_allclose(stored[0], stored[1], atol=1e-9)  # held from frame 2
+    out = tmp_path / "applied"
+    assert (
+        main(["edits", "apply", "--model", str(model), "--input", str(clip), "--out", str(out)])
+        == 0
+    )
+    got = relative_positions(read_bvh(out / clip.name))[1:]  # file frames 2.. (captured)
+    want, copy = (relative_positions(m)[2:] for m in (truth, read_bvh(clip)))
+    error, copying = (float(np.mean(np.sum((a - want) ** 2, axis=2))) for a in (got, copy))
+    with capsys.disabled():
+        print("07_12 after a fix over its glitch, cm²:", error, "copying:", copying)
+    assert error < 0.1 * copying

@@ -24,14 +24,15 @@ from rigmap.animation import read_bvh
 from rigmap.animation.bvh_write import bvh_text
 from rigmap.edits.artist import fit_and_write
 from rigmap.edits.incremental import Suggestion, suggest_segments
-from rigmap.edits.pairs import PairError, read_clip, read_pair
+from rigmap.edits.pairs import PairError, read_clip, read_pair, rebuilt_frames, without_glitches
 from rigmap.edits.skeleton_mode import Skeleton, skeleton_targets
 
 
 def fix_examples(fixes: list[dict], glitch: str, folder: Path) -> list[tuple]:
     """``(source, edited track, mask)`` per fixed source clip, every fix of it put in (in
-    order: a later fix of the same frames wins); a fix's file is relative to ``folder``
-    (the model's) unless absolute."""
+    order: a later fix of the same frames wins; its ``left_out`` frames, glitches, are no
+    examples); a fix's values are its ``values`` (one being handed in, glitches rebuilt)
+    or its file's, relative to ``folder`` (the model's) unless absolute."""
     by_source: dict[str, list[dict]] = {}
     for fix in fixes:
         by_source.setdefault(fix["source"], []).append(fix)
@@ -42,16 +43,22 @@ def fix_examples(fixes: list[dict], glitch: str, folder: Path) -> list[tuple]:
         mask = np.zeros(clip.track.n_frames, dtype=bool)
         for fix in items:
             start, stop = (int(v) - clip.start for v in fix["frames"])
-            values[start:stop] = read_bvh(Path(folder) / fix["file"]).values
+            given = fix.get("values")
+            values[start:stop] = (
+                read_bvh(Path(folder) / fix["file"]).values if given is None else given
+            )
             mask[start:stop] = True
+            mask[[int(f) - clip.start for f in fix.get("left_out", ())]] = False
         edited = skeleton_targets(replace(clip.motion, values=values))
         examples.append((clip.source(), edited, mask & ~clip.bad))
     return examples
 
 
 def check_fix(source, fixed, frames: tuple[int, int], glitch: str):
-    """The source clip and the fixed frames' motion, checked: the same skeleton, the range
-    inside the clip's motion, one fixed frame per frame of the range."""
+    """The source clip, the fixed frames' motion and its capture glitches (a mask; rebuilt
+    from their neighbours, or refused with ``glitch="refuse"``) with a note, checked: the
+    same skeleton, the range inside the clip's motion, one fixed frame per frame of the
+    range."""
     clip = read_clip(source, None, glitch)
     motion = read_bvh(fixed)
     Skeleton.of(clip.motion).check_same(Skeleton.of(motion), str(fixed))
@@ -71,25 +78,40 @@ def check_fix(source, fixed, frames: tuple[int, int], glitch: str):
             f"{fixed}: frame time {motion.frame_time:g} s, {source}'s is "
             f"{clip.motion.frame_time:g} s"
         )
-    return clip, motion
+    values, bad, notes = without_glitches(motion, str(fixed), glitch)
+    # a frame the source never captured (a glitch there) holds no correction either: the
+    # fix's value is rebuilt from its neighbours, as the source's was
+    inherited = clip.bad[start - clip.start : stop - clip.start] & ~bad
+    if inherited.any():
+        bad = bad | inherited
+        values = rebuilt_frames(motion, values, bad)
+        which = [start + int(k) for k in np.flatnonzero(inherited)]
+        notes.append(
+            f"{fixed}: frames {which} of {source} are capture glitches there, so the fix's "
+            "values for them were rebuilt from its neighbouring frames"
+        )
+    return clip, replace(motion, values=values), bad, notes
 
 
 def fix_folder(
     model_dir, source, fixed, frames, settings: dict, count: int = 3, segment: int = 12
-) -> list[Suggestion]:
-    """Add the fix, refit on the pairs and every fix, write the model; the suggestions."""
+) -> tuple[list[Suggestion], list[str]]:
+    """Add the fix, refit on the pairs and every fix, write the model; the suggestions and
+    what was done to the fix (glitches rebuilt, also in ``learned.json``)."""
     model_dir = Path(model_dir)
     learned = json.loads((model_dir / "learned.json").read_text())
     glitch = learned.get("glitch", "repair")
     source = Path(source).resolve()
-    clip, motion = check_fix(source, fixed, frames, glitch)
+    clip, motion, bad, notes = check_fix(source, fixed, frames, glitch)
     pairs = [
         read_pair(p["source"], p["edited"], tuple(p["frames"]), glitch) for p in learned["pairs"]
     ]
     fixes = list(learned.get("fixes") or [])
     name = f"fixes/fix_{len(fixes)}.bvh"  # in the model folder, which may move
     entry = {"source": str(source), "frames": [int(v) for v in frames], "file": name}
-    given = {**entry, "file": str(Path(fixed).resolve())}
+    if bad.any():  # a glitch in the fix: rebuilt in the stored copy, never an example frame
+        entry |= {"left_out": [frames[0] + int(k) for k in np.flatnonzero(bad)], "notes": notes}
+    given = {**entry, "values": motion.values}
     examples = fix_examples([*fixes, given], glitch, model_dir)
     summary = {k: v for k, v in learned.items() if k in ("pairs", "glitch")}
     summary["fixes"] = [*fixes, entry]
@@ -99,4 +121,4 @@ def fix_folder(
     variance = model.predict(clip.source())[0].variance
     mask = next(m for s, _, m in examples if s.track.source == clip.track.source)
     picks = suggest_segments([variance], {0: mask}, count, segment)
-    return [replace(p, start=p.start + clip.start, stop=p.stop + clip.start) for p in picks]
+    return [replace(p, start=p.start + clip.start, stop=p.stop + clip.start) for p in picks], notes

@@ -78,30 +78,9 @@ def read_clip(
     motion = read_bvh(path)
     where = str(path)
     Skeleton.of(motion)
-    check = check_frames(
-        motion.values,
-        motion.global_positions(),
-        motion.joint_names,
-        match_skeleton(MatchSkeleton.from_bvh(motion)),
-    )
-    notes, values = [], motion.values.copy()
-    bad = np.zeros(motion.n_frames, dtype=bool)
+    check = _frame_check(motion)
     tpose_at_0 = check.tpose_at_0 if tpose is None else tpose
-    if check.glitches:
-        if glitch == "refuse":
-            raise PairError(
-                f"{where}: frames {list(check.glitches)} (from 0) are capture "
-                "glitches (every channel zero); --glitch repair rebuilds them"
-            )
-        bad[list(check.glitches)] = True
-        # a T-pose is not motion either: a glitch beside it is rebuilt from captured frames
-        not_motion = bad.copy()
-        not_motion[0] |= bool(tpose_at_0)
-        values = _repaired(motion, values, not_motion)
-        notes.append(
-            f"{where}: glitch frames {list(check.glitches)} (from 0, every channel "
-            "zero) repaired from their neighbours"
-        )
+    values, bad, notes = without_glitches(motion, where, glitch, check.glitches, tpose_at_0)
     start, stop = _frame_range(where, motion.n_frames, frames)
     if tpose_at_0 and start == 0:
         start = 1
@@ -110,6 +89,45 @@ def read_clip(
         raise PairError(f"{where}: frames {start}:{stop} hold fewer than 3 frames of motion")
     cut = replace(motion, values=values[start:stop].copy(), source=where)
     return Clip(cut, skeleton_targets(cut), bad[start:stop].copy(), tuple(notes), start)
+
+
+def _frame_check(motion: BVHMotion):
+    return check_frames(
+        motion.values,
+        motion.global_positions(),
+        motion.joint_names,
+        match_skeleton(MatchSkeleton.from_bvh(motion)),
+    )
+
+
+def without_glitches(
+    motion: BVHMotion, where: str, glitch: str, glitches=None, tpose_at_0: bool = False
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The motion's values with its capture glitches (frames whose every channel is zero;
+    found here unless ``glitches`` lists them) rebuilt from their neighbours, the glitch
+    mask and a note saying so; with ``glitch="refuse"`` a glitch is a ``PairError``."""
+    glitches = list(_frame_check(motion).glitches if glitches is None else glitches)
+    bad = np.zeros(motion.n_frames, dtype=bool)
+    if not glitches:
+        return motion.values.copy(), bad, []
+    if glitch == "refuse":
+        raise PairError(
+            f"{where}: frames {glitches} (from 0) are capture glitches (every channel zero); "
+            "--glitch repair rebuilds them"
+        )
+    bad[glitches] = True
+    # a T-pose is not motion either: a glitch beside it is rebuilt from captured frames
+    not_motion = bad.copy()
+    not_motion[0] |= bool(tpose_at_0)
+    values = rebuilt_frames(motion, motion.values.copy(), not_motion)
+    return (
+        values,
+        bad,
+        [
+            f"{where}: glitch frames {glitches} (from 0, every channel zero) repaired from their "
+            "neighbours"
+        ],
+    )
 
 
 def _frame_range(where: str, n: int, frames) -> tuple[int, int]:
@@ -121,7 +139,7 @@ def _frame_range(where: str, n: int, frames) -> tuple[int, int]:
     return start, stop
 
 
-def _repaired(motion: BVHMotion, values: np.ndarray, bad: np.ndarray) -> np.ndarray:
+def rebuilt_frames(motion: BVHMotion, values: np.ndarray, bad: np.ndarray) -> np.ndarray:
     """``bad`` rows interpolated from the good ones; angles unwrapped first (ours: a turn
     through ±180° between two good frames is not interpolated the long way round)."""
     good = np.flatnonzero(~bad)
