@@ -416,3 +416,30 @@ def test_a_rig_without_a_compiled_pass_is_refused_by_name_and_run_eagerly_by_the
         PlacedRigForward(face, placement, compiled_rows=8)
     assert not JointSpaceNetworkRegressor(compiled_rig_min_steps=1)._compiles(face, 100)
     assert JointSpaceNetworkRegressor(compiled_rig_min_steps=1)._compiles(tiny_rig(), 100)
+
+
+def test_a_warm_up_call_tunes_a_few_steps_and_leaves_the_timed_call_as_it_was(tiny):
+    """The evaluation's untimed warm-up (rigmap.evaluation.retargeter.Retargeter.warm_up):
+    a tuned method's warm-up call takes WARMUP_STEPS steps, not its 160, and the timed call
+    after it returns what it returns without one (each call tunes a fresh copy, seeded)."""
+    from rigmap.evaluation.timing import run_timed
+    from rigmap.regression.target_tuning import WARMUP_STEPS, TunedOnTarget, TuningSettings
+
+    rig = tiny[0]
+    mapping = fitted(tiny, epochs=20)
+    targets, _ = corpus(rig, 12, seed=5, spread=0.5)
+    settings = TuningSettings(steps=40, learning_rate=3e-3)
+    cold = TunedOnTarget(mapping, rig, settings).predict(targets)
+    tuned = TunedOnTarget(mapping, rig, settings)
+
+    def warm_up(rows):
+        with tuned.warming_up():
+            return tuned.predict(rows)
+
+    result, timing = run_timed(tuned.predict, targets, warmup_frames=1, warmup=warm_up)
+    warm, timed = tuned.reports
+    assert warm["settings"]["steps"] == WARMUP_STEPS and warm["rows"] == 1
+    assert timed["settings"]["steps"] == 40 and timed["rows"] == 12
+    assert tuned.settings == settings  # restored after the warm-up
+    np.testing.assert_array_equal(result, cold)
+    assert timing.warmup_frames == 1 and timing.warmup_seconds > 0

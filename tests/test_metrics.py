@@ -213,6 +213,10 @@ def test_run_timed_warms_up_on_the_first_frames_then_times_all():
     assert no_warmup.warmup_seconds == 0.0 and len(seen) == 3
     with pytest.raises(ValueError, match="warmup_frames must be an integer >= 0"):
         run_timed(run, frames, warmup_frames=-1)
+    warmed = []  # a warm-up call of its own (a tuned method's, fewer steps): the timed run's
+    result, _ = run_timed(run, frames, warmup_frames=2, warmup=lambda f: warmed.append(f.copy()))
+    assert [w.tolist() for w in warmed] == [[0.0, 1.0]] and len(seen) == 4
+    np.testing.assert_array_equal(result, frames * 2)
 
 
 def test_counting_rig_counts_timed_poses_only(biped):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,14 @@ class Retargeter:
         guess = self.method.guess(self.rig, self.regressor, positions, cog, rotation, features)
         learned, std = self.learned_jacobian, self.train_std
         return self.method.refiner(self.rig, guess, positions, features, learned, std, self.refine)
+
+    def warm_up(self, clip: TestClip, frames: np.ndarray):
+        """The untimed warm-up call: as a call, but a regressor that tunes itself on every
+        call (``TunedOnTarget``) tunes for a few steps only: the warm-up pays one-time
+        costs (first calls, allocations), not a second tuning whose result is discarded."""
+        warming = getattr(self.regressor, "warming_up", None)
+        with warming() if warming is not None else contextlib.nullcontext():
+            return self(clip, frames)
 
 
 def pose_rows(rig: Any, clip_name: str, positions, cog, rotation) -> np.ndarray:

@@ -81,7 +81,11 @@ def run_method(
     clip_results, curves, initial, iterations, warmup = [], [], {}, {}, {}
     for clip in test_set.clips:
         (Y_used, refined), timing = run_timed(
-            partial(retarget, clip), np.arange(len(clip)), warmup_frames=warmup_frames, rig=counting
+            partial(retarget, clip),
+            np.arange(len(clip)),
+            warmup_frames=warmup_frames,
+            rig=counting,
+            warmup=partial(retarget.warm_up, clip),
         )
         result, truth = _score_clip(rig, clip, test_set, Y_used, timing)
         if novelty is not None:  # after the clock: a diagnostic, not part of the method

@@ -78,13 +78,14 @@ def run_timed(
     *,
     warmup_frames: int = 1,
     rig: CountingRig | None = None,
+    warmup: Callable[[Any], Any] | None = None,
 ) -> tuple[Result, Timing]:
     """``run(frames)`` timed on the wall clock after an untimed warm-up on the first frames.
 
     ``frames`` is anything sliceable with a length (an ``(N, ...)`` array). The
-    warm-up calls ``run(frames[:warmup_frames])`` and discards the result; if
-    ``rig`` (the ``CountingRig`` that ``run`` uses) is given, its counter is
-    reset after the warm-up so the counts cover the timed pass only.
+    warm-up calls ``warmup(frames[:warmup_frames])`` (``warmup`` defaults to ``run``) and
+    discards the result; if ``rig`` (the ``CountingRig`` that ``run`` uses) is given, its
+    counter is reset after the warm-up so the counts cover the timed pass only.
     """
     n = len(frames)
     if n == 0:
@@ -92,16 +93,16 @@ def run_timed(
     if int(warmup_frames) != warmup_frames or warmup_frames < 0:
         raise ValueError(f"run_timed: warmup_frames must be an integer >= 0, got {warmup_frames!r}")
     warmup_frames = min(int(warmup_frames), n)
-    warmup = Stopwatch()
+    stopwatch = Stopwatch()
     if warmup_frames:
-        with warmup:
-            run(frames[:warmup_frames])
+        with stopwatch:
+            (run if warmup is None else warmup)(frames[:warmup_frames])
     if rig is not None:
         rig.reset()
     with Stopwatch() as watch:
         result = run(frames)
     counts = rig.count if rig is not None else None
-    return result, Timing(watch.elapsed, n, warmup.elapsed, warmup_frames, counts)
+    return result, Timing(watch.elapsed, n, stopwatch.elapsed, warmup_frames, counts)
 
 
 class CountingRig:
