@@ -1,7 +1,9 @@
 """Incremental refinement (002 §3, Fig 2) and the MLS estimator (§4.4) on the biped; JSON.
 
 The biped in rig mode (``conf/edits/default.yaml``'s subject: the examples are a walk and
-a stand, the held-out clips every library motion replayed with another seed's variation).
+a stand, the held-out clips its ``heldout_motions``, motions the examples never play;
+``benchmarks/results/edits_refine_s30.json`` was measured on the earlier held-out set,
+every library motion replayed with another seed's variation).
 A procedural edit is learned from the examples (mirrored left/right, §7.1) and applied to
 the held-out clips; then for 5 rounds the "artist" fixes ``--per-round`` segments of
 ``--segment`` frames to the edit's ground truth, chosen by the highest predictive variance
