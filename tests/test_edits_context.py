@@ -41,6 +41,8 @@ def test_a_subject_sets_the_walking_gate_of_its_edits():
     [
         ([20.0], "expected two speeds"),
         (["slow", "fast"], "expected two speeds"),
+        ("12", "expected two speeds"),  # a string is not read as (1, 2)
+        ([True, 30.0], "expected two speeds"),
         ([60.0, 20.0], "expected 0 <= low < high"),
         ([-5.0, 20.0], "expected 0 <= low < high"),
         ([10.0, float("nan")], "expected 0 <= low < high"),

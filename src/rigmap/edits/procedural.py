@@ -186,10 +186,11 @@ class Edit:
         """This edit with the walking gate ramping between the two root speeds (cm/s) a
         subject sets: where its standing ends and its walking begins (``where`` names the
         option in errors)."""
-        try:
-            low, high = (float(v) for v in speeds)
-        except (TypeError, ValueError):
-            raise EditConfigError(f"{where}: expected two speeds in cm/s, got {speeds!r}") from None
+        given = list(speeds) if isinstance(speeds, Sequence) and not isinstance(speeds, str) else []
+        numbers = [v for v in given if isinstance(v, int | float) and not isinstance(v, bool)]
+        if len(given) != 2 or len(numbers) != 2:  # not "12" read as (1, 2), nor [true, 3]
+            raise EditConfigError(f"{where}: expected two speeds in cm/s, got {speeds!r}")
+        low, high = (float(v) for v in numbers)
         if not (np.isfinite(low) and np.isfinite(high) and 0.0 <= low < high):
             raise EditConfigError(f"{where}: expected 0 <= low < high (cm/s), got {speeds!r}")
         return replace(self, walking_speeds_cm_s=(low, high))

@@ -97,8 +97,8 @@ def _name_list(config: dict, key: str) -> list[str]:
 
 
 def _setup(config: dict, subject: str):
-    data = load_study(subject, config["subjects"][subject])
     spec = config["subjects"][subject]
+    data = load_study(subject, spec)
     edits = edits_for(config["catalogue"], list(config["names"]), data.subject.mode, spec, subject)
     for edit in edits.values():
         edit.check(data.train[0].track)

@@ -1,7 +1,7 @@
 """The edit-propagation study behind the ``edit_fit``/``edit_apply``/``edit_evaluate`` stages.
 
-A subject (the biped in rig mode, or the CMU walks in skeleton mode) gives example clips
-(about three walk cycles plus a stand, the paper's 550 + 74 frames) and held-out clips;
+A subject (the biped in rig mode, or CMU takes in skeleton mode) gives example clips (a
+subject's own frame range of one take: the paper's were 550 + 74 frames) and held-out clips;
 each procedural edit (``conf/edit/``) is applied to both, the model is fitted on the
 examples, propagated to the held-out clips and scored against the edit applied to them
 (:mod:`rigmap.edits.scoring`). All functions take plain dicts and objects; paths come
