@@ -29,13 +29,14 @@ dvc pull --quiet
 dvc repro --single-item check_params > /dev/null
 
 if [ $# -eq 0 ]; then
-    # the network stages by family (the dvc.yaml keys before '@'), in DVC's order
+    # the network stages by family (the dvc.yaml keys before '@'), in DVC's order; DVC
+    # addresses a stage of stages/<family>/dvc.yaml as that path, a colon and its name
     # every fit before any evaluation: an evaluation must score the networks this code path
     # trained, not the pulled ones (DVC's listing puts evaluate@<rig> before the joint-space fit)
-    mapfile -t stages < <(dvc stage list --name-only > stage_list.txt
-        grep -E '^(fit_nn|fit_nn_blender|fit_nn_blend_file|fit_nn_joint_space|fit_nn_seed|fit_nn_seed_blender|fit_nn_seed_blend_file|fit_nn_joint_space_seed)(@|$)' stage_list.txt \
-            | grep -v -E '^fit_nn@.*-(none|uniform|univariate_gaussian|multivariate_gaussian|gmm)$'
-        grep -E '^(evaluate|evaluate_blender|evaluate_blend_file|evaluate_seed|evaluate_seed_blender|evaluate_seed_blend_file)(@|$)' stage_list.txt)
+    mapfile -t stages < <(dvc stage list --all --name-only > stage_list.txt
+        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(fit_nn|fit_nn_blender|fit_nn_blend_file|fit_nn_joint_space|fit_nn_seed|fit_nn_seed_blender|fit_nn_seed_blend_file|fit_nn_joint_space_seed)(@|$)' stage_list.txt \
+            | grep -v -E 'fit_nn@.*-(none|uniform|univariate_gaussian|multivariate_gaussian|gmm)$'
+        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(evaluate|evaluate_blender|evaluate_blend_file|evaluate_seed|evaluate_seed_blender|evaluate_seed_blend_file)(@|$)' stage_list.txt)
 else
     stages=("$@")
 fi

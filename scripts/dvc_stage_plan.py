@@ -12,7 +12,9 @@ persist flags, meta, frozen and always_changed. Dependency and output order is l
 YAML (``rigmap.app.placeholders`` the matrix lists, ``rigmap.stage_jobs`` the meta) and
 ``interpolated`` the params.yaml keys it finds named in the text (``rigmap.app.params``).
 ``--compare`` prints what differs and exits 1 when anything does; ``--check-lock`` does the
-same between the stages and the definitions dvc.lock was written for (paths and commands).
+same between the stages and the definitions the dvc.lock files were written for (paths and
+commands), and names lock entries no stage has any more (DVC keeps them; each one slows
+every rewrite of its file).
 """
 
 from __future__ import annotations
@@ -54,16 +56,17 @@ def _stage(stage) -> dict:
 
 def plan(project: Path) -> dict:
     """``{"stages": {name: resolved stage}, "families": {...}, "interpolated": [...]}``."""
-    import yaml
     from dvc.repo import Repo
 
     with Repo(str(project)) as repo:
         stages = {stage.name: _stage(stage) for stage in repo.index.stages}
-    raw = yaml.safe_load((project / "dvc.yaml").read_text(encoding="utf-8"))["stages"]
-    families = {
-        name: {"matrix": body.get("matrix"), "meta": body.get("meta")} for name, body in raw.items()
-    }
     from rigmap.app.params import interpolated_params
+    from rigmap.store.pipeline_files import stage_families
+
+    families = {
+        name: {"matrix": found.body.get("matrix"), "meta": found.body.get("meta")}
+        for name, found in stage_families(project).items()
+    }
 
     return {
         "stages": dict(sorted(stages.items())),
@@ -75,10 +78,9 @@ def plan(project: Path) -> dict:
 def lock_mismatches(project: Path, stages: dict) -> list[str]:
     """Where dvc.lock was written for other stage definitions: command, dependency, output
     or params paths (what ``dvc status`` compares besides hashes and values)."""
-    import yaml
-
-    lock = yaml.safe_load((project / "dvc.lock").read_text(encoding="utf-8"))["stages"]
+    lock = lock_entries(project)
     found = [f"{name}: not in dvc.lock" for name in sorted(set(stages) - set(lock))]
+    found += [f"{name}: in dvc.lock, not a stage" for name in sorted(set(lock) - set(stages))]
     for name in sorted(set(stages) & set(lock)):
         stage, entry = stages[name], lock[name]
         written = {
@@ -95,6 +97,20 @@ def lock_mismatches(project: Path, stages: dict) -> list[str]:
         }
         found += differences(written, planned, name)
     return found
+
+
+def lock_entries(project: Path) -> dict:
+    """Every stage file's dvc.lock entries, by stage name (a file not run yet has none)."""
+    import yaml
+
+    from rigmap.store.pipeline_files import pipeline_files
+
+    entries = {}
+    for path in pipeline_files(project):
+        lock = project / path.parent / "dvc.lock"
+        if lock.is_file():
+            entries.update(yaml.safe_load(lock.read_text(encoding="utf-8"))["stages"])
+    return entries
 
 
 def _lock_params(project: Path, params: dict) -> dict:

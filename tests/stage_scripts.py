@@ -19,3 +19,15 @@ def load_stage(name: str):
         return module
     finally:
         sys.path.remove(str(PIPELINES))
+
+
+def copy_stage_files(project: Path, source: Path = PIPELINES.parent) -> None:
+    """The pipeline's stage files (``dvc.yaml`` and ``stages/*/dvc.yaml``) copied into
+    ``project``, as a test's copy of the pipeline needs them."""
+    import shutil
+
+    from rigmap.store.pipeline_files import pipeline_files
+
+    for path in pipeline_files(source):
+        (project / path).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(source / path, project / path)

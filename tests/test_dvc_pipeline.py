@@ -20,6 +20,8 @@ from rigmap.app.params import compose_params, write_params
 from rigmap.app.stage import RIG_OVERRIDES, apply_rig_overrides, stage_config
 from rigmap.rigs import available as available_rigs
 from rigmap.sampling import available as available_samplers
+from rigmap.store.pipeline_files import pipeline_files
+from stage_scripts import copy_stage_files
 
 ROOT = Path(__file__).resolve().parents[1]
 KERNELS = ["multiquadric", "gaussian", "linear", "polynomial"]
@@ -299,7 +301,7 @@ def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
     project = tmp_path / "project"
     project.mkdir()
     shutil.copytree(ROOT / "conf", project / "conf")
-    shutil.copy(ROOT / "dvc.yaml", project / "dvc.yaml")
+    copy_stage_files(project)
     shutil.copy(ROOT / "conf" / "sampler" / "uniform.yaml", project / "conf/sampler/toy.yaml")
     config = project / "conf" / "pipeline" / "default.yaml"
     rigs = "rigs: [quadruped, biped, face, squirrel"
@@ -319,7 +321,8 @@ def test_a_new_sampler_and_rig_need_no_stage_edit(tmp_path):
         timeout=120,
     )
     stages = resolved_stages(project)
-    assert (project / "dvc.yaml").read_text() == (ROOT / "dvc.yaml").read_text()
+    for path in pipeline_files(ROOT):  # no stage file edited
+        assert (project / path).read_text() == (ROOT / path).read_text()
     assert paths(stages["supersample@quadruped-toy"].outs) == ["data/quadruped/samples/toy.npz"]
     assert "sampler=toy" in filled(stages["fit_nn@biped-toy"], project)
     assert "conf/rig/toy_rig.yaml" in paths(stages["animate@toy_rig"].deps)

@@ -17,11 +17,15 @@ from pathlib import Path
 import pytest
 import yaml
 
+from rigmap.store.pipeline_files import pipeline_files
+from stage_scripts import copy_stage_files
+
 ROOT = Path(__file__).resolve().parents[1]
 
-#: today's length, so the file does not grow back; issue #35 asks for 200, which takes
-#: changing what DVC plans (docs/pipeline.md, "Why the file is not shorter")
-MAX_LINES = 395
+#: today's length of all the stage files together (dvc.yaml and stages/*/dvc.yaml), so they
+#: do not grow back; issue #35 asks for 200, which takes changing what DVC plans
+#: (docs/pipeline.md, "Why the files are not shorter")
+MAX_LINES = 460
 
 #: each stage family and the params.yaml lists (or literal sizes) its matrix multiplies
 FAMILIES: dict[str, tuple[str | int, ...]] = {
@@ -108,9 +112,14 @@ def stages() -> dict:
     return dvc_stage_plan.plan(ROOT)["stages"]
 
 
-def test_dvc_yaml_stays_short():
-    lines = (ROOT / "dvc.yaml").read_text().splitlines()
-    assert len(lines) <= MAX_LINES, f"dvc.yaml has {len(lines)} lines (at most {MAX_LINES})"
+def test_stage_files_stay_short():
+    lines = sum(len((ROOT / path).read_text().splitlines()) for path in pipeline_files(ROOT))
+    assert lines <= MAX_LINES, f"the stage files have {lines} lines (at most {MAX_LINES})"
+
+
+def test_every_lock_entry_is_a_stage(stages):
+    """DVC keeps a removed stage's lock entry; each one slows every rewrite of its file."""
+    assert set(dvc_stage_plan.lock_entries(ROOT)) <= set(stages)
 
 
 def test_every_family_is_planned_at_its_matrix_size(stages, params):
@@ -146,6 +155,7 @@ def test_the_plan_script_sees_a_dropped_dependency(tmp_path, stages):
     project.mkdir()
     shutil.copytree(ROOT / "conf", project / "conf")
     shutil.copy(ROOT / "params.yaml", project / "params.yaml")
+    copy_stage_files(project)
     text = (ROOT / "dvc.yaml").read_text()
     dropped = "pipelines/report.py,"
     assert text.count(dropped) == 1  # only the report stage runs it

@@ -19,15 +19,18 @@ from pathlib import Path
 import pytest
 import yaml
 
+from rigmap.store.pipeline_files import stage_families
+from stage_scripts import copy_stage_files
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _project(tmp_path: Path, **changes) -> Path:
-    """A copy of the pipeline (dvc.yaml, conf/, params.yaml; code linked) with ``changes``."""
+    """A copy of the pipeline (stage files, conf/, params.yaml; code linked) with ``changes``."""
     project = tmp_path / "project"
     project.mkdir(parents=True)
-    for name in ("dvc.yaml", "params.yaml"):
-        shutil.copy(ROOT / name, project / name)
+    copy_stage_files(project)
+    shutil.copy(ROOT / "params.yaml", project / "params.yaml")
     shutil.copytree(ROOT / "conf", project / "conf")
     for name in ("src", "pipelines"):
         (project / name).symlink_to(ROOT / name)
@@ -77,7 +80,7 @@ def test_hostile_seed_in_params_yaml_runs_no_shell_under_dvc_repro_single_item(
     assert _dvc(project, "init", "--no-scm", "-q").returncode == 0
     (project / "data").mkdir()
     (project / "data" / "params_checked.txt").write_text("params.yaml checked\n")
-    done = _dvc(project, "repro", flag, "animate@biped")
+    done = _dvc(project, "repro", flag, "stages/data/dvc.yaml:animate@biped")
     output = done.stdout + done.stderr
     assert done.returncode != 0, output[-2000:]
     assert not (project / "X").exists(), f"{seed!r} ran a shell command"
@@ -92,7 +95,7 @@ def test_every_stage_command_is_a_fixed_string_whose_values_are_declared_params(
     """Trial: no ``${...}`` in any cmd; each KEY=@NAME is a params: entry (so DVC re-runs it)."""
     import re
 
-    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    stages = {name: found.body for name, found in stage_families(ROOT).items()}
     checked = 0
     for name, stage in stages.items():
         assert "${" not in stage["cmd"], f"{name}: {stage['cmd']}"

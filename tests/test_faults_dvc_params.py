@@ -18,15 +18,17 @@ from pathlib import Path
 
 import yaml
 
+from stage_scripts import copy_stage_files
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _project(tmp_path: Path, **changes) -> Path:
-    """A copy of the pipeline (dvc.yaml, conf/, params.yaml; code linked) with ``changes``."""
+    """A copy of the pipeline (stage files, conf/, params.yaml; code linked) with ``changes``."""
     project = tmp_path / "project"
     project.mkdir()
-    for name in ("dvc.yaml", "params.yaml"):
-        shutil.copy(ROOT / name, project / name)
+    copy_stage_files(project)
+    shutil.copy(ROOT / "params.yaml", project / "params.yaml")
     shutil.copytree(ROOT / "conf", project / "conf")
     for name in ("src", "pipelines"):
         (project / name).symlink_to(ROOT / name)
@@ -50,7 +52,7 @@ def _dvc(project: Path, *args: str) -> subprocess.CompletedProcess:
 
 def test_shell_syntax_in_params_yaml_never_reaches_a_stage_command(tmp_path):
     project = _project(tmp_path, **{"corpus.variation": "1.0;touch PWNED"})
-    done = _dvc(project, "repro", "animate@quadruped")
+    done = _dvc(project, "repro", "stages/data/dvc.yaml:animate@quadruped")
     assert done.returncode != 0
     output = done.stdout + done.stderr
     assert "refused before any stage ran" in output, output[-2000:]

@@ -5,7 +5,7 @@ found late, hangs, or gives a traceback), 5 (unwritable outputs found after the 
 7 (``budget.samples=0``), 8 (a killed ``--dry`` leaves params.yaml modified) and 9
 (silent coercions of ``budget.samples=2.5`` and ``regressor.hidden=1.5``).
 
-The project is a copy of the real ``conf/`` and ``dvc.yaml``; ``dvc`` is a small fake
+The project is a copy of the real ``conf/`` and stage files; ``dvc`` is a small fake
 script (it records that it ran), so no stage ever runs.
 """
 
@@ -29,6 +29,7 @@ import yaml
 from rigmap.app.params import ParamsError, write_params
 from rigmap.preflight import PreflightError, check_pipeline_needs
 from rigmap.reproduce import plan_reproduce, run_reproduce
+from stage_scripts import copy_stage_files
 
 REPO = Path(__file__).resolve().parents[1]
 NO_TRACKING_ENV = {"PATH": os.environ.get("PATH", "")}
@@ -39,7 +40,7 @@ def project(tmp_path) -> Path:
     folder = tmp_path / "project"
     folder.mkdir()
     shutil.copytree(REPO / "conf", folder / "conf")
-    shutil.copy(REPO / "dvc.yaml", folder / "dvc.yaml")
+    copy_stage_files(folder)
     write_params(folder)
     return folder
 

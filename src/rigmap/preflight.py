@@ -4,7 +4,7 @@ A run of the quick pipeline takes half an hour; an error found by its 87th stage
 (no Blender), its first evaluation (no tracking server) or its first write (a
 read-only ``models/``) costs all of that. ``check_pipeline_needs`` asks up front:
 
-- the Blender worker environment, when ``dvc.yaml`` has a stage on a Blender rig;
+- the Blender worker environment, when a stage file has a stage on a Blender rig;
 - the MLflow tracking store, when the evaluation logs to it: one bounded request
   (``tracking.probe_timeout_s``, at most ``MAX_PROBE_TIMEOUT_S`` = 10 s) telling a
   closed port, a hung server and a failing one apart;
@@ -22,10 +22,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rigmap.errors import RigmapError
 from rigmap.store.layout import ROOTS, Layout
+from rigmap.store.pipeline_files import stage_families
 
 OUTPUT_FOLDERS = ROOTS
 
@@ -59,15 +58,14 @@ def check_pipeline_needs(
 
 
 def blender_rigs(project: Path, params: Mapping[str, Any] | None = None) -> list[str]:
-    """Rigs of ``dvc.yaml``'s stage matrices whose ``conf/rig/<rig>.yaml`` is a Blender rig.
+    """Rigs of the stage matrices (``dvc.yaml``, ``stages/*/dvc.yaml``) that are Blender rigs.
 
     A matrix may name its list in the params (``rig: ${pipeline.blender_rigs}``, as DVC
     interpolates it); that list is read from ``params``.
     """
-    dvc = yaml.safe_load((project / "dvc.yaml").read_text(encoding="utf-8")) or {}
     rigs: list[str] = []
-    for stage in (dvc.get("stages") or {}).values():
-        matrix = stage.get("matrix") if isinstance(stage, Mapping) else None
+    for family in stage_families(project).values():
+        matrix = family.body.get("matrix")
         listed = (matrix or {}).get("rig", []) if isinstance(matrix, Mapping) else []
         for rig in _interpolated(listed, params or {}):
             config = Layout.project_conf(project) / "rig" / f"{rig}.yaml"

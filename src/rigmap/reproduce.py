@@ -31,7 +31,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +48,7 @@ from rigmap.preflight import check_pipeline_needs
 from rigmap.stage_jobs import families_marked, plan_stages, run_side_by_side
 from rigmap.store import write_text_atomic
 from rigmap.store.layout import Layout
+from rigmap.store.pipeline_files import StageFamily, family_of, short_name, stage_families
 
 # how DVC says a stage starts, or is restored from its run cache instead of running
 STAGE_STARTS = (
@@ -139,7 +140,8 @@ def plan_reproduce(
             f"dvc not found on PATH (looked first in {bin_dir}); install the project "
             "(`make setup`, it brings dvc) or put dvc on PATH"
         )
-    command = [dvc, "repro", *targets]
+    families = stage_families(root) if targets else {}
+    command = [dvc, "repro", *(dvc_target(families, target) for target in targets)]
     if dry:
         command.append("--dry")
     if force:
@@ -167,7 +169,7 @@ def pending_stages(
 ) -> tuple[set[str], list[tuple[str, str]], list[str]] | None:
     """The stages that may run (as :func:`count_stages` counts them), DVC's edges and nodes."""
     dvc = plan.command[0]
-    targets = [c for c in plan.command[2:] if not c.startswith("-")]
+    targets = [short_name(c) for c in plan.command[2:] if not c.startswith("-")]
     force = "--force" in plan.command
     try:
         # both questions at once: each DVC start-up costs a second or two
@@ -199,7 +201,14 @@ _DOT_EDGE = re.compile(r'^"([^"]+)" -> "([^"]+)";$', re.MULTILINE)
 
 
 def _stage_name(name: str) -> str:
-    return name.split(":", 1)[1] if name.startswith("dvc.yaml:") else name
+    return short_name(name.split(":", 1)[1] if name.startswith("dvc.yaml:") else name)
+
+
+def dvc_target(families: Mapping[str, StageFamily], target: str) -> str:
+    """A stage or family name as DVC addresses it: ``stages/<family>/dvc.yaml:<name>`` when
+    its family lives in a stage file (:mod:`rigmap.store.pipeline_files`); else unchanged."""
+    found = families.get(family_of(target)) if ":" not in target else None
+    return target if found is None else found.address(target)
 
 
 def _closure(start: set[str], links: dict[str, set[str]]) -> set[str]:
@@ -368,7 +377,7 @@ def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
         print(f"{PREFIX} DVC cannot list the pending stages; running them in turn", file=out)
         return _stream(plan, out, None)
     pending, edges, nodes = found
-    dvc_yaml = plan.project / "dvc.yaml"
+    dvc_yaml, families = plan.project / "dvc.yaml", stage_families(plan.project)
     alone, early = (families_marked(dvc_yaml, key) for key in ("runs_alone", "starts_early"))
     stages = plan_stages(pending, edges, nodes, alone, early)
     alone_note = f", {len(stages.alone)} of them alone" if stages.alone else ""
@@ -382,7 +391,14 @@ def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
     began = time.perf_counter()
     code = run_side_by_side(
         stages,
-        lambda stage: [dvc, "--wait-for-lock", "repro", "--single-item", *force, stage],
+        lambda stage: [
+            dvc,
+            "--wait-for-lock",
+            "repro",
+            "--single-item",
+            *force,
+            dvc_target(families, stage),
+        ],
         jobs=plan.jobs,
         cwd=plan.project,
         env=plan.env,

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-import yaml
+from rigmap.store.pipeline_files import family_of, stage_families
 
 
 @dataclass(frozen=True)
@@ -43,16 +43,16 @@ class StagePlan:
 
 def family(stage: str) -> str:
     """``evaluate@quadruped-methods`` -> ``evaluate`` (a foreach/matrix stage's dvc.yaml key)."""
-    return stage.split("@", 1)[0]
+    return family_of(stage)
 
 
 def families_marked(dvc_yaml: Path, key: str) -> frozenset[str]:
-    """The stage families of ``dvc.yaml`` marked ``meta: {<key>: true}``."""
-    stages = (yaml.safe_load(dvc_yaml.read_text(encoding="utf-8")) or {}).get("stages", {})
+    """The stage families of ``dvc.yaml`` and the stage files beside it marked
+    ``meta: {<key>: true}``."""
     return frozenset(
         name
-        for name, body in stages.items()
-        if isinstance(body, dict) and (body.get("meta") or {}).get(key) is True
+        for name, found in stage_families(dvc_yaml.parent).items()
+        if (found.body.get("meta") or {}).get(key) is True
     )
 
 

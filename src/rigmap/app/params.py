@@ -26,6 +26,7 @@ from rigmap.errors import RigmapError
 from rigmap.params_checks import param_problems
 from rigmap.store import write_text_atomic
 from rigmap.store.layout import CONFIG_NAME, PARAMS_STAMP, Layout, find_project_root
+from rigmap.store.pipeline_files import ROOT_FILE, pipeline_text
 
 PARAMS_FILE = "params.yaml"
 EXPERIMENT_GROUP = "experiment"
@@ -179,12 +180,17 @@ _PLACEHOLDER = re.compile(r"=@([A-Za-z_][\w.]*)")  # a stage command's KEY=@NAME
 
 
 def interpolated_params(dvc_yaml: str | Path) -> set[str]:
-    """The ``params.yaml`` keys that ``dvc.yaml`` reads: ``${pipeline.rigs}`` or ``seed=@seed``.
+    """The ``params.yaml`` keys that the stages read: ``${pipeline.rigs}`` or ``seed=@seed``,
+    in ``dvc_yaml`` and the stage files beside it (:mod:`rigmap.store.pipeline_files`).
 
     Commands name their values (``@seed``, filled in by :mod:`rigmap.app.placeholders`,
     never by a shell); ``${...}`` is left for matrix lists and paths.
     """
-    text = Path(dvc_yaml).read_text(encoding="utf-8")
+    dvc_yaml = Path(dvc_yaml)
+    if dvc_yaml.name == ROOT_FILE:
+        text = pipeline_text(dvc_yaml.parent)
+    else:
+        text = dvc_yaml.read_text(encoding="utf-8")
     keys = set(_INTERPOLATION.findall(text)) | set(_PLACEHOLDER.findall(text))
     return {k for k in keys if not k.startswith("item.") and k != "item"}
 

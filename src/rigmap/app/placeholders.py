@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from rigmap.errors import RigmapError
+from rigmap.store.pipeline_files import PipelineFileError, short_name, stage_families
 
 PLACEHOLDER = "@"
 ITEM = "item."
@@ -136,22 +137,18 @@ def _item_value(item: Mapping[str, Any], key: str, arg: str) -> str:
 
 def _matrix_item(project: Path, stage: str | None, params: Mapping[str, Any]) -> dict[str, Any]:
     """The matrix entry DVC runs as ``stage`` (``name@key``), found as DVC names them."""
-    import yaml
-
     if not stage or "@" not in stage:
         raise PlaceholderError(
             f"@item placeholders are filled from the DVC matrix entry being run, but "
             f"${STAGE_VARIABLE} is {stage!r}; run it with dvc repro, or give the value itself"
         )
-    if ".yaml:" in stage.partition("@")[0]:  # path/dvc.yaml:name@key, run from elsewhere
-        stage = stage.split(".yaml:", 1)[1]
-    name, _, wanted = stage.partition("@")
+    name, _, wanted = short_name(stage).partition("@")  # DVC may give path/dvc.yaml:name@key
     try:
-        stages = yaml.safe_load((project / "dvc.yaml").read_text(encoding="utf-8"))["stages"]
-        matrix = stages[name]["matrix"]
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as error:
-        where = project / "dvc.yaml"
-        raise PlaceholderError(f"{where}: no matrix stage {name!r} ({error})") from None
+        matrix = stage_families(project)[name].body["matrix"]
+    except (PipelineFileError, KeyError, TypeError) as error:
+        raise PlaceholderError(
+            f"{project}: no matrix stage {name!r} in the pipeline's stage files ({error})"
+        ) from None
     lists = {key: _matrix_list(values, params, name) for key, values in matrix.items()}
     for combination in itertools.product(*lists.values()):
         if "-".join(_fragment(value) for value in combination) == wanted:
