@@ -97,28 +97,46 @@ class FaceModel:
 class FaceRig(MeshRig):
     """Blendshapes + correctives + jaw skinning; landmarks as joints."""
 
-    def __init__(self, model: FaceModel, *, chunk: int = 4096):
+    def __init__(
+        self,
+        model: FaceModel,
+        *,
+        chunk: int = 4096,
+        name: str = "face",
+        controls: list[Control] | None = None,
+        description: str = (
+            "Procedural face: 46 clamped blendshape sliders, 6 combination correctives, "
+            "skinned jaw; 6 landmarks (cm, radians)"
+        ),
+    ):
+        """``controls`` default to :func:`face_controls`; a face driven by other controls
+        (:mod:`rigmap.rigs.characters.arkit_face`) names its own and maps them in ``_deform``."""
         super().__init__(
-            name="face",
-            controls=face_controls(model.shapes),
+            name=name,
+            controls=face_controls(model.shapes) if controls is None else controls,
             rest_vertices=model.mesh.vertices,
             faces=model.mesh.faces,
             joint_vertices=model.landmarks,
             joint_names=list(LANDMARKS),
-            description=(
-                "Procedural face: 46 clamped blendshape sliders, 6 combination correctives, "
-                "skinned jaw; 6 landmarks (cm, radians)"
-            ),
+            description=description,
             face_colors=model.mesh.face_colors,
             chunk=chunk,
         )
         self.model = model
         self.landmark_names = list(LANDMARKS)
         self.landmark_vertices = model.landmarks
-        self._shape_columns = [self.controls.index(n) for n in model.shapes.names]
+        names = [control.name for control in face_controls(model.shapes)]
+        self._shape_columns = [names.index(n) for n in model.shapes.names]
+        self._jaw_columns = {n: names.index(n) for n in ("jaw.rx", "jaw.ry", "jaw.tz")}
 
     def _deform(self, Y: torch.Tensor, vertex_index) -> DeformedMesh:
+        return self._deform_face(Y, vertex_index)
+
+    def _deform_face(self, Y: torch.Tensor, vertex_index) -> DeformedMesh:
+        """The mesh for ``Y`` in :func:`face_controls`' order (a face driven by other
+        controls maps them to these first: :mod:`rigmap.rigs.characters.arkit_face`)."""
         model, dtype, n = self.model, Y.dtype, Y.shape[0]
+        jaw = {name: Y[:, column] for name, column in self._jaw_columns.items()}
         subset = slice(None) if vertex_index is None else np.asarray(vertex_index)
         if vertex_index is None:
             key = "all"
@@ -133,7 +151,7 @@ class FaceRig(MeshRig):
             return self.constant(f"{name}.{key}", array, dtype)
 
         weights = model.shapes.clamp(Y[:, self._shape_columns])
-        jaw_open = clamp_between(self.column(Y, "jaw.rx") / JAW_OPEN_FULL, 0.0, 1.0)
+        jaw_open = clamp_between(jaw["jaw.rx"] / JAW_OPEN_FULL, 0.0, 1.0)
         drivers = torch.cat([weights, jaw_open[:, None]], dim=1)
         corrective = model.correctives.weights(drivers)
 
@@ -145,12 +163,10 @@ class FaceRig(MeshRig):
         )
 
         # the jaw: open (rx) then side (ry) about the hinge, then forward (tz, cm)
-        R = axis_rotation(self.column(Y, "jaw.ry"), "y") @ axis_rotation(
-            self.column(Y, "jaw.rx"), "x"
-        )
+        R = axis_rotation(jaw["jaw.ry"], "y") @ axis_rotation(jaw["jaw.rx"], "x")
         pivot = torch.as_tensor(JAW_PIVOT, dtype=dtype)
         forward = torch.stack(
-            [torch.zeros_like(jaw_open), torch.zeros_like(jaw_open), self.column(Y, "jaw.tz")], 1
+            [torch.zeros_like(jaw_open), torch.zeros_like(jaw_open), jaw["jaw.tz"]], 1
         )
         t = pivot - (R @ pivot) + forward
         jawed = vertices @ R.transpose(1, 2) + t[:, None, :]
