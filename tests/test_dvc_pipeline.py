@@ -154,9 +154,12 @@ LATENT_STEPS = ("fit", "match", "synthesize", "evaluate")
 
 
 def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_paper(stages, params):
-    """latent_* (issue #18) run per rig of latent.rigs: the face, which is no sweep rig, in
-    experiment=quick; each reads the step before it and writes under the rig's folders."""
-    assert params["latent"]["rigs"] == ["face"]
+    """latent_* (issue #18) run per rig of latent.rigs: the face, which is no sweep rig, and
+    the ARKit face on captured takes (issue #41), in experiment=quick; each reads the step
+    before it and writes under the rig's folders."""
+    assert params["latent"]["rigs"] == ["face", "arkit_face"]
+    for step in ("fit", "evaluate"):  # the captured takes are an input
+        assert "../shared/face" in paths(stages[f"latent_{step}@arkit_face"].deps)
     assert "face" not in params["pipeline"]["sweep_rigs"]
     fit, match = stages["latent_fit@face"], stages["latent_match@face"]
     synth, evaluate = stages["latent_synthesize@face"], stages["latent_evaluate@face"]
@@ -174,7 +177,7 @@ def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_pape
     assert [o.def_path for o in evaluate.outs if o.metric] == ["metrics/face/latent/summary.json"]
     assert "reports/figures/latent_face.png" in paths(evaluate.outs)
     paper = yaml.safe_load(compose_params(ROOT / "conf", ["experiment=paper"]))["latent"]
-    assert paper["rigs"] == ["face", "squirrel"]
+    assert paper["rigs"] == ["face", "squirrel", "arkit_face"]
     assert paper["max_iter"] == 300 and paper["size"] == "paper"
 
 

@@ -14,7 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-OVERRIDES = "rig=face|squirrel, latent.max_iter=, latent.n_pca=, latent.labels=, paths.*="
+OVERRIDES = (
+    "rig=face|squirrel|arkit_face, latent.max_iter=, latent.n_pca=, latent.labels=, paths.*="
+)
 
 #: the demo's events and the emotion each plays (ours; the paper's game picks per event)
 EVENT_EMOTIONS = {
@@ -159,15 +161,16 @@ def _run(args, compose_config) -> int:
         max_frames=steps.max_script_frames(config),
         progress=True,
     )
-    meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": config["fps"]}
+    fps = steps.fps_of(config, rig)
+    meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": fps}
     if as_csv:  # a Live Link Face CSV: plays on any ARKit-driven face
-        write_take(args.out, P, columns, fps=float(config["fps"]))
+        write_take(args.out, P, columns, fps=fps)
     else:
         steps.write_controls(args.out, rig, P, meta)
     for row in steps.log_rows(controller):
         state = "ok" if row["success"] else "not met"
         print(f"  {row['command']:<10} {row['model']:<10} {row['frames']:>4} frames  {state}")
-    print(f"{args.out}: {len(P)} frames ({len(P) / float(config['fps']):.1f} s)")
+    print(f"{args.out}: {len(P)} frames ({len(P) / fps:.1f} s)")
     return 0
 
 

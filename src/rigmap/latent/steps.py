@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from rigmap.latent import files
+from rigmap.latent.captured_sets import captured_sets
 from rigmap.latent.errors import LatentInputError
 from rigmap.latent.gplvm import GPLVMSettings
 from rigmap.latent.library import FittedModels, fit_models, rig_sets
@@ -62,7 +63,32 @@ def _written(path: Path, stage: str) -> Path:
     return path.parent
 
 
+def fps_of(config: dict, rig) -> float:
+    """``latent.<rig>_fps`` if set (captured takes at their own rate), else ``latent.fps``."""
+    return float(config.get(f"{rig.name}_fps") or config["fps"])
+
+
+def takes_file(config: dict, rig) -> Path | None:
+    """``latent.<rig>_takes``: a label file of captured takes (relative paths from
+    ``conf/latent/``), or ``None`` for a rig whose sets are its motion library's."""
+    named = config.get(f"{rig.name}_takes")
+    if not named:
+        return None
+    path = Path(str(named)).expanduser()
+    return path if path.is_absolute() else SCRIPTS_DIR.parent / path
+
+
 def sets_of(config: dict, rig, *, heldout: bool = False):
+    captured = takes_file(config, rig)
+    if captured is not None:
+        return captured_sets(
+            rig,
+            captured,
+            fps=fps_of(config, rig),
+            size=str(config["size"]),
+            labels=config.get("labels"),
+            heldout=heldout,
+        )
     return rig_sets(
         rig,
         seed=int(config.get("seed", 0)),
@@ -77,7 +103,7 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
     fitted = fit_models(
         rig,
         sets,
-        fps=float(config["fps"]),
+        fps=fps_of(config, rig),
         settings=settings_of(config),
         variance=float(config["variance"]),
         n_pca=n_pca_of(config),
@@ -243,7 +269,7 @@ def run_synthesize(config: dict, rig, layout: Layout) -> Path:
                 blend_frames=int(config["blend_frames"]),
                 max_frames=cap,
             )
-            meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": config["fps"]}
+            meta = {"rig": rig.name, "script": name, "seed": int(seed), "fps": fps_of(config, rig)}
             write_controls(folder / f"{Path(name).stem}-seed{seed}.parquet", rig, P, meta)
             log[f"{Path(name).stem}-seed{seed}"] = log_rows(controller)
     return write_json_atomic(folder / "log.json", json_ready(log))
@@ -267,7 +293,7 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
     """Every measurement: ``(summary, tables)``."""
     from rigmap.latent import measures as m
 
-    ev, fps, fraction = config["evaluate"], float(config["fps"]), float(config["variance"])
+    ev, fps, fraction = config["evaluate"], fps_of(config, rig), float(config["variance"])
     variance = (fraction, n_pca_of(config))
     labels, seed = list(fitted.models), int(config.get("seed", 0))
     sets, settings = fitted.sets, settings_of(config)
@@ -384,7 +410,7 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
         rig,
         fitted,
         settings_of(config, connectivity=False),
-        float(config["fps"]),
+        fps_of(config, rig),
         (float(config["variance"]), n_pca_of(config)),
         layout.figures() / f"latent_{rig.name}.png",
         labels=list(fitted.models)[: int(config["evaluate"].get("figure_labels", 2))],
