@@ -1,5 +1,8 @@
 """Latent synthesis on the face's expression library (Bailey et al. 2016 §5–6); prints JSON.
 
+``--rig arkit_face``: on the ARKit face from the shared Live Link Face takes instead (issue
+#41: its mesh evaluated each frame from the captured curves' models).
+
 One latent model per label of the quick library (8 labels × 3 takes, ~150 frames a
 label; scaling → PCA (8 components, ours: scaled face controls reach 85 % with 1–3
 because the jaw moves the most vertices) → 3-D GPLVM), then:
@@ -42,12 +45,14 @@ import json
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from rigmap.animation.library.face_expressions import LABELS
 from rigmap.latent import files
+from rigmap.latent.captured_sets import captured_sets
 from rigmap.latent.library import face_expression_sets, fit_models
 from rigmap.latent.motion_graph import (
     WINDOW,
@@ -55,11 +60,15 @@ from rigmap.latent.motion_graph import (
     find_transitions,
     surface_features,
 )
+from rigmap.latent.segment_labels import read_labels
 from rigmap.latent.synthesis import Controller, Idle, Move, Play, Transition
-from rigmap.latent.transitions import match_models
+from rigmap.latent.transitions import MATCH_THRESHOLD_CM, match_models
 from rigmap.rigs import load
 
-FPS = 24.0
+FPS = 24.0  # the face library's; --rig arkit_face plays the captured takes' 30 fps
+ROOT = Path(__file__).resolve().parents[1]
+CAPTURED_LABELS = ROOT / "conf" / "latent" / "labels" / "shared_face.yaml"
+CAPTURED_FPS, CAPTURED_THRESHOLD_CM = 30.0, 0.2  # conf/latent/default.yaml's arkit_face_*
 GRAPH_THRESHOLDS_CM = (0.1, 0.2, 0.4)  # ours: per-frame RMS vertex distance over a window
 
 
@@ -109,7 +118,15 @@ def speed_script(rng, fitted, labels, n: int):
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--frames", type=int, default=2400)
-    parser.add_argument("--labels", nargs="*", default=list(LABELS))
+    parser.add_argument(
+        "--rig",
+        choices=("face", "arkit_face"),
+        default="face",
+        help="face: its keyed expression library; arkit_face: the shared Live Link Face takes "
+        "as conf/latent/labels/shared_face.yaml labels them, at their 30 fps, matched at the "
+        "rig's 0.2 cm (conf/latent/default.yaml)",
+    )
+    parser.add_argument("--labels", nargs="*", default=None, help="default: all of the rig's")
     parser.add_argument("--n-pca", type=int, default=8)
     parser.add_argument("--starts", type=int, default=4, help="TRANSITION starts per pair")
     parser.add_argument("--seed", type=int, default=0)
@@ -126,11 +143,17 @@ def main(argv=None) -> None:
     parser.add_argument("--skip-transitions", action="store_true")
     args = parser.parse_args(argv)
     torch.set_num_threads(args.threads)
-    rig = load("face")
-    labels = list(args.labels)
+    rig = load(args.rig)
+    global FPS
+    if args.rig == "arkit_face":
+        FPS, threshold = CAPTURED_FPS, CAPTURED_THRESHOLD_CM
+        labels = list(args.labels or read_labels(CAPTURED_LABELS).labels)
+    else:
+        threshold, labels = MATCH_THRESHOLD_CM, list(args.labels or LABELS)
     out: dict = {"load_average": [round(x, 2) for x in os.getloadavg()], "labels": labels}
+    out["rig"], out["mesh_vertices"] = rig.name, rig.n_vertices
 
-    key = {"labels": labels, "n_pca": args.n_pca, "seed": args.seed}
+    key = {"rig": rig.name, "labels": labels, "n_pca": args.n_pca, "seed": args.seed}
     key_file = os.path.join(args.cache or "", "key.json")
     cached = None
     if args.cache and os.path.exists(key_file):
@@ -138,8 +161,11 @@ def main(argv=None) -> None:
             if json.load(f) == key:
                 cached = files.load_fitted(args.cache)  # arrays + JSON, never unpickled
     if cached is None:
-        sets = face_expression_sets(rig, labels=labels, seed=args.seed)
-        fitted = fit_models(rig, sets, n_pca=args.n_pca)
+        if args.rig == "arkit_face":
+            sets = captured_sets(rig, CAPTURED_LABELS, fps=FPS, labels=labels)
+        else:
+            sets = face_expression_sets(rig, labels=labels, seed=args.seed)
+        fitted = fit_models(rig, sets, fps=FPS, n_pca=args.n_pca)
     else:
         sets, fitted = cached.sets, cached
         out["fit_from_cache"] = args.cache
@@ -156,7 +182,7 @@ def main(argv=None) -> None:
     out["fit_seconds_total"] = round(sum(fitted.fit_seconds.values()), 1)
 
     start = time.perf_counter()
-    table = match_models(rig, fitted.models)
+    table = match_models(rig, fitted.models, threshold_cm=threshold)
     match_seconds = time.perf_counter() - start
     if args.cache and cached is None:
         files.save_fitted(args.cache, fitted)
