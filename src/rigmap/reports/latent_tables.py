@@ -17,10 +17,9 @@ from rigmap.reports.figures import FigureFile
 from rigmap.reports.table import Table
 
 OWN = (
-    "These metrics are rigmap's own (Bailey, Watt & O'Brien 2016 report settings, not "
-    "measurements): distances on the face's mesh vertices (joints for a rig without a mesh), "
-    "in cm; held-out takes are new seeded takes of each label, never a training take (on the "
-    "ARKit face, the captured takes' last quarters, never a trained frame)."
+    "These metrics are rigmap's own (Bailey et al. 2016 report settings): distances on mesh "
+    "vertices (joints without a mesh), cm; held out: new seeded takes of each label, or a "
+    "captured take's last quarter (the ARKit face), never a trained frame."
 )
 #: name → (csv, title, [(column, label, format)], note), from reports/data/latent_tables.yaml
 TABLES = read_table_specs("latent_tables.yaml")
