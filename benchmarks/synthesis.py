@@ -72,11 +72,11 @@ CAPTURED_FPS, CAPTURED_THRESHOLD_CM = 30.0, 0.2  # conf/latent/default.yaml's ar
 GRAPH_THRESHOLDS_CM = (0.1, 0.2, 0.4)  # ours: per-frame RMS vertex distance over a window
 
 
-def per_frame_peaks(rig, P) -> tuple[np.ndarray, np.ndarray]:
+def per_frame_peaks(rig, P, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """Per frame, the largest vertex acceleration (cm/s²) and jerk (cm/s³)."""
     V = np.asarray(rig.mesh(rig.expand_used(P)))
-    acc = np.linalg.norm(np.diff(V, 2, axis=0), axis=-1).max(-1) * FPS**2
-    jerk = np.linalg.norm(np.diff(V, 3, axis=0), axis=-1).max(-1) * FPS**3
+    acc = np.linalg.norm(np.diff(V, 2, axis=0), axis=-1).max(-1) * fps**2
+    jerk = np.linalg.norm(np.diff(V, 3, axis=0), axis=-1).max(-1) * fps**3
     return acc, jerk
 
 
@@ -87,9 +87,9 @@ def training_p95(peaks, labels) -> tuple[float, float]:
     return float(np.percentile(acc, 95)), float(np.percentile(jerk, 95))
 
 
-def window_peaks(rig, P, start: int, blend: int) -> tuple[float, float]:
+def window_peaks(rig, P, start: int, blend: int, fps: float) -> tuple[float, float]:
     lo, hi = max(0, start - blend), min(len(P), start + 2 * blend + 3)
-    acc, jerk = per_frame_peaks(rig, P[lo:hi])
+    acc, jerk = per_frame_peaks(rig, P[lo:hi], fps)
     return float(acc.max()), float(jerk.max())
 
 
@@ -142,14 +142,21 @@ def main(argv=None) -> None:
     )
     parser.add_argument("--skip-transitions", action="store_true")
     args = parser.parse_args(argv)
+    if (
+        args.rig == "arkit_face" and not args.skip_transitions
+    ):  # measured: it stops in find_transitions
+        parser.error(
+            "--rig arkit_face needs --skip-transitions: some captured takes are shorter than the "
+            "motion graph's 12-frame window (its smoothness is latent_evaluate's, in the pipeline)"
+        )
     torch.set_num_threads(args.threads)
     rig = load(args.rig)
-    global FPS
     if args.rig == "arkit_face":
-        FPS, threshold = CAPTURED_FPS, CAPTURED_THRESHOLD_CM
+        fps, threshold = CAPTURED_FPS, CAPTURED_THRESHOLD_CM
         labels = list(args.labels or read_labels(CAPTURED_LABELS).labels)
     else:
-        threshold, labels = MATCH_THRESHOLD_CM, list(args.labels or LABELS)
+        fps, threshold = FPS, MATCH_THRESHOLD_CM
+        labels = list(args.labels or LABELS)
     out: dict = {"load_average": [round(x, 2) for x in os.getloadavg()], "labels": labels}
     out["rig"], out["mesh_vertices"] = rig.name, rig.n_vertices
 
@@ -162,10 +169,10 @@ def main(argv=None) -> None:
                 cached = files.load_fitted(args.cache)  # arrays + JSON, never unpickled
     if cached is None:
         if args.rig == "arkit_face":
-            sets = captured_sets(rig, CAPTURED_LABELS, fps=FPS, labels=labels)
+            sets = captured_sets(rig, CAPTURED_LABELS, fps=fps, labels=labels)
         else:
             sets = face_expression_sets(rig, labels=labels, seed=args.seed)
-        fitted = fit_models(rig, sets, fps=FPS, n_pca=args.n_pca)
+        fitted = fit_models(rig, sets, fps=fps, n_pca=args.n_pca)
     else:
         sets, fitted = cached.sets, cached
         out["fit_from_cache"] = args.cache
@@ -266,7 +273,7 @@ def main(argv=None) -> None:
         for label, s in sets.items()
     }
     n_vertices = rig.n_vertices
-    peaks = {label: [per_frame_peaks(rig, t) for t in s.takes] for label, s in sets.items()}
+    peaks = {label: [per_frame_peaks(rig, t, fps) for t in s.takes] for label, s in sets.items()}
     records = {}
     for a, b in itertools.permutations(labels, 2):
         p95_acc, p95_jerk = training_p95(peaks, (a, b))
@@ -283,7 +290,7 @@ def main(argv=None) -> None:
             entry = c.log[-1]
             successes += int(entry.success)
             for switch in entry.switches:
-                acc, jerk = window_peaks(rig, P, switch, c.settings.blend_frames)
+                acc, jerk = window_peaks(rig, P, switch, c.settings.blend_frames, fps)
                 ours_acc.append(acc / p95_acc)
                 ours_jerk.append(jerk / p95_jerk)
         found = find_transitions(features[a], features[b], threshold=np.inf)
@@ -302,7 +309,7 @@ def main(argv=None) -> None:
             P, at = blend_transition(
                 sets[a].take(best.source), sets[b].take(best.target), best.i, best.j
             )
-            acc, jerk = window_peaks(rig, P, at, WINDOW)
+            acc, jerk = window_peaks(rig, P, at, WINDOW, fps)
             rec.update(
                 graph_peak_acc_rel_p95=round(acc / p95_acc, 3),
                 graph_peak_jerk_rel_p95=round(jerk / p95_jerk, 3),
