@@ -180,6 +180,31 @@ class Worker:
         save_blend(args["out_path"])
         return info, {}
 
+    def op_write_shape_keys(self, args, arrays):
+        from keyframes import save_blend
+        from shape_keys import write_shape_keys
+
+        self.session = None  # the scene is replaced by an empty one
+        info = write_shape_keys(
+            args["object"],
+            arrays["rest"],
+            arrays["triangles"],
+            arrays["shapes"],
+            args["names"],
+            arrays["frames"],
+            arrays["weights"],
+            args["action"],
+            float(args["fps"]),
+        )
+        save_blend(args["out_path"])
+        return info, {}
+
+    def op_read_shape_keys(self, args, arrays):
+        from shape_keys import read_shape_keys
+
+        self.session = None  # the file replaces whatever was open
+        return read_shape_keys(args["path"], args.get("vertices_at"))
+
     def op_generate_rigify(self, args, arrays):
         from rigify_generate import generate
 
