@@ -62,7 +62,7 @@ def test_held_out_frames_are_the_takes_last_quarter_never_trained_on(sets, arkit
 
 
 def test_a_label_file_at_another_rate_or_an_unknown_label_is_refused(arkit):
-    with pytest.raises(LatentInputError, match=r"resampled to 30 fps.*latent\.arkit_face_fps"):
+    with pytest.raises(LatentInputError, match=r"at 30 fps.*latent\.<rig>_fps"):
         captured_sets(arkit, LABELS, fps=24)
     with pytest.raises(LatentInputError, match=r"no label \['yawning'\]"):
         captured_sets(arkit, LABELS, fps=30, labels=["yawning"])

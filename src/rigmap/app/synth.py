@@ -18,17 +18,6 @@ OVERRIDES = (
     "rig=face|squirrel|arkit_face, latent.max_iter=, latent.n_pca=, latent.labels=, paths.*="
 )
 
-#: the demo's events and the emotion each plays (ours; the paper's game picks per event)
-EVENT_EMOTIONS = {
-    "own_move": "curious",
-    "opponent_move": "neutral",
-    "threat": "grumpy",
-    "win": "happy",
-    "loss": "roar",
-    "draw": "bored",
-}
-LINES = [(0, 1, 2), (3, 4, 5), (6, 7, 8), (0, 3, 6), (1, 4, 7), (2, 5, 8), (0, 4, 8), (2, 4, 6)]
-
 
 def add_synth_command(commands, compose_config, find_config_dir) -> None:
     synth = commands.add_parser(
@@ -55,6 +44,8 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
             "rig=face latent.max_iter=100 latent.log_to_mlflow=false. Writes under outputs/ "
             "(paths.models=DIR names another folder), relative to the working directory.",
         )
+        if verb == "fit":
+            _takes_options(command)
         _overrides(command)
         command.set_defaults(run=lambda args, verb=verb: _stage(verb, args, compose_config))
     run = verbs.add_parser(
@@ -65,8 +56,10 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         "frame: 20}`, `- idle: {frames: 48}`, `- transition: {model: roar}`, `- play: {take: "
         "roar 0}`) with the models of `rigmap synth fit` and `match`, 24 frames a second, "
         "and writes one row per frame (frame, one column per used control); an --out ending in "
-        ".csv is a Live Link Face CSV instead (a rig whose controls are ARKit blendshapes). "
-        "Unknown models "
+        ".csv is a Live Link Face CSV instead (a rig whose controls are ARKit blendshapes), "
+        "one ending in .blend a file Blender opens and plays (a Blender rig: its file with the "
+        "keys on its controls; a mesh rig such as the ARKit face: its mesh with a shape key a "
+        "control). Unknown models "
         "or takes are errors naming them. Example: rigmap synth run roar_after_idle rig=face "
         "--out shot.parquet (overrides right after the script, options after them).",
     )
@@ -75,7 +68,7 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         "--out",
         type=Path,
         required=True,
-        help="controls parquet to write, or a Live Link Face .csv (ARKit-named controls)",
+        help="controls parquet to write, a Live Link Face .csv (ARKit-named controls) or a .blend",
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the particle's random force")
     _overrides(run)
@@ -113,12 +106,52 @@ def _overrides(command) -> None:
     )
 
 
+def _takes_options(command) -> None:
+    command.add_argument(
+        "--takes",
+        type=Path,
+        default=None,
+        help="your own labelled takes (latent.takes): a label YAML of segments (of Live Link "
+        "Face CSVs, a controls table or a .blend), a controls table (.csv/.parquet: a column "
+        "per used control, named as the rig names them, and a `label` column; optional "
+        "`frame` and `take`), or a .blend whose actions are the takes (then rig=blend_file "
+        "rig.path=FILE unless you name the rig)",
+    )
+    command.add_argument(
+        "--label-pattern",
+        default=None,
+        help="a .blend action's label: this regular expression's `label` group, else its "
+        "first group, else its match (default: the name's leading letters, happy_02 -> happy)",
+    )
+
+
+def takes_overrides(args) -> list[str]:
+    """Hydra overrides of ``--takes``: a .blend's actions are takes of the rig in that file,
+    so ``rig=blend_file rig.path=FILE`` unless the overrides name a rig."""
+    takes = getattr(args, "takes", None)
+    if takes is None:
+        return []
+    takes = takes.expanduser().resolve()
+    if not takes.exists():
+        raise FileNotFoundError(f"--takes: {takes} does not exist")
+    named_rig = any(o.split("=", 1)[0].lstrip("+~") == "rig" for o in args.overrides)
+    if takes.suffix.lower() == ".blend" and not named_rig:
+        return ["rig=blend_file", f"rig.path={takes}"]
+    return []
+
+
 def _stage(verb: str, args, compose_config) -> int:
+    from omegaconf import open_dict
+
     from rigmap.app.latent import run_step
     from rigmap.user_outputs import user_paths
 
-    overrides = [*user_paths(args.overrides), *args.overrides]  # outputs/, not the tracked ones
+    overrides = [*user_paths(args.overrides), *takes_overrides(args), *args.overrides]
     cfg = compose_config([f"+latent_step={verb}", *overrides], args.config_dir)
+    if getattr(args, "takes", None) is not None:  # set, not a Hydra override: any path text
+        with open_dict(cfg):
+            cfg.latent.takes = str(args.takes.expanduser().resolve())
+            cfg.latent.label_pattern = args.label_pattern
     print(run_step(cfg))
     return 0
 
@@ -150,8 +183,11 @@ def _run(args, compose_config) -> int:
     from rigmap.latent.live_link import live_link_columns, write_take
 
     rig, config, fitted, table = _loaded(args, compose_config, script=args.script)
-    as_csv = args.out.suffix.lower() == ".csv"
+    suffix = args.out.suffix.lower()
+    as_csv = suffix == ".csv"
     columns = live_link_columns(rig.used_controls) if as_csv else None  # before playing
+    if suffix == ".blend":
+        blend_writer(rig)  # before playing: a rig with no .blend form is refused first
     P, controller = steps.play_script(
         fitted,
         table,
@@ -165,6 +201,12 @@ def _run(args, compose_config) -> int:
     meta = {"rig": rig.name, "script": str(args.script), "seed": args.seed, "fps": fps}
     if as_csv:  # a Live Link Face CSV: plays on any ARKit-driven face
         write_take(args.out, P, columns, fps=fps)
+    elif suffix == ".blend":
+        import pandas as pd
+
+        table = pd.DataFrame(np.asarray(P), columns=list(rig.used_controls))
+        table.insert(0, "frame", np.arange(len(P)))
+        blend_writer(rig)(rig, table, args.out, fps=fps, action_name=Path(args.script).stem)
     else:
         steps.write_controls(args.out, rig, P, meta)
     for row in steps.log_rows(controller):
@@ -174,39 +216,27 @@ def _run(args, compose_config) -> int:
     return 0
 
 
-def game_events(rng) -> list[tuple[str, str]]:
-    """One random game: ``(player, event)`` per turn, ``player`` "x" (us) or "o"."""
-    board, events = [None] * 9, []
-    for turn in range(9):
-        player = "x" if turn % 2 == 0 else "o"
-        free = [k for k in range(9) if board[k] is None]
-        board[int(rng.choice(free))] = player
-        if any(all(board[k] == player for k in line) for line in LINES):
-            events.append((player, "win" if player == "x" else "loss"))
-            return events
-        two = any(
-            sum(board[k] == "o" for k in line) == 2 and any(board[k] is None for k in line)
-            for line in LINES
-        )
-        mover = "own" if player == "x" else "opponent"
-        kind = "threat" if two and player == "o" else f"{mover}_move"
-        events.append((player, kind))
-    events.append(("-", "draw"))
-    return events
+def blend_writer(rig):
+    """How a synthesised take becomes a .blend: keys on a Blender rig's own controls
+    (:func:`rigmap.rigs.blender.export_blend`), or shape keys on a mesh rig's mesh
+    (:func:`rigmap.rigs.blender.shape_keys.export_shape_key_blend`)."""
+    if getattr(rig, "session_options", None) is not None:
+        from rigmap.rigs.blender import export_blend
 
+        return export_blend
+    if callable(getattr(rig, "mesh", None)):
+        from rigmap.rigs.blender.shape_keys import export_shape_key_blend
 
-def emotion_commands(fitted, model_now: str, emotion: str, rng) -> list:
-    """TRANSITION to ``emotion`` (if it is a model) and PLAY one of its takes."""
-    from rigmap.latent.synthesis import Idle, Play, Transition
-
-    target = emotion if emotion in fitted.models else model_now
-    commands = [] if target == model_now else [Transition(target)]
-    names = fitted.sets[target].names
-    return [*commands, Play(names[int(rng.integers(len(names)))]), Idle(6)]
+        return export_shape_key_blend
+    raise ValueError(
+        f"--out: rig {rig.name!r} has neither a Blender file nor a mesh to write a .blend of; "
+        "write a .parquet"
+    )
 
 
 def _demo(args, compose_config) -> int:
     from rigmap.latent import steps
+    from rigmap.latent.game import EVENT_EMOTIONS, emotion_commands, game_events
     from rigmap.latent.synthesis import Controller
 
     rig, _, fitted, table = _loaded(args, compose_config)

@@ -8,6 +8,12 @@ A capture library comes unlabelled; the user marks what each stretch shows::
       talking:
         - {take: S07-001, from_s: 12.0, to_s: 20.5}   # seconds from the take's first row
         - {take: S07-001, frames: [600, 900]}         # or frames at ``fps``, end excluded
+        - {take: S88-001}                             # or the whole take
+
+``takes`` may also name one file whose takes the segments cut
+(:mod:`rigmap.latent.take_files`): a ``.blend`` (a take per action) or a controls table
+(``.csv``/``.parquet``, a take per value of its ``take`` column); ``fps`` is then the
+file's frame rate.
 
 :func:`read_labels` checks the file's shape (read with ``yaml.safe_load``: data only);
 :func:`labelled_takes` reads each take once and cuts its segments into
@@ -18,6 +24,7 @@ tracked frame being an error naming the label. Lost tracking inside a segment sp
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +54,7 @@ class LabelSegment:
 @dataclass(frozen=True)
 class LabelFile:
     path: Path
-    folder: Path
+    source: Path  # the folder of Live Link CSVs, or one .blend / controls table
     fps: float
     segments: tuple[LabelSegment, ...]
 
@@ -64,8 +71,8 @@ def _segment(path: Path, label: str, k: int, entry, fps: float) -> LabelSegment:
     if extra:
         raise LabelFileError(f"{where}: unknown keys {sorted(extra)}")
     take = str(entry["take"])
-    if not TAKE_NAME.match(take):
-        raise LabelFileError(f"{where}: take {take!r} is not a file stem (no folders)")
+    if set(entry) == {"take"}:  # the whole take
+        return LabelSegment(label, take, 0.0, math.inf)
     if "frames" in entry:
         frames = entry["frames"]
         if set(entry) & {"from_s", "to_s"} or not (
@@ -100,13 +107,13 @@ def read_labels(path) -> LabelFile:
     fps = data.get("fps", RESAMPLE_FPS)
     if isinstance(fps, bool) or not isinstance(fps, int | float) or not 0 < fps <= 240:
         raise LabelFileError(f"{path}: fps must be a number in (0, 240], got {fps!r}")
-    folder = (path.parent / str(data.get("takes", "."))).resolve()
+    source = (path.parent / str(data.get("takes", "."))).resolve()
     segments = []
     for label, entries in data["labels"].items():
         if not isinstance(entries, list) or not entries:
             raise LabelFileError(f"{path}: label {label!r} needs a list of segments")
         segments += [_segment(path, str(label), k, e, float(fps)) for k, e in enumerate(entries)]
-    return LabelFile(path, folder, float(fps), tuple(segments))
+    return LabelFile(path, source, float(fps), tuple(segments))
 
 
 def labelled_takes(labels: LabelFile, *, names=None) -> list[Take]:
@@ -115,15 +122,17 @@ def labelled_takes(labels: LabelFile, *, names=None) -> list[Take]:
     cache, takes = {}, []
     for seg in labels.segments:
         where = f"{labels.path}: label {seg.label!r}"
+        if not TAKE_NAME.match(seg.take):
+            raise LabelFileError(f"{where}: take {seg.take!r} is not a file stem (no folders)")
         if seg.take not in cache:
-            csv = labels.folder / f"{seg.take}.csv"
+            csv = labels.source / f"{seg.take}.csv"
             if not csv.is_file():
                 raise LabelFileError(f"{where}: no take {seg.take!r} ({csv} is missing)")
             take = read_take(csv)
             cache[seg.take] = (take, take.segments(labels.fps))
         take, stretches = cache[seg.take]
         length = take.span_s[1] - take.span_s[0]
-        if seg.to_s > length + END_SLACK_S:
+        if math.isfinite(seg.to_s) and seg.to_s > length + END_SLACK_S:
             raise LabelFileError(
                 f"{where}: segment {seg.from_s:g}-{seg.to_s:g} s is outside take "
                 f"{seg.take!r} ({length:.2f} s long)"
@@ -134,10 +143,17 @@ def labelled_takes(labels: LabelFile, *, names=None) -> list[Take]:
                 f"{where}: segment {seg.from_s:g}-{seg.to_s:g} s of {seg.take!r} holds no "
                 "tracked frames (tracking was lost there)"
             )
-        base = f"{seg.label} {seg.take} {seg.from_s:.2f}-{seg.to_s:.2f}"
+        base = segment_name(seg)
         for k, values in enumerate(pieces):
             takes.append(Take(seg.label, base if len(pieces) == 1 else f"{base}/{k}", values))
     return takes
+
+
+def segment_name(seg: LabelSegment) -> str:
+    """``"<label> <take> <from>-<to>"`` (seconds), or ``"<label> <take>"`` for a whole take."""
+    if math.isinf(seg.to_s):
+        return f"{seg.label} {seg.take}"
+    return f"{seg.label} {seg.take} {seg.from_s:.2f}-{seg.to_s:.2f}"
 
 
 def _cut(take, stretches, seg: LabelSegment, names) -> list[np.ndarray]:

@@ -51,8 +51,12 @@ def settings_of(config: dict, **changes) -> GPLVMSettings:
     return GPLVMSettings(**{**values, **changes})
 
 
-def n_pca_of(config: dict) -> int | None:
+def n_pca_of(config: dict, rig=None) -> int | None:
+    """``latent.n_pca`` if set, else ``latent.<rig>_n_pca`` if the rig has one; ``None``:
+    PCA keeps ``latent.variance`` of the variance (the paper's 85 %)."""
     n = config.get("n_pca")
+    if n is None and rig is not None:
+        n = config.get(f"{rig.name}_n_pca")
     return None if n is None else int(n)
 
 
@@ -69,8 +73,11 @@ def fps_of(config: dict, rig) -> float:
 
 
 def takes_file(config: dict, rig) -> Path | None:
-    """``latent.<rig>_takes``: a label file of captured takes (relative paths from
-    ``conf/latent/``), or ``None`` for a rig whose sets are its motion library's."""
+    """``latent.takes`` (a user's file: a label YAML, a controls table or a .blend, relative
+    to the working directory), else ``latent.<rig>_takes`` (relative to ``conf/latent/``),
+    else ``None`` for a rig whose sets are its motion library's."""
+    if config.get("takes"):
+        return Path(str(config["takes"])).expanduser().resolve()
     named = config.get(f"{rig.name}_takes")
     if not named:
         return None
@@ -88,6 +95,7 @@ def sets_of(config: dict, rig, *, heldout: bool = False):
             size=str(config["size"]),
             labels=config.get("labels"),
             heldout=heldout,
+            label_pattern=config.get("label_pattern"),
         )
     return rig_sets(
         rig,
@@ -106,7 +114,7 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
         fps=fps_of(config, rig),
         settings=settings_of(config),
         variance=float(config["variance"]),
-        n_pca=n_pca_of(config),
+        n_pca=n_pca_of(config, rig),
     )
     folder = layout.latent_fit(rig.name)
     files.save_fitted(folder, fitted)
@@ -294,7 +302,7 @@ def _measure(config: dict, rig, fitted, table, heldout) -> tuple[dict, dict]:
     from rigmap.latent import measures as m
 
     ev, fps, fraction = config["evaluate"], fps_of(config, rig), float(config["variance"])
-    variance = (fraction, n_pca_of(config))
+    variance = (fraction, n_pca_of(config, rig))
     labels, seed = list(fitted.models), int(config.get("seed", 0))
     sets, settings = fitted.sets, settings_of(config)
     P = np.vstack([s.values for s in sets.values()])
@@ -411,7 +419,7 @@ def run_evaluate(config: dict, rig, layout: Layout) -> Path:
         fitted,
         settings_of(config, connectivity=False),
         fps_of(config, rig),
-        (float(config["variance"]), n_pca_of(config)),
+        (float(config["variance"]), n_pca_of(config, rig)),
         layout.figures() / f"latent_{rig.name}.png",
         labels=list(fitted.models)[: int(config["evaluate"].get("figure_labels", 2))],
     )
