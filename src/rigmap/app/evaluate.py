@@ -105,3 +105,16 @@ def rig_from_mapping(rig_config: Mapping[str, Any]) -> Any:
     options = dict(rig_config)
     options.pop("corpus", None)
     return load(options)
+
+
+def lead_view_link(overrides, config_dir, rig: str, view: str, ui: str | None) -> str:
+    """``rigmap tracking url``: the link to ``rig``'s saved runs view ``view`` in the MLflow
+    UI of the tracking store ``conf/`` (with ``overrides``) names."""
+    from omegaconf import OmegaConf
+
+    from rigmap.app.config import compose_config
+    from rigmap.tracking import Tracker, lead_view_url, view_id
+
+    cfg = compose_config(list(overrides), config_dir)
+    tracker = Tracker.from_config(OmegaConf.to_container(cfg.tracking, resolve=True))
+    return lead_view_url(tracker, rig, view_id(view), ui_url=ui)

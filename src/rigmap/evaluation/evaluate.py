@@ -4,7 +4,8 @@
 ``conf/method``), a :class:`rigmap.store.Layout` and :class:`EvaluationSettings` —
 plans the set's jobs, checks every model folder exists, then runs each job and writes
 ``metrics/<rig>/<set>/<stem>.json`` and the per-frame ``<stem>.csv`` beside it. With an
-:class:`~rigmap.evaluation.mlflow_runs.EvaluationLog` each job is also an MLflow child run.
+:class:`~rigmap.evaluation.mlflow_runs.EvaluationLog` each job is also an MLflow child run,
+the files read are datasets, and the set's table and a saved view of it end the record.
 """
 
 from __future__ import annotations
@@ -103,6 +104,8 @@ def evaluate(
         f"{settings.warmup_frames} frame(s) per clip (untimed)",
         flush=True,
     )
+    if log is not None:
+        log.log_datasets(layout, rig.name, jobs, settings.test_split)
     written = []
     for job in jobs:
         configured = catalog[job.method.name]
@@ -111,6 +114,8 @@ def evaluate(
         if log is not None:
             log.log_job(job, configured, evaluation, models, rig, test_set)
     print_table(jobs, written)
+    if log is not None:
+        log.finish(jobs[0].metrics_path.parent.name)  # the set's metrics folder names its view
     return written
 
 

@@ -71,8 +71,15 @@ def allowed_mapping_classes() -> dict[str, type]:
     """
     from rigmap.regression import FeedForwardRegressor, GaussianProcessRegressor, LearnedJacobian
     from rigmap.regression.mapping import InverseMapping, JacobianMapping
+    from rigmap.regression.mean import MeanRegressor
 
-    own = (InverseMapping, JacobianMapping, GaussianProcessRegressor, FeedForwardRegressor)
+    own = (
+        InverseMapping,
+        JacobianMapping,
+        GaussianProcessRegressor,
+        FeedForwardRegressor,
+        MeanRegressor,
+    )
     classes = {cls.__name__: cls for cls in (*own, LearnedJacobian)}
     return {**classes, **_EXTRA_MAPPING_CLASSES}
 

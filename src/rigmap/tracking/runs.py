@@ -3,8 +3,9 @@
 One experiment per rig (``rigmap-<rig>``); one parent run per sweep or
 pipeline run; under it one child run per (method, sampler, kernel) with the
 flattened config as params, the metrics JSON as metrics (average and per
-clip), tags a lead filters on, and the files a person opens: the composed
-config, the predicted control curves, the per-frame errors (CSV and plot).
+clip), tags a lead filters on, the data files it read as datasets, and the files a
+person opens: the composed config, the predicted control curves, the per-frame errors
+(CSV and plot).
 
 Runs are written through an explicit ``MlflowClient``; only model logging goes
 through MLflow's fluent API (the one thing it requires), pointed at the same URI.
@@ -26,7 +27,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import pandas as pd
 from mlflow import MlflowClient
-from mlflow.entities import Metric, Param, RunStatus
+from mlflow.entities import DatasetInput, Metric, Param, RunStatus
 from mlflow.exceptions import MlflowException
 from mlflow.utils.mlflow_tags import MLFLOW_PARENT_RUN_ID, MLFLOW_RUN_NAME
 
@@ -200,6 +201,15 @@ class ParentRun:
             self._monitor = None
         self.tracker.client.set_terminated(self.run_id, status=status)
 
+    def log_datasets(self, datasets: Sequence[DatasetInput]) -> None:
+        """The files the sweep read, as MLflow datasets (see :mod:`rigmap.tracking.datasets`)."""
+        if datasets:
+            self.tracker.client.log_inputs(self.run_id, datasets=list(datasets))
+
+    def log_table(self, table: pd.DataFrame, artifact_file: str) -> None:
+        """A table artifact (MLflow's JSON table, shown as a grid in the run's artifacts)."""
+        self.tracker.client.log_table(self.run_id, data=table, artifact_file=artifact_file)
+
     def __enter__(self) -> ParentRun:
         """While open, SIGTERM unwinds the stage (``RunKilled``) so the run ends KILLED."""
         if threading.current_thread() is threading.main_thread():
@@ -286,12 +296,15 @@ def log_method_run(
     model: MappingToLog | None = None,
     tags: Mapping[str, str] | None = None,
     run_name: str | None = None,
+    datasets: Sequence[DatasetInput] = (),
 ) -> MethodRun:
-    """One method's child run: params, metrics, tags, artifacts and (optionally) its model.
+    """One method's child run: params, metrics, tags, datasets, artifacts and (optionally)
+    its model.
 
     ``result`` is a ``MethodResult`` or its metrics JSON as a dict; with a dict,
     pass ``per_frame`` (the per-frame CSV as a DataFrame) to get the error plot.
-    ``predicted_controls`` (clip, frame, one column per control) is stored as parquet.
+    ``predicted_controls`` (clip, frame, one column per control) is stored as parquet;
+    ``datasets`` are the files the run read (:func:`rigmap.tracking.datasets.dataset_input`).
     The run ends FINISHED, or FAILED if any step raised (and the error propagates).
     """
     if rig != parent.rig:
@@ -322,7 +335,7 @@ def log_method_run(
     parent.children.append(run_id)
     try:
         _log_params(client, run_id, flatten_config(config) if config is not None else {})
-        _log_metrics(client, run_id, metrics)
+        _log_metrics(client, run_id, metrics, datasets)
         _log_run_artifacts(
             client, run_id, summary, config, per_frame, predicted_controls, title=f"{rig} · {name}"
         )
@@ -379,7 +392,15 @@ def _log_params(client: MlflowClient, run_id: str, params: Mapping[str, str]) ->
         client.log_batch(run_id, params=items[start : start + _BATCH])
 
 
-def _log_metrics(client: MlflowClient, run_id: str, metrics: Mapping[str, float]) -> None:
+def _log_metrics(
+    client: MlflowClient,
+    run_id: str,
+    metrics: Mapping[str, float],
+    datasets: Sequence[DatasetInput] = (),
+) -> None:
+    """The run's metrics, and the datasets they were measured on."""
+    if datasets:
+        client.log_inputs(run_id, datasets=list(datasets))
     now = int(time.time() * 1000)
     items = [Metric(k, v, now, 0) for k, v in metrics.items()]
     for start in range(0, len(items), 1000):  # MLflow's limit per batch
