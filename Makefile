@@ -8,7 +8,7 @@ SWEEPER := $(VENV)/.optuna-sweeper-1.3.0
 # folders that exist in this checkout (pipelines/ appears with the DVC stages)
 CODE   := $(wildcard src tests pipelines benchmarks)
 
-.PHONY: setup blender postgres compiler tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
+.PHONY: setup blender postgres compiler browser studio tracking-server reproduce paper-table1 mocap-suite push pull demo test lint format benchmark clean
 
 setup: $(STAMP) $(SWEEPER)
 
@@ -49,6 +49,14 @@ compiler:
 	       && { apt-get install -y -q g++ || { apt-get update -q && apt-get install -y -q g++; }; }; } \
 	  || { echo "A C++ compiler is missing: apt-get install g++ (as root)" >&2; exit 1; }
 
+# Chromium for the studio's browser tests (Playwright drives it; its own browser download
+# cannot be used here); installed from Debian's packages when missing (needs root).
+browser:
+	@command -v chromium >/dev/null 2>&1 \
+	  || { [ "$$(id -u)" = 0 ] && export DEBIAN_FRONTEND=noninteractive \
+	       && { apt-get install -y -q chromium || { apt-get update -q && apt-get install -y -q chromium; }; }; } \
+	  || { echo "Chromium is missing: apt-get install chromium (as root)" >&2; exit 1; }
+
 # MLflow on PostgreSQL on this machine (then: tracking=server, or MLFLOW_TRACKING_URI).
 tracking-server: setup postgres
 	bash scripts/tracking_server.sh start
@@ -81,6 +89,11 @@ pull: setup
 	$(BIN)/python -m rigmap.dvc_remote check pull
 	PATH=$(BIN):$$PATH $(BIN)/dvc pull
 
+# The studio in the browser (rigmap studio: pose, review, play) on the main job's data:
+# open http://127.0.0.1:8080 (Ctrl-C stops it).
+studio: setup
+	$(BIN)/rigmap studio
+
 # A first look without running the pipeline: describe and render the built-in rigs.
 demo: setup
 	$(BIN)/rigmap rigs list
@@ -88,10 +101,11 @@ demo: setup
 	$(BIN)/rigmap rigs render quadruped --out reports/figures/rigs/quadruped.png
 	$(BIN)/rigmap rigs render biped --out reports/figures/rigs/biped.png
 
-# The Blender backend's tests need .venv-blender too, the tracking tests PostgreSQL:
+# The Blender backend's tests need .venv-blender too, the tracking tests PostgreSQL, the
+# studio's Chromium:
 # nothing is skipped for a missing environment. Two workers (pytest-xdist), one per core,
 # each running whole test files (--dist loadfile: a file's module fixtures stay in one process).
-test: setup blender postgres compiler
+test: setup blender postgres compiler browser
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 lint: setup

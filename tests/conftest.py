@@ -11,8 +11,16 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 
 def pytest_runtest_setup(item):
-    """A ``blender`` test fails, never skips, without the worker environment: `make test`
-    installs it, so a missing one is a broken set-up, not a reason to test less."""
+    """A ``blender`` or ``browser`` test fails, never skips, without the worker environment
+    or Chromium: `make test` installs both, so a missing one is a broken set-up, not a
+    reason to test less."""
+    if item.get_closest_marker("browser") is not None:
+        from browser import chromium_path
+
+        if chromium_path() is None:
+            pytest.fail(
+                "Chromium is missing: make browser (apt-get install chromium)", pytrace=False
+            )
     if item.get_closest_marker("blender") is None:
         return
     from rigmap.rigs.blender import blender_available

@@ -441,7 +441,10 @@ CONFIG_OF_SCRIPT = {"map_mocap": "map", "map": "map", "tune": "tune"}  # run_sta
 
 
 def _hydra_value(value) -> str:
-    """A value as DVC pasted it into a command (``${seed}`` -> ``0``; dvc.parsing's to_str)."""
+    """A value as DVC pasted it into a command (``${seed}`` -> ``0``; dvc.parsing's to_str),
+    a null as Hydra spells it (a pasted ``None`` would be the string "None")."""
+    if value is None:
+        return "null"
     if isinstance(value, bool):
         return "true" if value else "false"
     return str(value)

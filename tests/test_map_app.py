@@ -23,7 +23,7 @@ WALK = MOCAP / "cmu_131_01_walk.bvh"
 CONF = find_config_dir(Path(__file__).resolve().parents[1] / "conf")
 SMALL_MODEL = ["budget.gpr_points=80", "budget.length_scales=3", "budget.cv_splits=2"]
 OUTPUTS = ["controls.parquet", "frames.parquet", "keys.json", "preview.gif", "preview.png",
-           "result.bvh", "summary.json"]  # fmt: skip
+           "result.bvh", "summary.json", "targets.parquet"]  # fmt: skip
 
 
 def map_config(project: Path, *overrides: str) -> dict:

@@ -156,7 +156,7 @@ def test_rigmap_map_on_rigify_human_writes_its_keys_into_a_blend(human, tmp_path
     (clip,) = map_from_config(config, config_dir=conf, log=lambda _: None)
     assert sorted(p.name for p in clip.folder.iterdir()) == [
         "controls.parquet", "frames.parquet", "keys.json", "result.blend", "result.bvh",
-        "summary.json"]  # fmt: skip
+        "summary.json", "targets.parquet"]  # fmt: skip
     assert clip.summary["frames"] == 4 and clip.summary["joint_error_rms_cm"] < 15.0
 
     controls = pd.read_parquet(clip.folder / "controls.parquet")

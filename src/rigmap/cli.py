@@ -1,4 +1,5 @@
-"""``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate, map, pose, reproduce.
+"""``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate, map, pose, reproduce,
+and the link to a rig's runs in the MLflow UI (``rigmap tracking url``).
 
 Subcommands take plain flags (argparse); experiment commands pass Hydra
 overrides (``key=value``) straight to the pipeline apps.
@@ -110,12 +111,16 @@ def _parser() -> argparse.ArgumentParser:
         _add_map,
         _add_edits,
         _add_reproduce,
+        _add_tracking,
     ):
         add(commands)
     add_learn_command(commands, compose_config, find_config_dir)
     from rigmap.app.synth import add_synth_command
 
     add_synth_command(commands, compose_config, find_config_dir)
+    from rigmap.app.studio import add_studio_command
+
+    add_studio_command(commands, compose_config, find_config_dir)
     return parser
 
 
@@ -431,6 +436,45 @@ def _add_reproduce(commands) -> None:
         "the repository (folder with dvc.yaml and conf/; default: found from here up)",
     )
     reproduce.set_defaults(run=_reproduce)
+
+
+def _add_tracking(commands) -> None:
+    tracking = commands.add_parser("tracking", help="links into the MLflow tracking UI")
+    verbs = tracking.add_subparsers(title="tracking commands", metavar="TRACKING_COMMAND")
+    url = verbs.add_parser(
+        "url",
+        help="the link to a rig's runs list with each method's errors and frames/s",
+        description="Prints the link to the saved view the evaluate stage keeps of its "
+        "latest run of a metrics set (rigmap-methods is Table 1): every method with its "
+        "joint error, ground-truth error and frames per second, then its datasets. The "
+        "store is the tracking group's (tracking=server, tracking.uri=URI, "
+        "MLFLOW_TRACKING_URI, else the project's mlruns.db). Example: rigmap tracking url "
+        "--rig quadruped tracking=server",
+    )
+    url.add_argument("--rig", required=True, help="the rig's name, as `rigmap rigs list` shows it")
+    url.add_argument(
+        "--view",
+        default="methods",
+        metavar="SET",
+        help="the metrics set: methods (default, Table 1), samplers, kernels, "
+        "methods_heldout, methods_train",
+    )
+    url.add_argument(
+        "--ui",
+        default=None,
+        metavar="URL",
+        help="where the MLflow UI is served (default: the tracking server itself, or "
+        "http://127.0.0.1:5000 for a local store opened with `mlflow ui`)",
+    )
+    _stage_arguments(url, "config", "tracking=, tracking.uri=")
+    url.set_defaults(run=_tracking_url)
+
+
+def _tracking_url(args) -> int:
+    from rigmap.app.evaluate import lead_view_link
+
+    print(lead_view_link(list(args.overrides), args.config_dir, args.rig, args.view, args.ui))
+    return 0
 
 
 def _fit(args) -> int:

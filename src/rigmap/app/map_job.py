@@ -98,7 +98,7 @@ def map_from_config(
     window = frame_window(options)  # options first: a bad one is named before any file is read
     sources = input_files(config.get("input"))
     preview = bool(options.get("preview", True))
-    with load(_rig_options(config)) as rig:
+    with load(rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
         clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
         subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
@@ -390,7 +390,7 @@ def _model(config: Mapping, rig, subset: JointSubset, log: Log) -> SubsetModel:
     )
 
 
-def _rig_options(config: Mapping) -> dict:
+def rig_options(config: Mapping) -> dict:
     return {k: v for k, v in dict(config["rig"]).items() if k != "corpus"}
 
 
@@ -452,12 +452,10 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
     targets_file = config.get("targets")
     if not targets_file:
         raise MapConfigError("no targets: pass targets=<effector targets .json>")
-    with load(_rig_options(config)) as rig:
-        name = options.get("pose_subset") or _rig_section(options, rig.name).get("pose_subset")
-        subset = subset_for(options, rig, None, name or "effectors")
-        targets = read_effector_targets(targets_file, subset.joints)
-        model = _model(config, rig, subset, log)
-        settings = map_settings(options, rig.name)
+    with load(rig_options(config)) as rig:
+        subset = pose_subset(options, rig)
+        targets = read_effector_targets(targets_file, subset.joints)  # before a long fit
+        model, settings = _model(config, rig, subset, log), map_settings(options, rig.name)
         mode = options.get("pose_mode", "drag")
         if mode == "drag":
             controls, error, seconds = _drag(rig, model, targets, settings, options.get("drag"))
@@ -489,8 +487,23 @@ def pose_from_config(config: Mapping[str, Any], *, log: Log = print) -> Path:
         return out
 
 
-def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarray, dict]:
-    """The poses of ``targets`` in order, as :class:`InteractivePoser` follows a drag."""
+def pose_subset(options: Mapping[str, Any], rig) -> JointSubset:
+    """The effectors posing ``rig``: ``map.pose_subset``, else the rig's ``pose_subset``,
+    else ``effectors``."""
+    name = options.get("pose_subset") or _rig_section(options, rig.name).get("pose_subset")
+    return subset_for(options, rig, None, name or "effectors")
+
+
+def posing_parts(config: Mapping[str, Any], rig, log: Log = print):
+    """``(subset, model, settings)`` of posing ``rig`` from effectors: the joint subset
+    (:func:`pose_subset`), its mapping (fitted once, then cached), the refinement settings."""
+    options = config["map"]
+    subset = pose_subset(options, rig)
+    return subset, _model(config, rig, subset, log), map_settings(options, rig.name)
+
+
+def interactive_poser(rig, model, settings, options):
+    """:class:`InteractivePoser` with ``map.drag``'s options (checked)."""
     from rigmap.map.interactive_pose import InteractivePoser
 
     options = dict(options or {})
@@ -498,7 +511,7 @@ def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarra
     if unknown:
         raise MapConfigError(f"map.drag: unknown keys {unknown}; known: steps, carry_jacobian")
     try:
-        poser = InteractivePoser(
+        return InteractivePoser(
             rig,
             model.mapping,
             control_std=model.control_std,
@@ -509,6 +522,11 @@ def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarra
         )
     except (TypeError, ValueError) as error:
         raise MapConfigError(f"map.drag: {error}") from None
+
+
+def _drag(rig, model, targets, settings, options) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The poses of ``targets`` in order, as :class:`InteractivePoser` follows a drag."""
+    poser = interactive_poser(rig, model, settings, options)
     started = time.perf_counter()
     results = [poser(frame) for frame in targets]
     seconds = {

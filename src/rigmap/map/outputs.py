@@ -5,6 +5,9 @@
 - ``frames.parquet``: per frame, the RMS joint error over the mapped joints (cm), the
   mapping's confidence (:mod:`rigmap.map.confidence`, when given) and, when feet were
   given, whether each foot was planted;
+- ``targets.parquet``: ``frame`` and ``<joint>.x``, ``.y``, ``.z`` of each mapped joint: the
+  retargeted source the map was given (world cm, after planted feet were pinned), what
+  ``joint_error_cm`` is measured against; the studio's Review view draws it beside the rig;
 - ``keys.json``: per used control, its keys (frame, value, Bézier handles): the sparse
   curves an animator edits;
 - ``result.bvh``: the rig's joints at the mapped controls (world cm, Y up);
@@ -99,6 +102,7 @@ def write_map_outputs(
             for k, foot in enumerate(result.contacts.feet):
                 per_frame[f"planted.{foot}"] = result.contacts.planted[:, k]
         per_frame.to_parquet(staging / "frames.parquet", index=False)
+        _targets_table(result).to_parquet(staging / "targets.parquet", index=False)
         write_json_atomic(staging / "keys.json", _keys(result))
         pose = rig.pose(result.controls)
         world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
@@ -113,6 +117,14 @@ def write_map_outputs(
 
     headline = summary(result, rig)
     return MappedClip(write_folder_atomic(folder, fill), headline)
+
+
+def _targets_table(result: MapResult) -> pd.DataFrame:
+    columns = [f"{joint}.{axis}" for joint in result.joint_names for axis in "xyz"]
+    flat = np.asarray(result.targets, dtype=np.float64).reshape(result.n_frames, len(columns))
+    table = pd.DataFrame(flat, columns=columns)
+    table.insert(0, "frame", np.arange(result.n_frames))
+    return table
 
 
 def _keys(result: MapResult) -> dict:

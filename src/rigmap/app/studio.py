@@ -1,0 +1,168 @@
+"""``rigmap studio``: the browser studio (:mod:`rigmap.studio`) from the shell.
+
+This module is the only studio code that reads config: it composes ``conf/map.yaml`` per
+rig (the same options as ``rigmap pose``) and hands the views plain objects: for the Pose
+view one :class:`~rigmap.studio.pose_view.PoseSession` factory per rig, built when the user
+picks the rig (its effector mapping read from the cache, or fitted on the pipeline's
+corpus the first time).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+#: the built-in rigs the Pose view offers (Fig 5 full-body IK, Fig 6 feet, Fig 10 FaceIK)
+POSE_RIGS = ("biped", "quadruped", "face")
+#: ours: one damped step per drag event (9 ms on the biped against 26 for rigmap pose's two;
+#: a drag sends the next event within 50 ms, which refines further); map.drag.steps= changes it
+STUDIO_DEFAULTS = ("map.drag.steps=1",)
+#: the rig the Play view drives: the keyed face, whose labels are the game's emotions
+PLAY_RIG = "face"
+
+
+def add_studio_command(commands, compose_config, find_config_dir) -> None:
+    studio = commands.add_parser(
+        "studio",
+        help="pose, review, edit and play in the browser (a local web app)",
+        description="Serves rigmap's interactive tools as a web page (viser: a three.js "
+        "scene with gizmos) on 127.0.0.1 unless --host says otherwise. Pose: drag a rig's "
+        "effectors and the partial-input mapping with refinement poses the rig (biped: full "
+        "body, quadruped, face: FaceIK), using the corpus the main job wrote (data/) and the "
+        "map's cached models. Review: a `rigmap map` output folder under --folder played "
+        "back, the source beside the rig, with its per-frame error, confidence, keys and "
+        "foot contacts; scrub, play, loop. Edit: a BVH under --folder, frames, joints dragged "
+        "with pins (the IK), the edit learned, applied to another clip and fixed (the "
+        "`rigmap edits learn/apply/fix` calls). Play: the face's latent models (rigmap synth, or "
+        "the main job's) driven live at 24 fps by MOVE / IDLE / TRANSITION / PLAY buttons and "
+        "by a game of noughts and crosses against you. Reads files only under --folder, "
+        "writes only under --out. "
+        "Example: rigmap studio --port 8080, then open http://127.0.0.1:8080.",
+    )
+    studio.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
+    studio.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free)")
+    studio.add_argument(
+        "--folder",
+        type=Path,
+        default=Path("."),
+        help="the only folder the studio reads files from (default: the working directory)",
+    )
+    studio.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="the only folder it writes to (default: outputs/studio)",
+    )
+    studio.add_argument(
+        "--rigs",
+        default=",".join(POSE_RIGS),
+        help=f"rigs the Pose view offers, comma-separated (default {','.join(POSE_RIGS)})",
+    )
+    studio.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="Hydra overrides of conf/map.yaml for every rig (paths.data=, map.drag.steps=, ...)",
+    )
+    studio.add_argument("--config-dir", type=Path, default=None, help="the Hydra conf/ folder")
+    studio.set_defaults(run=lambda args: _serve(args, find_config_dir))
+
+
+def _serve(args, find_config_dir) -> int:
+    studio = build_studio(
+        rigs=[r for r in args.rigs.split(",") if r],
+        overrides=list(args.overrides),
+        config_dir=find_config_dir(args.config_dir),
+        folder=args.folder,
+        out=args.out,
+        host=args.host,
+        port=args.port,
+    )
+    print(f"rigmap studio: {studio.url} (Ctrl-C stops it)", flush=True)
+    studio.wait()
+    return 0
+
+
+def build_studio(*, rigs, overrides, config_dir, folder, out=None, host, port):
+    """The studio with its views, serving at ``host:port`` (``port`` 0: a free one)."""
+    from rigmap.app.edits import load_settings
+    from rigmap.rigs import load
+    from rigmap.store import Layout
+    from rigmap.studio.app import Studio
+    from rigmap.studio.edit_view import EditView
+    from rigmap.studio.pose_view import PoseView
+    from rigmap.studio.review_view import ReviewView
+    from rigmap.studio.served_folder import ServedFolder
+    from rigmap.studio.writes import OutputFolder
+
+    served = ServedFolder(folder)  # checked before the port opens
+    unknown = [r for r in rigs if not r.strip()]
+    if unknown or not rigs:
+        raise ValueError(f"--rigs: expected rig names separated by commas, got {rigs!r}")
+    output = OutputFolder(out if out is not None else Layout.user_output("studio"))
+    factories = {rig: _pose_factory(rig, overrides, config_dir) for rig in rigs}
+    views = [
+        PoseView(factories, output),
+        ReviewView(served, load),
+        EditView(served, output, load_settings(config_dir)),
+    ]
+    try:
+        views.append(play_view(overrides, config_dir))
+    except FileNotFoundError as missing:  # no latent models yet: the other views still serve
+        print(f"rigmap studio: no Play view: {missing}", flush=True)
+    return Studio(views, host=host, port=port)
+
+
+def play_view(overrides, config_dir, rig_name: str = PLAY_RIG):
+    """The Play view on ``rig_name``'s latent models: your own ``rigmap synth fit`` and
+    ``match`` (under outputs/) when there, else the pipeline's (``models/``)."""
+    from rigmap.app.config import compose_config
+    from rigmap.app.inputs import layout_of
+    from rigmap.latent import steps
+    from rigmap.rigs import load
+    from rigmap.store import Layout
+    from rigmap.studio.play_view import PlayView
+    from rigmap.user_outputs import user_paths
+
+    paths = [o for o in overrides if o.partition("=")[0].lstrip("+~").startswith("paths.")]
+    own = user_paths(paths, keys=("models",))
+    if own and Layout(models=Layout.user_root("models")).latent_fit(rig_name).is_dir():
+        paths = [*own, *paths]
+    layout = layout_of(compose_config([f"rig={rig_name}", *paths], config_dir))
+    fitted, table = steps.load_fitted(layout, rig_name), steps.load_table(layout, rig_name)
+    return PlayView(load(rig_name), fitted, table)
+
+
+def _pose_factory(rig_name: str, overrides, config_dir):
+    def build():
+        return pose_session(rig_name, overrides, config_dir)
+
+    return build
+
+
+def pose_session(rig_name: str, overrides, config_dir):
+    """A :class:`PoseSession` of ``rig_name`` from ``conf/map.yaml`` and ``overrides``."""
+    from rigmap.app.map_job import interactive_poser, map_config, posing_parts, rig_options
+    from rigmap.rigs import load
+    from rigmap.studio.pose_view import PoseSession
+    from rigmap.user_outputs import user_paths
+
+    given = {o.partition("=")[0] for o in overrides}
+    defaults = [d for d in STUDIO_DEFAULTS if d.partition("=")[0] not in given]
+    overrides = [f"rig={rig_name}", *user_paths(overrides, keys=("models",)), *defaults, *overrides]
+    config = map_config(overrides, config_dir)
+    rig = load(rig_options(config))
+    subset, model, settings = posing_parts(config, rig, log=lambda _line: None)
+    poser = interactive_poser(rig, model, settings, config["map"].get("drag"))
+
+    def pose(targets):
+        result = poser(targets)
+        return result.controls, result.distance_cm
+
+    return PoseSession(
+        rig=rig,
+        effectors=tuple(subset.joints),
+        pose=pose,
+        reset=poser.reset,
+        rest=rig.controls.defaults.astype("float64").copy(),
+        description=f"{subset.name}: {len(subset.joints)} effectors",
+    )

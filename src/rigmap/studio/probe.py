@@ -1,0 +1,104 @@
+"""Driving the Pose view from a real browser as a user does, and timing it there: shared
+by the browser tests and ``benchmarks/studio.py`` (Playwright pages; nothing here runs in
+the studio itself).
+
+A drag is real mouse input (Chromium's own pointer events) on a gizmo's axis arrow, found
+on the canvas from the view's camera (:func:`rigmap.studio.camera.screen_point`). Latency is
+measured in the page's clock: from the ``pointermove`` event's time stamp to the animation
+frame in which the page first shows the pose it caused (the status line's pose count).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from rigmap.studio.camera import screen_point
+
+#: where on an axis arrow the mouse grabs it, as a share of the gizmo's scale (measured: the
+#: arrow's shaft is grabbed at 0.8; at 0.6 the press can miss it and orbit the camera)
+ARROW_GRAB = 0.8
+STATUS = re.compile(r"pose (\d+) ·")
+
+WATCH_POSES = """(marker) => {
+  const node = [...document.querySelectorAll('p')].find((n) => n.textContent.includes(marker));
+  if (!node) { throw new Error('no status line holding ' + marker); }
+  const box = node.parentElement.parentElement;
+  window.__moves = []; window.__frames = [];
+  window.addEventListener('pointermove', (e) => window.__moves.push(e.timeStamp), true);
+  let last = -1;
+  const seen = () => {
+    const m = box.textContent.match(/pose (\\d+) ·/);
+    const n = m ? Number(m[1]) : -1;
+    if (n !== last) {
+      last = n;
+      requestAnimationFrame((t) => window.__frames.push([n, t]));
+    }
+  };
+  new MutationObserver(seen).observe(box, {subtree: true, childList: true, characterData: true});
+  seen();
+}"""
+
+
+def canvas_box(page) -> dict:
+    page.wait_for_selector("canvas", timeout=60_000)
+    return page.locator("canvas").first.bounding_box()
+
+
+def gizmo_point(view, joint: str, box: dict, *, along=(1.0, 0.0, 0.0)) -> tuple[float, float]:
+    """The page pixel of ``joint``'s gizmo arrow (``along`` one of its axes)."""
+    gizmo = view.gizmo(joint)
+    point = np.asarray(gizmo.position) + ARROW_GRAB * view.gizmo_scale * np.asarray(along)
+    x, y = screen_point(view.camera, point, box["width"], box["height"])
+    return box["x"] + x, box["y"] + y
+
+
+def watch_poses(page, marker: str = "effectors · pose") -> None:
+    """Start recording pointer moves and the frames that show a new pose."""
+    page.wait_for_function(
+        "(m) => document.body.textContent.includes(m)", arg=marker, timeout=60_000
+    )
+    page.evaluate(WATCH_POSES, marker)
+
+
+def frames_seen(page) -> int:
+    return int(page.evaluate("window.__frames.length"))
+
+
+#: viser's gizmo sends at most one update per 50 ms while dragging (its client's throttle):
+#: a move sooner than that waits in the page. Drags are paced just above it (ours).
+PACE_S = 0.06
+
+
+def timed_drag(page, start, steps, *, pace_s: float = PACE_S, timeout_ms: float = 10_000):
+    """Press at ``start``, move through ``steps`` (page pixels) at most one move per
+    ``pace_s``, waiting after each for the frame that shows its pose; release.
+    Milliseconds per move, from its pointer event to that frame (the page's clock)."""
+    import time
+
+    page.mouse.move(*start)
+    page.mouse.down()
+    latencies, last = [], 0.0
+    try:
+        for x, y in steps:
+            before = frames_seen(page)
+            time.sleep(max(0.0, last + pace_s - time.perf_counter()))
+            last = time.perf_counter()
+            page.mouse.move(x, y)
+            page.wait_for_function(
+                "(n) => window.__frames.length > n", arg=before, timeout=timeout_ms
+            )
+            moved, shown = page.evaluate("[window.__moves.at(-1), window.__frames.at(-1)[1]]")
+            latencies.append(float(shown - moved))
+    finally:
+        page.mouse.up()
+    return latencies
+
+
+def wiggle(start, n: int, *, step_px: float = 2.0, span: int = 10) -> list[tuple[float, float]]:
+    """``n`` points moving right by ``step_px`` and back every ``span`` steps (a hand
+    nudging an effector to and fro, staying on the screen)."""
+    x0, y0 = start
+    phases = [k % (2 * span) for k in range(1, n + 1)]
+    return [(x0 + step_px * min(p, 2 * span - p), y0) for p in phases]
