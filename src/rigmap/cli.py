@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.app.arguments import override_arguments
 from rigmap.app.config import compose_config, find_config_dir
 from rigmap.errors import RigmapError
 from rigmap.user_outputs import user_paths
@@ -362,23 +363,9 @@ def _add_stage_command(
 ) -> argparse.ArgumentParser:
     """A verb that runs a pipeline stage in this process with Hydra overrides."""
     command = commands.add_parser(name, help=help, description=description)
-    _stage_arguments(command, config_name, overrides)
+    override_arguments(command, config_name, overrides)
     command.set_defaults(run=run)
     return command
-
-
-def _stage_arguments(command, config_name: str, overrides: str) -> None:
-    command.add_argument(
-        "overrides",
-        nargs="*",
-        metavar="KEY=VALUE",
-        help=f"Hydra overrides of conf/{config_name}.yaml ({overrides})",
-    )
-    _folder_option(
-        command,
-        "--config-dir",
-        "the Hydra conf/ folder (default: ./conf, else the one shipped inside the package)",
-    )
 
 
 def _add_reproduce(commands) -> None:
@@ -466,7 +453,7 @@ def _add_tracking(commands) -> None:
         help="where the MLflow UI is served (default: the tracking server itself, or "
         "http://127.0.0.1:5000 for a local store opened with `mlflow ui`)",
     )
-    _stage_arguments(url, "config", "tracking=, tracking.uri=")
+    override_arguments(url, "config", "tracking=, tracking.uri=")
     url.set_defaults(run=_tracking_url)
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rigmap.app.arguments import config_dir_option
 from rigmap.store import Layout
 from rigmap.user_outputs import USER_OUTPUTS
 
@@ -41,15 +42,6 @@ GLITCH_HELP = (
 )
 
 
-def _config_dir_option(command) -> None:
-    command.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else rigmap's)",
-    )
-
-
 def add_learn_command(verbs) -> None:
     learn = verbs.add_parser(
         "learn",
@@ -78,7 +70,7 @@ def add_learn_command(verbs) -> None:
     )
     learn.add_argument("--out", type=Path, default=None, help="the folder to write the model to")
     learn.add_argument("--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP)
-    _config_dir_option(learn)
+    config_dir_option(learn)
     learn.set_defaults(run=run_learn)
 
 
@@ -104,7 +96,7 @@ def add_fix_command(verbs) -> None:
     )
     fix.add_argument("--suggest", type=int, default=3, help="how many segments to suggest")
     fix.add_argument("--segment", type=int, default=12, help="frames per suggested segment")
-    _config_dir_option(fix)
+    config_dir_option(fix)
     fix.set_defaults(run=run_fix)
 
 

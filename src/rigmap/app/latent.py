@@ -37,6 +37,20 @@ def latent_config(cfg) -> dict:
     return config
 
 
+def fitted_models_config(overrides, config_dir, compose_config):
+    """The composed config whose models are your own ``rigmap synth fit`` and ``match``'s
+    (under outputs/) when they hold the rig's, else the pipeline's (``models/``), unless
+    ``paths.models=DIR`` names them: only ``--out`` is ever written."""
+    from rigmap.store import Layout
+    from rigmap.user_outputs import user_paths
+
+    cfg = compose_config(list(overrides), config_dir)
+    own = user_paths(overrides, keys=("models",))
+    if own and Layout(models=Layout.user_root("models")).latent_fit(str(cfg.rig.name)).is_dir():
+        cfg = compose_config([*own, *overrides], config_dir)
+    return cfg
+
+
 def run_step(cfg) -> Path:
     from rigmap.app.inputs import layout_of, rig_from_config
 

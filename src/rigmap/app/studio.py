@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rigmap.app.arguments import override_arguments
+
 #: the built-in rigs the Pose view offers (Fig 5 full-body IK, Fig 6 feet, Fig 10 FaceIK)
 POSE_RIGS = ("biped", "quadruped", "face")
 #: ours: one damped step per drag event (9 ms on the biped against 26 for rigmap pose's two;
@@ -57,13 +59,7 @@ def add_studio_command(commands, compose_config, find_config_dir) -> None:
         default=",".join(POSE_RIGS),
         help=f"rigs the Pose view offers, comma-separated (default {','.join(POSE_RIGS)})",
     )
-    studio.add_argument(
-        "overrides",
-        nargs="*",
-        metavar="KEY=VALUE",
-        help="Hydra overrides of conf/map.yaml for every rig (paths.data=, map.drag.steps=, ...)",
-    )
-    studio.add_argument("--config-dir", type=Path, default=None, help="the Hydra conf/ folder")
+    override_arguments(studio, "map", "for every rig: paths.data=, map.drag.steps=, ...")
     studio.set_defaults(run=lambda args: _serve(args, find_config_dir))
 
 
@@ -117,17 +113,14 @@ def play_view(overrides, config_dir, rig_name: str = PLAY_RIG):
     ``match`` (under outputs/) when there, else the pipeline's (``models/``)."""
     from rigmap.app.config import compose_config
     from rigmap.app.inputs import layout_of
+    from rigmap.app.latent import fitted_models_config
     from rigmap.latent import steps
     from rigmap.rigs import load
-    from rigmap.store import Layout
     from rigmap.studio.play_view import PlayView
-    from rigmap.user_outputs import user_paths
 
     paths = [o for o in overrides if o.partition("=")[0].lstrip("+~").startswith("paths.")]
-    own = user_paths(paths, keys=("models",))
-    if own and Layout(models=Layout.user_root("models")).latent_fit(rig_name).is_dir():
-        paths = [*own, *paths]
-    layout = layout_of(compose_config([f"rig={rig_name}", *paths], config_dir))
+    cfg = fitted_models_config([f"rig={rig_name}", *paths], config_dir, compose_config)
+    layout = layout_of(cfg)
     fitted, table = steps.load_fitted(layout, rig_name), steps.load_table(layout, rig_name)
     return PlayView(load(rig_name), fitted, table)
 

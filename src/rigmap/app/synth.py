@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.app.arguments import override_arguments
+
 OVERRIDES = (
     "rig=face|squirrel|arkit_face, latent.max_iter=, latent.n_pca=, latent.labels=, paths.*="
 )
@@ -46,7 +48,7 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         )
         if verb == "fit":
             _takes_options(command)
-        _overrides(command)
+        override_arguments(command, "config", OVERRIDES)
         command.set_defaults(run=lambda args, verb=verb: _stage(verb, args, compose_config))
     run = verbs.add_parser(
         "run",
@@ -71,7 +73,7 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
         help="controls parquet to write, a Live Link Face .csv (ARKit-named controls) or a .blend",
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the particle's random force")
-    _overrides(run)
+    override_arguments(run, "config", OVERRIDES)
     run.set_defaults(run=lambda args: _run(args, compose_config))
     demo = verbs.add_parser(
         "demo",
@@ -87,23 +89,8 @@ def add_synth_command(commands, compose_config, find_config_dir) -> None:
     demo.add_argument("--seed", type=int, default=0, help="seed of the players and the particle")
     demo.add_argument("--frames-per-turn", type=int, default=24, help="frames between turns")
     demo.add_argument("--out", type=Path, default=None, help="controls parquet to write (opt.)")
-    _overrides(demo)
+    override_arguments(demo, "config", OVERRIDES)
     demo.set_defaults(run=lambda args: _demo(args, compose_config))
-
-
-def _overrides(command) -> None:
-    command.add_argument(
-        "overrides",
-        nargs="*",
-        metavar="KEY=VALUE",
-        help=f"Hydra overrides of conf/config.yaml ({OVERRIDES})",
-    )
-    command.add_argument(
-        "--config-dir",
-        type=Path,
-        default=None,
-        help="the Hydra conf/ folder (default: ./conf, else the conf/ of rigmap's source checkout)",
-    )
 
 
 def _takes_options(command) -> None:
@@ -160,17 +147,10 @@ def _loaded(args, compose_config, script: str | None = None):
     """The rig, the latent config and the fitted models; ``script`` is read (and checked)
     before the models load."""
     from rigmap.app.inputs import layout_of, rig_from_config
-    from rigmap.app.latent import latent_config
+    from rigmap.app.latent import fitted_models_config, latent_config
     from rigmap.latent import steps
-    from rigmap.store import Layout
-    from rigmap.user_outputs import user_paths
 
-    # only --out is written; the models are your own `synth fit` and `match`'s under
-    # outputs/ when there, else the pipeline's (models/), unless paths.models=DIR names them
-    cfg = compose_config(list(args.overrides), args.config_dir)
-    own = user_paths(args.overrides, keys=("models",))
-    if own and Layout(models=Layout.user_root("models")).latent_fit(str(cfg.rig.name)).is_dir():
-        cfg = compose_config([*own, *args.overrides], args.config_dir)
+    cfg = fitted_models_config(args.overrides, args.config_dir, compose_config)
     config = latent_config(cfg)
     if script is not None:
         steps.read_script(steps.script_path(script), max_frames=steps.max_script_frames(config))
