@@ -50,6 +50,13 @@ def apply(camera: CameraPose, target) -> None:
         target.up = tuple(camera.up)
 
 
+def aim_every_page(camera: CameraPose, server) -> None:
+    """Every open page's camera, and a new page's, set to ``camera``."""
+    apply(camera, server.initial_camera)
+    for client in server.get_clients().values():
+        apply(camera, client.camera)
+
+
 def screen_point(camera: CameraPose, point, width: float, height: float) -> tuple[float, float]:
     """Pixel ``(x, y)`` from the canvas's top-left of scene ``point`` (perspective)."""
     forward = camera.look_at - camera.position

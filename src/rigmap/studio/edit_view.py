@@ -36,7 +36,7 @@ from rigmap.edits.authoring import AuthoringError
 from rigmap.edits.fixes import fix_folder
 from rigmap.edits.skeleton_mode import track_motion
 from rigmap.errors import RigmapError
-from rigmap.studio.camera import CameraPose, apply, front_camera
+from rigmap.studio.camera import CameraPose, aim_every_page, front_camera
 from rigmap.studio.edit_clips import (
     DISPLAY_HEIGHT_M,
     GIZMO_ROLES,
@@ -208,7 +208,7 @@ class EditView(PlaysFrames):
             for handle in self._handles():
                 handle.visible = visible
         if visible and self.camera is not None:
-            self._aim()
+            aim_every_page(self.camera, self.server)
 
     def close(self) -> None:
         self._clock.close()
@@ -332,12 +332,7 @@ class EditView(PlaysFrames):
         points = self._scene_points(opened.joints.reshape(-1, 3), opened.scale)
         both = np.concatenate([points, points + np.array([RESULT_GAP_M, 0.0, 0.0])])
         self.camera = front_camera(both)
-        self._aim()
-
-    def _aim(self) -> None:
-        apply(self.camera, self.server.initial_camera)
-        for client in self.server.get_clients().values():
-            apply(self.camera, client.camera)
+        aim_every_page(self.camera, self.server)
 
     def gizmo(self, joint: str):
         """The source's gizmo of ``joint`` (a joint name, or a role such as ``hand_r``)."""

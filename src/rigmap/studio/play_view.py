@@ -45,7 +45,7 @@ from rigmap.latent.synthesis import (
     SynthesisSettings,
     Transition,
 )
-from rigmap.studio.camera import apply, front_camera
+from rigmap.studio.camera import aim_every_page, front_camera
 from rigmap.studio.scene import to_scene
 from rigmap.torch_threads import one_thread
 
@@ -223,9 +223,7 @@ class PlayView:
         if not visible:
             self._visible.clear()
             return
-        apply(self.camera, self.server.initial_camera)
-        for client in self.server.get_clients().values():
-            apply(self.camera, client.camera)
+        aim_every_page(self.camera, self.server)
         self._visible.set()
 
     def close(self) -> None:

@@ -16,13 +16,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rigmap.studio.camera import CameraPose, apply, front_camera
+from rigmap.studio.camera import CameraPose, aim_every_page, front_camera
 from rigmap.studio.scene import (
     SkeletonDrawing,
     from_scene,
     to_scene,
-    world_joints,
-    world_surface,
+    world_pose,
 )
 from rigmap.studio.writes import OutputFolder
 
@@ -100,7 +99,7 @@ class PoseView:
             if handle is not None:
                 handle.visible = visible
         if visible and self.camera is not None:  # another view may have moved it
-            self._aim(self.camera)
+            aim_every_page(self.camera, self.server)
 
     def close(self) -> None:
         with self._wake:
@@ -121,8 +120,7 @@ class PoseView:
             self._clear()
             self.session = session
             self.record = PoseRecord(controls=session.rest.copy())
-            joints = world_joints(session.rig, session.rest)
-            shown = self._draw(session, joints)
+            shown = self._draw(session, *world_pose(session.rig, session.rest))
         self.frame(shown)
         self._show_pose(session.rest, 0.0, 0.0)
         self._list_controls()
@@ -130,12 +128,7 @@ class PoseView:
     def frame(self, points) -> None:
         """Every page's camera (and a new page's) in front of the character."""
         self.camera = front_camera(points)
-        self._aim(self.camera)
-
-    def _aim(self, camera: CameraPose) -> None:
-        apply(camera, self.server.initial_camera)
-        for client in self.server.get_clients().values():
-            apply(camera, client.camera)
+        aim_every_page(self.camera, self.server)
 
     def _clear(self) -> None:
         for handle in (self._drawing, self._mesh, *self._gizmos):
@@ -143,13 +136,13 @@ class PoseView:
                 handle.remove()
         self._drawing, self._mesh, self._gizmos = None, None, []
 
-    def _draw(self, session: PoseSession, joints: np.ndarray) -> np.ndarray:
-        """The skeleton, a mesh rig's surface and the gizmos; returns the points to frame
-        (scene units: the surface's if there is one, else the joints')."""
+    def _draw(self, session: PoseSession, joints: np.ndarray, surface) -> np.ndarray:
+        """The skeleton, a mesh rig's ``surface`` (None: none) and the gizmos; returns the
+        points to frame (scene units: the surface's if there is one, else the joints')."""
         scene, rig = self.server.scene, session.rig
         shown = to_scene(joints)
-        if callable(getattr(rig, "mesh", None)) and getattr(rig, "faces", None) is not None:
-            shown = to_scene(world_surface(rig, session.rest))
+        if surface is not None:
+            shown = to_scene(surface)
             self._mesh = scene.add_mesh_simple(
                 f"{SCENE}/mesh", vertices=shown, faces=np.asarray(rig.faces), color=(225, 190, 170)
             )
@@ -217,9 +210,10 @@ class PoseView:
     def _show_pose(self, controls: np.ndarray, distance: float, seconds: float) -> None:
         session = self.session
         rig = session.rig
-        self._drawing.update(world_joints(rig, controls))
-        if self._mesh is not None:
-            self._mesh.vertices = to_scene(world_surface(rig, controls))
+        joints, surface = world_pose(rig, controls)
+        self._drawing.update(joints)
+        if self._mesh is not None and surface is not None:
+            self._mesh.vertices = to_scene(surface)
         record = self.record
         record.count += 1
         record.controls = np.asarray(controls, dtype=np.float64)

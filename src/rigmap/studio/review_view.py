@@ -24,7 +24,7 @@ import pandas as pd
 from rigmap.errors import RigmapError
 from rigmap.map.outputs import SUMMARY_FORMAT
 from rigmap.map.preview import subset_parents
-from rigmap.studio.camera import CameraPose, apply, front_camera
+from rigmap.studio.camera import CameraPose, aim_every_page, front_camera
 from rigmap.studio.playback import FrameClock, PlaysFrames
 from rigmap.studio.scene import SkeletonDrawing, to_scene
 from rigmap.studio.served_folder import ServedFolder, StudioFileError
@@ -288,7 +288,7 @@ class ReviewView(PlaysFrames):
             if handle is not None:
                 handle.visible = visible
         if visible and self.camera is not None:
-            self._aim()
+            aim_every_page(self.camera, self.server)
 
     def close(self) -> None:
         self._clock.close()
@@ -433,12 +433,7 @@ class ReviewView(PlaysFrames):
         if clip.source_joints is not None:
             points.append((clip.source_joints + clip.offset_cm).reshape(-1, 3))
         self.camera = front_camera(to_scene(np.concatenate(points)))
-        self._aim()
-
-    def _aim(self) -> None:
-        apply(self.camera, self.server.initial_camera)
-        for client in self.server.get_clients().values():
-            apply(self.camera, client.camera)
+        aim_every_page(self.camera, self.server)
 
     # ------------------------------------------------------------------ timeline
     def _add_timeline(self, gui):

@@ -41,12 +41,14 @@ def bone_pairs(rig) -> np.ndarray:
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
-def world_surface(rig, controls) -> np.ndarray:
-    """A mesh rig's vertices ``(V, 3)`` in the world (cm): ``rig.mesh`` is relative to the
-    centre of gravity, as the joint positions are."""
-    row = np.asarray(controls, dtype=np.float64)[None]
-    cog = np.asarray(rig.pose(row).cog)[0]
-    return np.asarray(rig.mesh(row))[0] + cog
+def world_pose(rig, controls) -> tuple[np.ndarray, np.ndarray | None]:
+    """Joints ``(J, 3)`` and, for a mesh rig (one with ``world_vertices`` and faces), every
+    vertex ``(V, 3)``, in the world (cm), from one evaluation of the rig: a mesh rig's joints
+    are some of its vertices."""
+    if callable(getattr(rig, "world_vertices", None)) and getattr(rig, "faces", None) is not None:
+        surface = np.asarray(rig.world_vertices(np.asarray(controls, dtype=np.float64)))
+        return surface[np.asarray(rig.joint_vertices)], surface
+    return world_joints(rig, controls), None
 
 
 class SkeletonDrawing:

@@ -97,6 +97,14 @@ class MeshRig(Rig):
         (vertices,) = _run(Y, vertices_of, self._chunk)
         return vertices[0] if squeeze else vertices
 
+    def world_vertices(self, Y):
+        """Every deformed vertex in the world (cm, not relative to the COG): ``(N, V, 3)``, or
+        ``(V, 3)`` for one pose. One deformation gives a drawn surface and, at
+        :attr:`joint_vertices`, the joints: a viewer needs no second evaluation."""
+        Y, squeeze = self._check_controls(Y)
+        (vertices,) = _run(Y, lambda Yt: (self._deform(Yt, None).vertices,), self._chunk)
+        return vertices[0] if squeeze else vertices
+
     @abstractmethod
     def _deform(self, Y: torch.Tensor, vertex_index: np.ndarray | None) -> DeformedMesh:
         """Deform the mesh for an ``(N, C)`` batch; only ``vertex_index`` vertices if given."""
