@@ -84,6 +84,29 @@ def test_a_blends_takes_need_a_blender_rig_and_their_labels_a_matching_name(hero
         read_labelled_takes(hero_blend, load("arkit_face"), fps=24)
 
 
+def test_a_blend_of_one_action_is_one_take_not_a_corpus_without_a_test_clip(tmp_path):
+    """The corpus import holds its most extreme action out and so needs two; takes for the
+    latent models hold nothing out, so one action is one take."""
+    from rigmap.animation.blend_corpus import (
+        BlendCorpusError,
+        import_blend_corpus,
+        write_actions_blend,
+    )
+    from rigmap.animation.library import build_clip, motion_library
+    from rigmap.rigs.blender.rigify import rigify_blend
+
+    library = motion_library("rigify_human")
+    idle = next(m for s in ("train", "test") for m in library.motions(s) if m.name == "Idle")
+    path = tmp_path / "idle.blend"
+    write_actions_blend(rigify_blend("human"), [build_clip("rigify_human", idle, seed=0)], path)
+    options = {"armature": "rig", "check_determinism": False}
+    with pytest.raises(BlendCorpusError, match="needs at least two"):
+        import_blend_corpus(path, **options)
+    takes = import_blend_corpus(path, **options, split=False)
+    assert [c.name for c in takes.clips] == ["Idle"] and takes.test_names == []
+    assert takes.train_names == ["Idle"]
+
+
 def test_the_arkit_faces_shot_as_shape_keys_plays_back_its_controls(tmp_path):
     from rigmap.cli import main
     from rigmap.latent import steps

@@ -16,6 +16,7 @@ the file is never written. Around the keys:
 * *test clips*: named (globs) in ``test_clips``, else the ``extreme_test_clips`` clips
   farthest from the rest pose (largest RMS over used controls of the distance from the
   rest value in units of the control's soft range, at the clip's most extreme frame);
+  none with ``split=False`` (takes for the latent models, which hold nothing out);
 * every curve rigmap evaluates itself is compared with Blender's own evaluation at every
   frame; a curve that differs by more than ``MATCH_TOLERANCE`` (Blender units), or that
   uses what the model does not carry (easing, F-curve modifiers, linear extrapolation,
@@ -202,6 +203,7 @@ def import_blend_corpus(
     check_determinism: bool = True,
     blender: str | None = None,
     timeout: float = READ_TIMEOUT_S,
+    split: bool = True,
 ) -> BlendCorpus:
     """Read the actions of ``path`` as clips; run the checks; see the module docstring."""
     from rigmap.rigs.blender.pool import WorkerPool
@@ -242,8 +244,7 @@ def import_blend_corpus(
             sha,
             actions,
             used,
-            test_clips,
-            extreme_test_clips,
+            (test_clips, extreme_test_clips) if split else None,
             rig_name or f"blend_file:{path.stem}",
             soft_range_margin,
         )
@@ -289,7 +290,8 @@ def _reworded(error: WorkerError, path: Path) -> BlendCorpusError:
     return BlendCorpusError(message)
 
 
-def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_name, margin):
+def _build(info, path, options, sha, pattern, used, test_rule, rig_name, margin):
+    """The corpus; ``test_rule``: ``(test_clips, extreme_test_clips)``, None: no test clip."""
     where = f"{path}: armature {info['armature']!r}"
     controls = {c["name"]: c for c in info["controls"]}
     names = [c["name"] for c in info["controls"]]
@@ -321,7 +323,9 @@ def _build(info, path, options, sha, pattern, used, test_clips, extreme, rig_nam
         raise BlendCheckError(problems)
     defaults = {n: float(controls[n]["default"]) for n in names}
     ranges = _soft_ranges(clips, used_names, controls, info["limits"], margin)
-    test = _test_split(clips, used_names, defaults, ranges, test_clips, extreme, where)
+    test = []
+    if test_rule is not None:
+        test = _test_split(clips, used_names, defaults, ranges, *test_rule, where)
     return BlendCorpus(
         path=path,
         armature=info["armature"],

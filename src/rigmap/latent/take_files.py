@@ -273,7 +273,9 @@ def blend_takes(path, rig, *, fps: float) -> dict[str, np.ndarray]:
             f"rig.path=<the rig's .blend> (got rig {rig.name!r})"
         )
     keys = [k for k in SESSION_KEYS if options.get(k) is not None and k not in ("used",)]
-    corpus = import_blend_corpus(path, **{k: options[k] for k in keys}, check_determinism=False)
+    corpus = import_blend_corpus(
+        path, **{k: options[k] for k in keys}, check_determinism=False, split=False
+    )
     if abs(corpus.fps - float(fps)) > 1e-9:
         raise TakeFileError(
             f"{path}: its actions play at {corpus.fps} fps, but the latent stages run "
