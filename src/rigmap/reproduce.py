@@ -177,9 +177,9 @@ def pending_stages(
             [[dvc, "dag", "--dot"], *([] if force else [[dvc, "status", "--json"]])], plan
         )
         dag = outputs[0]
-        nodes = [_stage_name(n) for n in _DOT_NODE.findall(dag)]
-        edges = [(_stage_name(a), _stage_name(b)) for a, b in _DOT_EDGE.findall(dag)]
-        changed = set(nodes) if force else {_stage_name(n) for n in json.loads(outputs[1])}
+        nodes = [short_name(n) for n in _DOT_NODE.findall(dag)]
+        edges = [(short_name(a), short_name(b)) for a, b in _DOT_EDGE.findall(dag)]
+        changed = set(nodes) if force else {short_name(n) for n in json.loads(outputs[1])}
     except (OSError, ValueError, subprocess.CalledProcessError):
         return None
     downstream = {a: set() for a in nodes}
@@ -198,10 +198,6 @@ def pending_stages(
 
 _DOT_NODE = re.compile(r'^"([^"]+)";$', re.MULTILINE)
 _DOT_EDGE = re.compile(r'^"([^"]+)" -> "([^"]+)";$', re.MULTILINE)
-
-
-def _stage_name(name: str) -> str:
-    return short_name(name.split(":", 1)[1] if name.startswith("dvc.yaml:") else name)
 
 
 def dvc_target(families: Mapping[str, StageFamily], target: str) -> str:

@@ -41,11 +41,6 @@ class StagePlan:
         return sorted(self.order, key=lambda stage: stage not in self.early)
 
 
-def family(stage: str) -> str:
-    """``evaluate@quadruped-methods`` -> ``evaluate`` (a foreach/matrix stage's dvc.yaml key)."""
-    return family_of(stage)
-
-
 def families_marked(dvc_yaml: Path, key: str) -> frozenset[str]:
     """The stage families of ``dvc.yaml`` and the stage files beside it marked
     ``meta: {<key>: true}``."""
@@ -91,8 +86,8 @@ def plan_stages(
         order.extend(ready)
         done.update(ready)
         remaining = [s for s in remaining if s not in done]
-    alone = frozenset(s for s in pending if family(s) in alone_families)
-    marked = {s for s in pending if family(s) in early_families}
+    alone = frozenset(s for s in pending if family_of(s) in alone_families)
+    marked = {s for s in pending if family_of(s) in early_families}
     early = frozenset(marked.union(*(waits_for[s] for s in marked)))
     return StagePlan(tuple(order), waits_for, alone, early)
 
