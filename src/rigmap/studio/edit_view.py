@@ -294,15 +294,28 @@ class EditView(PlaysFrames):
             group.clear()
 
     def _draw_source(self, opened: OpenedClip) -> None:
-        scene = self.server.scene
         first = self._scene_points(opened.joints[0], opened.scale)
-        for key, color in (("source", GHOST_COLOR), ("edit", EDIT_COLOR)):
+        colors = (("source", GHOST_COLOR), ("edit", EDIT_COLOR))
+        self._gizmos.update(
+            self._draw_pair(opened, first, "source", colors, "edited (blue) over the clip")
+        )
+
+    def _draw_pair(self, opened: OpenedClip, points, place: str, colors, caption: str) -> dict:
+        """Two skeletons of ``opened`` at ``points`` (scene units) under ``place`` (the clip
+        and its edit: ``colors`` names and colours them), its gizmos and its label; returns
+        the gizmos."""
+        for key, color in colors:
             self.drawings[key] = SkeletonDrawing(
-                scene, f"{SCENE}/source/{key}", opened.skeleton, from_scene(first), color=color
+                self.server.scene,
+                f"{SCENE}/{place}/{key}",
+                opened.skeleton,
+                from_scene(points),
+                color=color,
             )
             self.drawings[key].visible = self._visible
-        self._gizmos.update(self._add_gizmos(opened, first, "source"))
-        self._labels["source"] = self._label("source", "edited (blue) over the clip", first)
+        gizmos = self._add_gizmos(opened, points, place)
+        self._labels[place] = self._label(place, caption, points)
+        return gizmos
 
     def _add_gizmos(self, opened: OpenedClip, points: np.ndarray, kind: str) -> dict:
         gizmos = {}
@@ -607,15 +620,12 @@ class EditView(PlaysFrames):
                 self._drop(self.drawings, key)
             self._drop(self._labels, "result")
             self.result, self.fix_drags = applied, {}
-            scene, opened = self.server.scene, applied.input
+            opened = applied.input
             points = self._scene_points(applied.joints[0], opened.scale, 1)
-            for key, color in (("input", GHOST_COLOR), ("result", RESULT_COLOR)):
-                self.drawings[key] = SkeletonDrawing(
-                    scene, f"{SCENE}/result/{key}", opened.skeleton, from_scene(points), color=color
-                )
-                self.drawings[key].visible = self._visible
-            self._fix_gizmos.update(self._add_gizmos(opened, points, "result"))
-            self._labels["result"] = self._label("result", "propagated (orange) over it", points)
+            colors = (("input", GHOST_COLOR), ("result", RESULT_COLOR))
+            self._fix_gizmos.update(
+                self._draw_pair(opened, points, "result", colors, "propagated (orange) over it")
+            )
         first = opened.clip.start if applied.same_frames else 0
         self.result_slider.max = first + len(applied.joints) - 1
         self.result_slider.min = first
