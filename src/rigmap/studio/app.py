@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import threading
 
+from rigmap.studio.scene import light_for_software_rendering
+
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
 
@@ -24,6 +26,7 @@ class Studio:
         self.views = {view.name: view for view in views}
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.scene.set_up_direction("+y")
+        light_for_software_rendering(self.server.scene)
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.host, self.port = host, self.server.get_port()
         gui = self.server.gui

@@ -46,10 +46,11 @@ from rigmap.latent.synthesis import (
     Transition,
 )
 from rigmap.studio.camera import aim_every_page, front_camera
-from rigmap.studio.scene import to_scene
+from rigmap.studio.scene import add_surface, to_scene
 from rigmap.torch_threads import one_thread
 
 SCENE = "/play"
+FACE_NODE = f"{SCENE}/face"  # the face's mesh in the scene
 FACE_COLOR = (225, 190, 170)  # as the Pose view's
 #: ours: O answers a second after X (the synth demo's 24 frames a turn)
 REPLY_SECONDS = 1.0
@@ -175,9 +176,7 @@ class PlayView:
         rig = self.rig
         rest = to_scene(np.asarray(rig.mesh(rig.default_controls(1)))[0])
         self.camera = front_camera(rest)
-        self.mesh = server.scene.add_mesh_simple(
-            f"{SCENE}/face", vertices=rest, faces=np.asarray(rig.faces), color=FACE_COLOR
-        )
+        self.mesh = add_surface(server.scene, FACE_NODE, rest, rig.faces, FACE_COLOR)
         self.status = gui.add_markdown("")
         with gui.add_folder("Commands"):
             self._build_commands(gui)

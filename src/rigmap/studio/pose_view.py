@@ -19,6 +19,7 @@ import numpy as np
 from rigmap.studio.camera import CameraPose, aim_every_page, front_camera
 from rigmap.studio.scene import (
     SkeletonDrawing,
+    add_surface,
     from_scene,
     to_scene,
     world_pose,
@@ -143,9 +144,7 @@ class PoseView:
         shown = to_scene(joints)
         if surface is not None:
             shown = to_scene(surface)
-            self._mesh = scene.add_mesh_simple(
-                f"{SCENE}/mesh", vertices=shown, faces=np.asarray(rig.faces), color=(225, 190, 170)
-            )
+            self._mesh = add_surface(scene, f"{SCENE}/mesh", shown, rig.faces, (225, 190, 170))
         height = float(np.ptp(shown[:, 1]) or np.ptp(shown, axis=0).max())
         self.gizmo_scale = GIZMO_SHARE * height
         self._drawing = SkeletonDrawing(
