@@ -30,7 +30,7 @@ import sys
 import tempfile
 import threading
 import time
-from contextlib import nullcontext
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -84,17 +84,52 @@ def scripted_game(view, stop: threading.Event, turn_seconds: float, seed: int) -
     return played
 
 
+@contextmanager
 def page_of(url: str, client: str):
+    """Chromium at ``url`` recording the face's vertex updates as they reach it, or None."""
     if client == "none":
-        return nullcontext(None)
+        yield None
+        return
     sys.path.insert(0, str(ROOT / "tests"))
     from browser import chromium_page
+    from rigmap.studio import probe
+    from rigmap.studio.play_view import FACE_NODE
 
-    return chromium_page(url)
+    with chromium_page() as page:
+        probe.watch_vertex_updates(page, FACE_NODE)
+        page.goto(url)
+        yield page
 
 
-def measure(view, seconds: float, turn_seconds: float, seed: int) -> dict:
+def in_page(page, period_ms: float) -> dict:
+    """The stream as the page saw it: face updates that reached it in the measured window,
+    their rate, and their lateness against a steady 1/fps schedule, on arrival and at the
+    next animation frame (page clock)."""
+    from rigmap.studio import probe
+
+    updates = probe.vertex_updates(page)
+    arrived, drawn = updates[:, 0], updates[~np.isnan(updates[:, 1]), 1]
+    late_arrival = probe.schedule_lateness(arrived, period_ms)
+    late_drawn = probe.schedule_lateness(drawn, period_ms)
+    return {
+        "page_frames": len(arrived),
+        "page_fps": (len(arrived) - 1) / ((arrived[-1] - arrived[0]) / 1e3),
+        "page_interval_ms_p50": float(np.percentile(np.diff(arrived), 50)),
+        "page_interval_ms_p99": float(np.percentile(np.diff(arrived), 99)),
+        "page_lateness_ms_p50": float(np.percentile(late_arrival, 50)),
+        "page_lateness_ms_p99": float(np.percentile(late_arrival, 99)),
+        "page_drawn_lateness_ms_p99": float(np.percentile(late_drawn, 99)),
+        "page_frames_later_than_period": int((late_arrival > period_ms).sum()),
+        "page_p99_within_period": bool(np.percentile(late_arrival, 99) <= period_ms),
+    }
+
+
+def measure(view, seconds: float, turn_seconds: float, seed: int, page=None) -> dict:
     frames0, kept0 = view.clock.frames, len(view.clock.lateness)
+    if page is not None:
+        from rigmap.studio import probe
+
+        probe.vertex_updates(page, clear=True)
     stop, played = threading.Event(), {}
     game = threading.Thread(
         target=lambda: played.update(scripted_game(view, stop, turn_seconds, seed))
@@ -109,6 +144,7 @@ def measure(view, seconds: float, turn_seconds: float, seed: int) -> dict:
     late = 1e3 * np.array(list(view.clock.lateness)[kept0:])
     work = 1e3 * np.array(list(view.work)[-frames:])
     period_ms = 1e3 / view.fps
+    seen = {} if page is None else in_page(page, period_ms)
     return {
         "seconds": wall,
         "frames": frames,
@@ -124,6 +160,7 @@ def measure(view, seconds: float, turn_seconds: float, seed: int) -> dict:
         **played,
         "events": len(view.events),
         "models_seen": sorted({m for _, m in view.models}),
+        **seen,
     }
 
 
@@ -148,7 +185,7 @@ def main() -> int:
         with page_of(studio.url, args.client) as page:
             if page is not None:
                 page.get_by_role("button", name="New game").wait_for(timeout=60_000)
-            result = measure(view, args.seconds, args.turn_seconds, args.seed)
+            result = measure(view, args.seconds, args.turn_seconds, args.seed, page)
     finally:
         studio.stop()
     result = {

@@ -169,14 +169,18 @@ def test_a_game_is_played_to_the_end_by_clicks_and_the_face_reacts(models):
     """Noughts and crosses by clicks in Chromium: the server's board decides each free
     cell, the page shows the end, every event changed the controller's expression."""
     from browser import chromium_page, keep_screenshot
+    from rigmap.studio import probe
     from rigmap.studio.app import Studio
+    from rigmap.studio.play_view import FACE_NODE
 
     rig, fitted, table = models
     view = PlayView(rig, fitted, table, seed=3, reply_seconds=0.3)
     studio = Studio([view], port=0)
     preference = [4, 0, 2, 6, 8, 1, 3, 5, 7]  # centre, corners, edges
     try:
-        with chromium_page(studio.url, viewport={"width": 1200, "height": 900}) as page:
+        with chromium_page(viewport={"width": 1200, "height": 900}) as page:
+            probe.watch_vertex_updates(page, FACE_NODE)  # what benchmarks/studio_play.py times
+            page.goto(studio.url)
             page.get_by_role("button", name="5", exact=True).wait_for(timeout=30_000)
             rest = np.array(view.mesh.vertices)
             notices = page.locator(".mantine-Notification-closeButton")  # software WebGL's
@@ -204,8 +208,13 @@ def test_a_game_is_played_to_the_end_by_clicks_and_the_face_reacts(models):
             left = int(page.get_by_text("Connected").bounding_box()["x"]) - 40  # the panel's
             assert _skin_pixels(png, left) > 20_000  # the face is drawn, lit
             keep_screenshot(png, "play.png")  # docs/studio/play.png with RIGMAP_SCREENSHOTS
+            updates = probe.vertex_updates(page)
     finally:
         studio.stop()
+    # the stream reached the page as face updates, each followed by a frame that drew it
+    assert len(updates) > view.fps  # over a second of the game's frames
+    drawn = ~np.isnan(updates[:, 1])
+    assert drawn[:-2].all() and (updates[drawn, 1] >= updates[drawn, 0]).all()
     assert 3 <= clicks <= 5
     assert {e["player"] for e in view.events} == {"x", "o"}
     # the expression changed on the events: the first (X's move) began curious, the last

@@ -5,7 +5,9 @@ the studio itself).
 A drag is real mouse input (Chromium's own pointer events) on a gizmo's axis arrow, found
 on the canvas from the view's camera (:func:`rigmap.studio.camera.screen_point`). Latency is
 measured in the page's clock: from the ``pointermove`` event's time stamp to the animation
-frame in which the page first shows the pose it caused (the status line's pose count).
+frame in which the page first shows the pose it caused (the status line's pose count), timed
+when that frame's callbacks run (a frame's own time stamp is its start, which can precede
+the update by a frame or more on a busy page).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ WATCH_POSES = """(marker) => {
     const n = m ? Number(m[1]) : -1;
     if (n !== last) {
       last = n;
-      requestAnimationFrame((t) => window.__frames.push([n, t]));
+      requestAnimationFrame(() => window.__frames.push([n, performance.now()]));
     }
   };
   new MutationObserver(seen).observe(box, {subtree: true, childList: true, characterData: true});
@@ -102,3 +104,56 @@ def wiggle(start, n: int, *, step_px: float = 2.0, span: int = 10) -> list[tuple
     x0, y0 = start
     phases = [k % (2 * span) for k in range(1, n + 1)]
     return [(x0 + step_px * min(p, 2 * span - p), y0) for p in phases]
+
+
+#: Installed before the page's scripts run (``page.add_init_script``): viser decodes its
+#: websocket in a worker that posts each batch of scene messages to the page; this records,
+#: in the page's clock, when a batch updating ``name``'s vertices reached the page and the
+#: animation frame that follows it (the first frame able to show them).
+WATCH_VERTEX_UPDATES = """(() => {
+  window.__vertexUpdates = [];
+  const NativeWorker = window.Worker;
+  window.Worker = class extends NativeWorker {
+    constructor(...args) {
+      super(...args);
+      this.addEventListener('message', (event) => {
+        const data = event.data;
+        if (!data || data.type !== 'message_batch') { return; }
+        const hit = data.messages.some((m) => m.type === 'SceneNodeUpdateMessage'
+          && m.name === NAME && m.updates && 'vertices' in m.updates);
+        if (!hit) { return; }
+        const entry = [performance.now(), null];
+        window.__vertexUpdates.push(entry);
+        requestAnimationFrame(() => { entry[1] = performance.now(); });
+      });
+    }
+  };
+})();"""
+
+
+def watch_vertex_updates(page, name: str) -> None:
+    """Record when each update of scene mesh ``name``'s vertices reaches the page; call
+    before the page loads (see :data:`WATCH_VERTEX_UPDATES`)."""
+    import json
+
+    page.add_init_script(script=WATCH_VERTEX_UPDATES.replace("NAME", json.dumps(name)))
+
+
+def vertex_updates(page, *, clear: bool = False) -> np.ndarray:
+    """``(N, 2)`` page times (ms) of the vertex updates so far: reached the page, next
+    frame (NaN until drawn); ``clear`` starts a new record."""
+    rows = page.evaluate(
+        "(clear) => { const rows = window.__vertexUpdates.slice();"
+        " if (clear) { window.__vertexUpdates.length = 0; } return rows; }",
+        clear,
+    )
+    return np.array([[a, np.nan if f is None else f] for a, f in rows], dtype=np.float64).reshape(
+        -1, 2
+    )
+
+
+def schedule_lateness(times_ms: np.ndarray, period_ms: float) -> np.ndarray:
+    """How late each of a stream's frames came against a steady ``period_ms`` schedule
+    anchored on the stream's earliest frame: ``t_k - k * period`` minus its minimum."""
+    slots = np.asarray(times_ms, dtype=np.float64) - period_ms * np.arange(len(times_ms))
+    return slots - slots.min()
