@@ -9,6 +9,7 @@ corpus the first time).
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from rigmap.app.arguments import override_arguments
@@ -104,7 +105,7 @@ def build_studio(*, rigs, overrides, config_dir, folder, out=None, host, port):
     try:
         views.append(play_view(overrides, config_dir))
     except FileNotFoundError as missing:  # no latent models yet: the other views still serve
-        print(f"rigmap studio: no Play view: {missing}", flush=True)
+        print(f"rigmap studio: no Play view: {missing}", file=sys.stderr, flush=True)
     return Studio(views, host=host, port=port)
 
 
