@@ -21,6 +21,7 @@ import os
 import sys
 import tempfile
 import time
+from contextlib import redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -72,20 +73,21 @@ def main() -> int:
     args = parser.parse_args()
     from rigmap.app.studio import build_studio
 
-    models = Path(tempfile.mkdtemp(prefix="studio-bench-"))
-    studio = build_studio(
-        rigs=args.rigs,
-        overrides=[f"paths.data={args.data}", f"paths.models={models}"],
-        config_dir=ROOT / "conf",
-        folder=ROOT,
-        out=models / "out",
-        host="127.0.0.1",
-        port=0,
-    )
-    try:
-        rows = [measure(studio, rig, args.drags) for rig in args.rigs]
-    finally:
-        studio.stop()
+    with redirect_stdout(sys.stderr):  # viser's banner: stdout is the JSON
+        models = Path(tempfile.mkdtemp(prefix="studio-bench-"))
+        studio = build_studio(
+            rigs=args.rigs,
+            overrides=[f"paths.data={args.data}", f"paths.models={models}"],
+            config_dir=ROOT / "conf",
+            folder=ROOT,
+            out=models / "out",
+            host="127.0.0.1",
+            port=0,
+        )
+        try:
+            rows = [measure(studio, rig, args.drags) for rig in args.rigs]
+        finally:
+            studio.stop()
     print(
         json.dumps(
             {

@@ -30,7 +30,7 @@ import sys
 import tempfile
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -177,17 +177,18 @@ def main() -> int:
     from rigmap.studio.app import Studio
     from rigmap.studio.play_view import PlayView
 
-    fitted, table = fitted_models(args.models)
-    view = PlayView(load("face"), fitted, table, fps=args.fps, seed=args.seed)
-    studio = Studio([view], port=0)
-    load_before = os.getloadavg()
-    try:
-        with page_of(studio.url, args.client) as page:
-            if page is not None:
-                page.get_by_role("button", name="New game").wait_for(timeout=60_000)
-            result = measure(view, args.seconds, args.turn_seconds, args.seed, page)
-    finally:
-        studio.stop()
+    with redirect_stdout(sys.stderr):  # progress and viser's banner: stdout is the JSON
+        fitted, table = fitted_models(args.models)
+        view = PlayView(load("face"), fitted, table, fps=args.fps, seed=args.seed)
+        studio = Studio([view], port=0)
+        load_before = os.getloadavg()
+        try:
+            with page_of(studio.url, args.client) as page:
+                if page is not None:
+                    page.get_by_role("button", name="New game").wait_for(timeout=60_000)
+                result = measure(view, args.seconds, args.turn_seconds, args.seed, page)
+        finally:
+            studio.stop()
     result = {
         "benchmark": "studio_play",
         "client": args.client,

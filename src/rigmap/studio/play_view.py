@@ -326,6 +326,7 @@ class PlayView:
             if clock.wait(self._stop.wait):
                 return
             self.mesh.vertices = vertices
+            self.server.flush()  # on its deadline, not at the next of viser's 1/60 s windows
             clock.sent()
             self.played.append((frame, controls))
             if moved:
