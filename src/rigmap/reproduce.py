@@ -373,8 +373,8 @@ def _run_side_by_side(plan: ReproducePlan, out: TextIO) -> int:
         print(f"{PREFIX} DVC cannot list the pending stages; running them in turn", file=out)
         return _stream(plan, out, None)
     pending, edges, nodes = found
-    dvc_yaml, families = plan.project / "dvc.yaml", stage_families(plan.project)
-    alone, early = (families_marked(dvc_yaml, key) for key in ("runs_alone", "starts_early"))
+    families = stage_families(plan.project)
+    alone, early = (families_marked(families, key) for key in ("runs_alone", "starts_early"))
     stages = plan_stages(pending, edges, nodes, alone, early)
     alone_note = f", {len(stages.alone)} of them alone" if stages.alone else ""
     print(

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from rigmap.store.pipeline_files import family_of, stage_families
+from rigmap.store.pipeline_files import StageFamily, family_of
 
 
 @dataclass(frozen=True)
@@ -41,13 +41,11 @@ class StagePlan:
         return sorted(self.order, key=lambda stage: stage not in self.early)
 
 
-def families_marked(dvc_yaml: Path, key: str) -> frozenset[str]:
-    """The stage families of ``dvc.yaml`` and the stage files beside it marked
-    ``meta: {<key>: true}``."""
+def families_marked(families: Mapping[str, StageFamily], key: str) -> frozenset[str]:
+    """The stage families (:func:`~rigmap.store.pipeline_files.stage_families`, read once
+    by the caller) marked ``meta: {<key>: true}``."""
     return frozenset(
-        name
-        for name, found in stage_families(dvc_yaml.parent).items()
-        if (found.body.get("meta") or {}).get(key) is True
+        name for name, found in families.items() if (found.body.get("meta") or {}).get(key) is True
     )
 
 
