@@ -32,7 +32,6 @@ from rigmap.rigs.characters.face import (
     FaceModel,
     FaceRig,
     build_face_model,
-    face_controls,
 )
 from rigmap.rigs.mesh.rig import DeformedMesh
 
@@ -139,7 +138,7 @@ class ArkitFaceRig(FaceRig):
                 "to its sliders and jaw, ours); 6 landmarks (cm)"
             ),
         )
-        self.arkit_matrix = arkit_matrix([c.name for c in face_controls(model.shapes)])
+        self.arkit_matrix = arkit_matrix(self.face_control_names)
 
     def face_values(self, Y) -> np.ndarray | torch.Tensor:
         """The built-in face's controls ``(N, 49)`` for ARKit weights ``(N, 52)``."""

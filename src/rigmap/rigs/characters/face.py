@@ -111,9 +111,10 @@ class FaceRig(MeshRig):
     ):
         """``controls`` default to :func:`face_controls`; a face driven by other controls
         (:mod:`rigmap.rigs.characters.arkit_face`) names its own and maps them in ``_deform``."""
+        sliders = face_controls(model.shapes)
         super().__init__(
             name=name,
-            controls=face_controls(model.shapes) if controls is None else controls,
+            controls=sliders if controls is None else controls,
             rest_vertices=model.mesh.vertices,
             faces=model.mesh.faces,
             joint_vertices=model.landmarks,
@@ -125,7 +126,8 @@ class FaceRig(MeshRig):
         self.model = model
         self.landmark_names = list(LANDMARKS)
         self.landmark_vertices = model.landmarks
-        names = [control.name for control in face_controls(model.shapes)]
+        #: the face's own sliders and jaw, in the order ``_deform_face`` reads them
+        self.face_control_names = names = [control.name for control in sliders]
         self._shape_columns = [names.index(n) for n in model.shapes.names]
         self._jaw_columns = {n: names.index(n) for n in ("jaw.rx", "jaw.ry", "jaw.tz")}
 
