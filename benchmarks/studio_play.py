@@ -35,8 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from rigmap.latent.game import EVENT_EMOTIONS
+
 ROOT = Path(__file__).resolve().parents[1]
-EMOTIONS = ("bored", "curious", "grumpy", "happy", "neutral", "roar")  # the game's
+EMOTIONS = sorted(set(EVENT_EMOTIONS.values()))  # the game's, as the Play test fits
 TINY = [
     "rig=face",
     f"latent.labels=[{','.join(EMOTIONS)}]",
