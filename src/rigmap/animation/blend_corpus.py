@@ -190,42 +190,22 @@ def import_blend_corpus(
     extreme_test_clips: int = 1,
     rig_name: str | None = None,
     cog_bone: str | None = None,
-    joints=None,
-    control_bones=None,
-    exclude_bones: list[str] | None = None,
-    euler_order: str = "XYZ",
-    length_scale: float = 100.0,
-    up_axis: str = "Y",
-    translate_range: float = 30.0,
-    scale_range: Sequence[float] = (0.25, 3.0),
-    use_scripts: bool = False,
     soft_range_margin: float = 0.1,
     check_determinism: bool = True,
     blender: str | None = None,
     timeout: float = READ_TIMEOUT_S,
     split: bool = True,
+    **load,
 ) -> BlendCorpus:
-    """Read the actions of ``path`` as clips; run the checks; see the module docstring."""
+    """Read the actions of ``path`` as clips; run the checks; see the module docstring.
+    ``load``: the armature options of :func:`~rigmap.rigs.blender.rig.session_options`
+    (``joints``, ``euler_order``…), as a :class:`BlenderRig` takes them."""
     from rigmap.rigs.blender.pool import WorkerPool
 
     started = time.perf_counter()
     path = _checked_path(path, extreme_test_clips, soft_range_margin)
     sha = file_sha256(path)
-    options = session_options(
-        path,
-        where=path.name,
-        armature=armature,
-        cog_bone=cog_bone,
-        joints=joints,
-        control_bones=control_bones,
-        exclude_bones=exclude_bones,
-        euler_order=euler_order,
-        length_scale=length_scale,
-        up_axis=up_axis,
-        translate_range=translate_range,
-        scale_range=scale_range,
-        use_scripts=use_scripts,
-    )
+    options = session_options(path, where=path.name, armature=armature, cog_bone=cog_bone, **load)
     command = find_blender(blender)
     seconds: dict[str, float] = {}
     with WorkerPool(

@@ -62,18 +62,19 @@ def session_options(
     where: str,
     armature: str | None,
     cog_bone: str | None,
-    joints,
-    control_bones,
-    exclude_bones: list[str] | None,
-    euler_order: str,
-    length_scale: float,
-    up_axis: str,
-    translate_range: float,
-    scale_range: Sequence[float],
-    use_scripts: bool,
+    joints=None,
+    control_bones=None,
+    exclude_bones: list[str] | None = None,
+    euler_order: str = "XYZ",
+    length_scale: float = 100.0,
+    up_axis: str = "Y",
+    translate_range: float = 30.0,
+    scale_range: Sequence[float] = (0.25, 3.0),
+    use_scripts: bool = False,
 ) -> dict:
-    """The worker's ``load`` options for the armature in ``path``: one spelling for
-    :class:`BlenderRig` and the .blend corpus import (``where`` names it in errors)."""
+    """The worker's ``load`` options for the armature in ``path``: one spelling, and one
+    set of defaults, for :class:`BlenderRig` and the .blend corpus import, which hand their
+    other armature options on as ``**load`` (``where`` names the caller in errors)."""
     include, exclude = _patterns(joints, f"{where} joints")
     return {
         "path": str(path),
@@ -191,7 +192,9 @@ def executor_options(executor, name: str) -> dict:
 
 
 class BlenderRig(Rig):
-    """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`."""
+    """An armature in a .blend file, evaluated out of process by a :class:`WorkerPool`.
+    ``load``: the armature options of :func:`session_options` (``joints``, ``euler_order``…),
+    whose defaults are kept there, shared with the .blend corpus import."""
 
     differentiable = False
     computes_in_float32 = True  # Blender's bone matrices and properties are float32
@@ -203,19 +206,10 @@ class BlenderRig(Rig):
         path: str | Path,
         *,
         armature: str = "rig",
-        joints=None,
         cog_bone: str = "torso",
         used=None,
-        control_bones=None,
-        exclude_bones: list[str] | None = None,
-        euler_order: str = "XYZ",
-        length_scale: float = 100.0,
-        up_axis: str = "Y",
-        translate_range: float = 30.0,
-        scale_range: Sequence[float] = (0.25, 3.0),
         soft_ranges: Mapping[str, Sequence[float]] | None = None,
         prune: bool = True,
-        use_scripts: bool = False,
         workers: int | None = None,
         timeout: float = 120.0,
         chunk_rows: int = DEFAULT_CHUNK_ROWS,
@@ -224,6 +218,7 @@ class BlenderRig(Rig):
         retarget: list[dict] | None = None,
         executor: str | Mapping | None = None,
         description: str = "",
+        **load,
     ):
         path = Path(path).expanduser().resolve()
         if not path.is_file():
@@ -236,19 +231,7 @@ class BlenderRig(Rig):
                 f"got {workers!r}"
             )
         options = session_options(
-            path,
-            where=f"rig {name!r}",
-            armature=armature,
-            cog_bone=cog_bone,
-            joints=joints,
-            control_bones=control_bones,
-            exclude_bones=exclude_bones,
-            euler_order=euler_order,
-            length_scale=length_scale,
-            up_axis=up_axis,
-            translate_range=translate_range,
-            scale_range=scale_range,
-            use_scripts=use_scripts,
+            path, where=f"rig {name!r}", armature=armature, cog_bone=cog_bone, **load
         )
         self.name = name
         self.path = path
