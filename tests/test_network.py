@@ -12,6 +12,9 @@ from hydra.utils import instantiate
 
 from rigmap.regression import (
     FeedForwardRegressor,
+    GaussianProcessRegressor,
+    JointSpaceNetworkRegressor,
+    LearnedJacobian,
     ModelFileError,
     ModelMismatchError,
     RegressionInputError,
@@ -178,3 +181,18 @@ def test_hydra_config_has_the_papers_defaults():
     assert isinstance(model, FeedForwardRegressor)
     assert (model.hidden, model.alpha, model.batch_size, model.epochs) == (2048, 0.1, 8, 20)
     assert model.seed == 4
+
+
+def test_repr_names_the_parameters_a_log_line_shows():
+    # the fit log prints these; a model that names none keeps scikit-learn's repr
+    assert repr(FeedForwardRegressor(hidden=16, epochs=3)) == (
+        "FeedForwardRegressor(hidden=16, alpha=0.1, batch_size=8, epochs=3)"
+    )
+    assert repr(GaussianProcessRegressor(n_points=None)) == (
+        "GaussianProcessRegressor(kernel=MultiquadricKernel(length_scale=1.0), "
+        "regularization=1e-05, n_points=None)"
+    )
+    assert repr(JointSpaceNetworkRegressor(n_local=5, epochs=4)) == (
+        "JointSpaceNetworkRegressor(hidden=512, layers=2, draws=3000+5+3000, epochs=20+4)"
+    )
+    assert repr(LearnedJacobian(seed=2)) == "LearnedJacobian(seed=2)"

@@ -48,8 +48,21 @@ class Regressor(BaseEstimator):
     #: fitted ``<name>_`` arrays the default payload (an ``.npz``) holds
     saved_arrays: ClassVar[tuple[str, ...]] = ()
     payload_suffix: ClassVar[str] = ".npz"
+    #: the parameters the short ``repr`` (which logs print) names; none: scikit-learn's repr
+    repr_params: ClassVar[tuple[str, ...]] = ()
 
     fingerprint_: ModelFingerprint
+
+    def __repr__(self, N_CHAR_MAX: int = 700) -> str:
+        shown = self._repr_fields()
+        if not shown:
+            return super().__repr__(N_CHAR_MAX)
+        fields = ", ".join(f"{name}={value}" for name, value in shown.items())
+        return f"{type(self).__name__}({fields})"
+
+    def _repr_fields(self) -> dict[str, Any]:
+        """The short ``repr``'s values by name; a subclass may show derived ones instead."""
+        return {name: getattr(self, name) for name in self.repr_params}
 
     # ------------------------------------------------------------------ the contract
     def fit(self, X: Any, Y: Any, **options: Any) -> Regressor:

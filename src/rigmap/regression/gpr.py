@@ -108,11 +108,10 @@ class GaussianProcessRegressor(Regressor):
     progress: bool = False
     fit_threads: int | None = 1
 
-    def __repr__(self) -> str:
-        return (
-            f"GaussianProcessRegressor(kernel={self._kernel()!r}, "
-            f"regularization={self.regularization}, n_points={self.n_points})"
-        )
+    repr_params = ("kernel", "regularization", "n_points")
+
+    def _repr_fields(self) -> dict[str, Any]:
+        return {**super()._repr_fields(), "kernel": repr(self._kernel())}  # None names the default
 
     def _kernel(self) -> Kernel:
         return self.kernel if self.kernel is not None else MultiquadricKernel()

@@ -223,12 +223,10 @@ class JointSpaceNetworkRegressor(Regressor):
     progress: bool = True
     threads: int | None = 1
 
-    def __repr__(self) -> str:
-        return (
-            f"JointSpaceNetworkRegressor(hidden={self.hidden}, layers={self.layers}, "
-            f"draws={self.n_gaussian}+{self.n_local}+{self.n_wide}, "
-            f"epochs={self.pretrain_epochs}+{self.epochs})"
-        )
+    def _repr_fields(self) -> dict[str, Any]:
+        draws = f"{self.n_gaussian}+{self.n_local}+{self.n_wide}"
+        epochs = f"{self.pretrain_epochs}+{self.epochs}"
+        return {"hidden": self.hidden, "layers": self.layers, "draws": draws, "epochs": epochs}
 
     def _check_params(self) -> None:
         for name in ("hidden", "layers", "pretrain_batch", "batch_size"):

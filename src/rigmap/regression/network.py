@@ -115,11 +115,7 @@ class FeedForwardRegressor(Regressor):
     progress: bool = True
     threads: int | None = 1
 
-    def __repr__(self) -> str:
-        return (
-            f"FeedForwardRegressor(hidden={self.hidden}, alpha={self.alpha}, "
-            f"batch_size={self.batch_size}, epochs={self.epochs})"
-        )
+    repr_params = ("hidden", "alpha", "batch_size", "epochs")
 
     def _check_params(self) -> None:
         for name in ("hidden", "batch_size"):
