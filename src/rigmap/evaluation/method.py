@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from functools import lru_cache
+from operator import attrgetter
 from typing import Any, ClassVar
 
 import numpy as np
@@ -257,26 +258,15 @@ class Method:
             return self.guess.title
         return f"{self.guess.title} & {self.refiner.title}"
 
-    @property
-    def regressor(self) -> str | None:
-        return self.guess.regressor
-
-    @property
-    def refine(self) -> str:
-        """The refinement's kind: ``none``, ``computed_jacobian`` or ``learned_jacobian``."""
-        return self.refiner.kind
-
-    @property
-    def jacobian(self) -> str | None:
-        return self.refiner.jacobian
-
-    @property
-    def refine_settings(self) -> RefineSettings | None:
-        return self.refiner.settings
-
-    @property
-    def needs_learned_jacobian(self) -> bool:
-        return self.refiner.needs_learned_jacobian
+    # the guess's and the refiner's own values, read off the method (runner, jobs, its record)
+    regressor = property(attrgetter("guess.regressor"))
+    refine = property(
+        attrgetter("refiner.kind"),
+        doc="The refinement's kind: ``none``, ``computed_jacobian`` or ``learned_jacobian``.",
+    )
+    jacobian = property(attrgetter("refiner.jacobian"))
+    refine_settings = property(attrgetter("refiner.settings"))
+    needs_learned_jacobian = property(attrgetter("refiner.needs_learned_jacobian"))
 
     @property
     def uses_rig_during_retarget(self) -> bool:
