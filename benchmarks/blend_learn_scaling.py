@@ -84,10 +84,12 @@ def fixture_clips(n_actions: int, variant: str):
 
 def table1(metrics: Path) -> dict:
     """``{method: joint error cm², fps, frames}`` of the test clip, from the evaluate stage."""
+    from rigmap.store.layout import per_frame_file
+
     rows = {}
     for path in sorted((metrics / "methods").glob("*.json")):
         average = json.loads(path.read_text()).get("average", {})
-        frames = len(path.with_suffix(".csv").read_text().splitlines()) - 1  # header
+        frames = len(per_frame_file(path).read_text().splitlines()) - 1  # header
         rows[path.stem] = {
             "joint_error_cm2": average.get("joint_error"),
             "fps": average.get("fps"),

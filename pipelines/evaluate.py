@@ -2,7 +2,8 @@
 
 Reads the rig's test poses and animator controls (``<paths.data>/<rig>/poses/test.parquet``,
 ``corpus/{test,train}.parquet``) and its fitted mappings (``<paths.models>/<rig>/<model id>/``);
-writes a metrics JSON and a per-frame CSV per run into ``<paths.metrics>/<rig>/<set>/`` and,
+writes a metrics JSON per run into ``<paths.metrics>/<rig>/<set>/``, its per-frame CSV into
+``<paths.metrics>/<rig>/per_frame/<set>/`` and,
 with ``evaluate.log_to_mlflow``, a parent MLflow run with a child run per method. The methods
 are the ``method`` group (conf/method/*.yaml); the work is :mod:`rigmap.evaluation`'s, shared
 with ``rigmap evaluate``.

@@ -99,13 +99,17 @@ def test_the_three_sets_write_their_metrics_files(face):
         _overrides(face, off, "evaluate.set=samplers", "evaluate.samplers=[none,pca_gaussian]")
     )
     assert sorted(p.relative_to(metrics).as_posix() for p in written) == [
-        "kernels/gpr-gaussian.csv", "kernels/gpr-gaussian.json",
-        "kernels/gpr-multiquadric.csv", "kernels/gpr-multiquadric.json",
-        "samplers/nn-none.csv", "samplers/nn-none.json",
-        "samplers/nn-pca_gaussian.csv", "samplers/nn-pca_gaussian.json",
+        "kernels/gpr-gaussian.json", "kernels/gpr-multiquadric.json",
+        "per_frame/kernels/gpr-gaussian.csv", "per_frame/kernels/gpr-multiquadric.csv",
+        "per_frame/samplers/nn-none.csv", "per_frame/samplers/nn-pca_gaussian.csv",
+        "samplers/nn-none.json", "samplers/nn-pca_gaussian.json",
     ]  # fmt: skip
+    # the set's folder holds its JSONs alone (DVC reads it as metrics), the CSVs are plots
     assert {p.name for p in (metrics / "methods").iterdir()} == {
-        "gpr-none.json", "gpr-none.csv", "nn-pca_gaussian.json", "nn-pca_gaussian.csv",
+        "gpr-none.json", "nn-pca_gaussian.json"
+    }  # fmt: skip
+    assert {p.name for p in (metrics / "per_frame" / "methods").iterdir()} == {
+        "gpr-none.csv", "nn-pca_gaussian.csv"
     }  # fmt: skip
 
     def read(name):
@@ -132,7 +136,7 @@ def test_the_three_sets_write_their_metrics_files(face):
     assert read("samplers/nn-none.json")["extra"]["model_folders"]["regressor"].endswith(
         "face/nn-none-none"
     )
-    per_frame = pd.read_csv(metrics / "methods" / "gpr-none.csv")
+    per_frame = pd.read_csv(metrics / "per_frame" / "methods" / "gpr-none.csv")
     assert list(per_frame.columns) == [
         "clip", "frame", "joint_error", "ground_truth_error", "novelty"
     ]  # fmt: skip

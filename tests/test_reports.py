@@ -39,6 +39,7 @@ from rigmap.reports.figures import sweep_figure
 from rigmap.reports.rig_facts import RigFacts
 from rigmap.reports.tables import kernels_table, methods_table, rigs_table, sampling_table
 from rigmap.rigs import load
+from rigmap.store.layout import per_frame_file
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGS = ("quadruped", "face")
@@ -119,8 +120,8 @@ def project(tmp_path_factory):
         for index, (folder, key, stem, method, sampler) in enumerate(files):
             fit = fits[index % len(RIDGES)]
             result = _method_result(rig, table, X_test, fit, method, sampler, novelty)
-            result.write_json(metrics / rig_name / folder / f"{stem}.json")
-            write_per_frame_csv(result, metrics / rig_name / folder / f"{stem}.csv")
+            json_path = result.write_json(metrics / rig_name / folder / f"{stem}.json")
+            write_per_frame_csv(result, per_frame_file(json_path))
             expected[(rig_name, folder, key)] = result
     # what the sample-figures stage would leave for one rig
     (root / "reports" / "figures").mkdir(parents=True)
@@ -416,7 +417,7 @@ def test_missing_files_are_listed_by_name(project, tmp_path):
     metrics = tmp_path / "metrics"
     shutil.copytree(project["root"] / "metrics", metrics)
     (metrics / "quadruped" / "samplers" / "nn-gmm.json").unlink()
-    (metrics / "face" / "methods" / "gpr-none.csv").unlink()
+    (metrics / "face" / "per_frame" / "methods" / "gpr-none.csv").unlink()
     with pytest.raises(ReportInputError) as error:
         build_report(
             metrics_root=metrics,
@@ -426,7 +427,7 @@ def test_missing_files_are_listed_by_name(project, tmp_path):
         )
     message = str(error.value)
     assert str(metrics / "quadruped" / "samplers" / "nn-gmm.json") in message
-    assert str(metrics / "face" / "methods" / "gpr-none.csv") in message
+    assert str(metrics / "face" / "per_frame" / "methods" / "gpr-none.csv") in message
     assert "2 metrics file(s) missing" in message
     assert not (tmp_path / "reports").exists()  # nothing written
 
@@ -456,7 +457,7 @@ def test_bad_files_are_named_with_what_was_expected(project, tmp_path):
     path.write_text(json.dumps({**content, "average": {**content["average"], "fps": None}}))
     fails_with("expected a number for 'fps'")
     path.write_text(original)
-    csv = metrics / "quadruped" / "methods" / "nn-pca_gaussian.csv"
+    csv = metrics / "quadruped" / "per_frame" / "methods" / "nn-pca_gaussian.csv"
     frame = pd.read_csv(csv)
     frame.loc[0, "joint_error"] += 1.0
     frame.to_csv(csv, index=False)

@@ -22,9 +22,11 @@ from rigmap.reports import ReportSettings, load_metrics
 from rigmap.reports.seed_spread import NETWORK_METHODS, Spread, compare
 from rigmap.reports.tables import methods_table
 from rigmap.store import Layout, ModelId
+from rigmap.store.layout import PER_FRAME
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "metrics" / "quadruped" / "methods"
+COMMITTED_PER_FRAME = ROOT / "metrics" / "quadruped" / PER_FRAME / "methods"
 CLIPS = ("Jumping & Playing", "Turning & Galloping", "Begging Excitedly")
 SETTINGS = ReportSettings(
     rigs=("quadruped",), method_rigs=("quadruped",), sampler_rigs=(), clips=CLIPS
@@ -42,11 +44,12 @@ def _scaled_copy(source: Path, target: Path, scale: float) -> None:
 
 
 def _tree(folder: Path, scales: dict[int, float], shift: float = 1.0) -> Path:
-    """``metrics/quadruped/methods`` (network rows times ``shift``) and one
-    ``methods_seed<k>`` per ``scales`` entry (network rows times ``shift * scale``)."""
+    """``metrics/quadruped/methods`` (network rows times ``shift``; per-frame CSVs as they
+    are) and one ``methods_seed<k>`` per ``scales`` entry (network rows times ``shift * scale``)."""
     metrics = folder / "metrics"
     methods = metrics / "quadruped" / "methods"
     shutil.copytree(COMMITTED, methods)
+    shutil.copytree(COMMITTED_PER_FRAME, metrics / "quadruped" / PER_FRAME / "methods")
     for path in sorted(COMMITTED.glob("*.json")):
         if path.stem.partition("-")[0] not in NETWORK_METHODS:
             continue

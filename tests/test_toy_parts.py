@@ -338,7 +338,7 @@ def test_a_toy_method_and_sampler_reach_the_reports_tables(toy_tree, folders, qu
     assert record["extra"]["refine"] == "rounded" and record["extra"]["regressor"] == "ridge"
     model = load_regressor(ridge, rig=quadruped)
     rounded = type("Rounded", (), {"predict": lambda self, X: np.round(model.predict(X), 2)})()
-    per_frame = pd.read_csv(folder / "methods" / "ridge_rounded-none.csv")
+    per_frame = pd.read_csv(folder / "per_frame" / "methods" / "ridge_rounded-none.csv")
     expected = _per_frame_errors(quadruped, rounded, test_set)
     np.testing.assert_allclose(per_frame["joint_error"], expected[0], rtol=1e-9)
     np.testing.assert_allclose(per_frame["ground_truth_error"], expected[1], rtol=1e-9)

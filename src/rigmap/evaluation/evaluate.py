@@ -3,9 +3,10 @@
 ``evaluate`` takes plain objects — the rig, the methods by name (built from
 ``conf/method``), a :class:`rigmap.store.Layout` and :class:`EvaluationSettings` —
 plans the set's jobs, checks every model folder exists, then runs each job and writes
-``metrics/<rig>/<set>/<stem>.json`` and the per-frame ``<stem>.csv`` beside it. With an
-:class:`~rigmap.evaluation.mlflow_runs.EvaluationLog` each job is also an MLflow child run,
-the files read are datasets, and the set's table and a saved view of it end the record.
+``metrics/<rig>/<set>/<stem>.json`` and the per-frame
+``metrics/<rig>/per_frame/<set>/<stem>.csv``. With an
+:class:`~rigmap.evaluation.mlflow_runs.EvaluationLog` each job is also an MLflow child run, the
+files read are datasets, and the set's table and a saved view of it end the record.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from rigmap.evaluation.method import Method
 from rigmap.evaluation.metrics import write_per_frame_csv
 from rigmap.evaluation.runner import MethodEvaluation, run_method
 from rigmap.store import Layout
+from rigmap.store.layout import per_frame_file
 
 
 @dataclass(frozen=True)
@@ -156,9 +158,9 @@ def evaluate_job(
 
 
 def write_metrics(job: EvaluationJob, evaluation: MethodEvaluation) -> list[Path]:
-    """The metrics JSON and, beside it, the per-frame CSV (same stem)."""
+    """The metrics JSON and its per-frame CSV (same stem, under ``per_frame/``)."""
     json_path = evaluation.result.write_json(job.metrics_path)
-    csv_path = write_per_frame_csv(evaluation.result, job.metrics_path.with_suffix(".csv"))
+    csv_path = write_per_frame_csv(evaluation.result, per_frame_file(job.metrics_path))
     return [json_path, csv_path]
 
 

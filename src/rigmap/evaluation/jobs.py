@@ -29,7 +29,7 @@ class EvaluationJob:
     method: Method
     sampler: str  # the sampler the regressor's training data came from ("none" for gpr/script)
     kernel: str | None  # the GPR kernel (None for nn and script)
-    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV beside it)
+    metrics_path: Path  # <metrics>/<rig>/<set>/<stem>.json (per-frame CSV: per_frame_file)
     jacobian_kernel: str | None = None  # kernel of the GPR folder holding the learned Jacobian
 
     @property

@@ -2,7 +2,8 @@
 
 Layout (written by ``rigmap.evaluation.metrics``)::
 
-    metrics/<rig>/methods/<method>-<sampler>.json  (+ .csv, per frame)   Table 1
+    metrics/<rig>/methods/<method>-<sampler>.json                        Table 1
+    metrics/<rig>/per_frame/methods/<method>-<sampler>.csv               its errors per frame
     metrics/<rig>/samplers/nn-<sampler>.json                             Table 2
     metrics/<rig>/kernels/gpr-<kernel>.json                              §7.1 kernels
     metrics/<rig>/sample_sweep/nn-<sampler>-<n>.json   (optional)        error vs. samples
@@ -29,7 +30,7 @@ from rigmap.error_measures import joint_rms
 from rigmap.errors import RigmapError
 from rigmap.evaluation.metrics import RESULT_FORMAT
 from rigmap.reports.settings import ReportSettings
-from rigmap.store.layout import Layout
+from rigmap.store.layout import Layout, per_frame_file
 
 #: Table 1's rows whose guess is a trained network (re-fitted per replicate seed)
 NETWORK_METHODS = (
@@ -92,7 +93,7 @@ class LoadedResult:
 
     @property
     def csv_path(self) -> Path:
-        return self.path.with_suffix(".csv")
+        return per_frame_file(self.path)
 
     @property
     def novelty_spearman(self) -> float | None:
@@ -101,7 +102,7 @@ class LoadedResult:
         return None if value is None else float(value)
 
     def per_frame(self) -> pd.DataFrame:
-        """The per-frame CSV beside the JSON, checked against it."""
+        """The JSON's per-frame CSV, checked against it."""
         return read_per_frame(self.csv_path, self)
 
 
@@ -232,7 +233,7 @@ def read_per_frame(path: str | Path, result: LoadedResult) -> pd.DataFrame:
     """A per-frame CSV (clip, frame, joint_error, ground_truth_error) that agrees with its JSON."""
     path = Path(path)
     if not path.is_file():
-        raise ReportInputError(f"{path}: per-frame CSV missing (beside {result.path.name})")
+        raise ReportInputError(f"{path}: per-frame CSV missing (of {result.path})")
     try:
         table = pd.read_csv(path, dtype={"clip": str})
     except (OSError, ValueError) as error:
@@ -314,8 +315,8 @@ def load_metrics(
                     "kernels": f"kernel table: gpr with the {key} kernel",
                 }[table]
                 missing.append(f"{path} ({what})")
-            elif table == "methods" and not path.with_suffix(".csv").is_file():
-                missing.append(f"{path.with_suffix('.csv')} (per-frame errors of {method})")
+            elif table == "methods" and not per_frame_file(path).is_file():
+                missing.append(f"{per_frame_file(path)} (per-frame errors of {method})")
     if missing:
         raise ReportInputError(
             f"{len(missing)} metrics file(s) missing under {metrics_root} — the evaluate stages "

@@ -39,6 +39,9 @@ SEEDS = "seeds"
 MAP = "map"  # the map_mocap stage's folder under data/<rig> and metrics/<rig>
 MAP_SUITE = "map_suite"  # the map_suite stage's, likewise (and its page under reports/)
 MAP_PARTIAL = "map_partial"  # the map_partial stage's metrics set
+#: per-frame errors of the evaluation sets: ``metrics/<rig>/per_frame/<set>/``, apart from the
+#: set's JSON so that DVC reads the set's folder as metrics and this one as plots
+PER_FRAME = "per_frame"
 MAP_STAGE_MODEL = "model"  # a map stage's own map model, inside its output (refitted each run)
 #: the check_params stage's output, which every stage reads (``data/params_checked.txt``)
 PARAMS_STAMP = "params_checked.txt"
@@ -233,7 +236,7 @@ class Layout:
 
     def metrics_file(self, rig: str, metric_set: str, stem: str) -> Path:
         """One evaluated row's scores: ``metrics/<rig>/<set>/<stem>.json`` (its per-frame
-        errors: the same path with ``.csv``)."""
+        errors: :func:`per_frame_file`)."""
         return self.metrics_folder(rig, metric_set) / f"{stem}.json"
 
     # --- one application's folders --------------------------------------------------
@@ -313,6 +316,14 @@ class Layout:
     def index_page(self) -> Path:
         """The report's page: ``reports/index.html``."""
         return self.reports / "index.html"
+
+
+def per_frame_file(metrics_file: Path) -> Path:
+    """A metrics JSON's per-frame errors: ``<rig>/<set>/<stem>.json`` ->
+    ``<rig>/per_frame/<set>/<stem>.csv``."""
+    metrics_file = Path(metrics_file)
+    folder = metrics_file.parent
+    return folder.parent / PER_FRAME / folder.name / f"{metrics_file.stem}.csv"
 
 
 def replicate_set(metric_set: str, replicate: int) -> str:
