@@ -5,7 +5,8 @@ saved with three of its motion library's clips (the biped's motions re-keyed ont
 seed ``seed``) as actions with Blender's auto-clamped handles: the file
 ``<paths.data>/blend_fixture/hero.blend``. From there on the pipeline handles it only
 through the generic ``rig=blend_file`` path, as an opaque file: its actions become the
-corpus (the ``*_blend_file`` stages of dvc.yaml), and its Table 1 rows appear in the
+corpus (the Blender families of dvc.yaml, as ``rig=blend_file:hero``:
+conf/rig/blend_file:hero.yaml), and its Table 1 rows appear in the
 report under its name, ``blend_file:hero``. The same clips as the tests' fixture
 (tests/test_blend_corpus.py).
 

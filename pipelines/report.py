@@ -7,10 +7,10 @@ clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
 
 Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
 (what the evaluate stages ran), the rigs of Table 2 and the kernel table from
-``pipeline.sweep_rigs``, users' own .blend files (Tables 1 and 3) from
-``pipeline.blend_file_rigs``, the network rows' sampler from ``sampler``; a ``report``
-block, if the config has one, may set ``rigs``, ``excluded_methods``, ``clips`` (see
-rigmap.reports.settings.ReportSettings):
+``pipeline.sweep_rigs``, users' own .blend files (Tables 1 and 3) from the
+``blend_file:<stem>`` names in ``pipeline.blender_rigs``, the network rows' sampler from
+``sampler``; a ``report`` block, if the config has one, may set ``rigs``,
+``excluded_methods``, ``clips`` (see rigmap.reports.settings.ReportSettings):
 
     python pipelines/report.py
     python pipelines/report.py '+report.rigs=[quadruped,biped]'
@@ -28,6 +28,7 @@ from rigmap.app.objects import sampler_name
 from rigmap.app.stage import run_stage
 from rigmap.catalog import Catalogue, packaged_conf, read_catalogue
 from rigmap.reports import ReportFiles, ReportSettings, build_report
+from rigmap.reports.tables import BLEND_FILE_PREFIX
 
 PARAMS_FILE = Path("params.yaml")  # DVC runs the stage at the repository root
 
@@ -58,8 +59,10 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
     pipeline = cfg.get("pipeline")
     if pipeline is not None and pipeline.get("sweep_rigs") is not None:
         values["sampler_rigs"] = list(pipeline.sweep_rigs)  # what the sweep stages ran
-    if pipeline is not None and pipeline.get("blend_file_rigs") is not None:
-        values["blend_file_rigs"] = list(pipeline.blend_file_rigs)  # the *_blend_file stages
+    if pipeline is not None and pipeline.get("blender_rigs") is not None:
+        values["blend_file_rigs"] = [  # the users' .blend files among the Blender rigs
+            rig for rig in pipeline.blender_rigs if str(rig).startswith(BLEND_FILE_PREFIX)
+        ]
     if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
         values["nn_sampler"] = sampler_name(cfg.sampler)
     report = cfg.get("report")
@@ -73,7 +76,7 @@ def with_pipeline_lists(cfg: DictConfig, params_file: Path = PARAMS_FILE) -> Dic
 
     Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs two of
     its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``) and the users' files
-    (``pipeline.blend_file_rigs``), and params.yaml is where DVC recorded them (param
+    (``pipeline.blender_rigs``), and params.yaml is where DVC recorded them (param
     dependencies of this stage: ``dvc exp run -S`` changes them there, not in conf/).
     """
     if cfg.get("pipeline") is not None or not params_file.is_file():

@@ -34,9 +34,9 @@ if [ $# -eq 0 ]; then
     # every fit before any evaluation: an evaluation must score the networks this code path
     # trained, not the pulled ones (DVC's listing puts evaluate@<rig> before the joint-space fit)
     mapfile -t stages < <(dvc stage list --all --name-only > stage_list.txt
-        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(fit_nn|fit_nn_blender|fit_nn_blend_file|fit_nn_joint_space|fit_nn_seed|fit_nn_seed_blender|fit_nn_seed_blend_file|fit_nn_joint_space_seed)(@|$)' stage_list.txt \
+        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(fit_nn|fit_nn_blender|fit_nn_joint_space|fit_nn_seed|fit_nn_seed_blender|fit_nn_joint_space_seed)(@|$)' stage_list.txt \
             | grep -v -E 'fit_nn@.*-(none|uniform|univariate_gaussian|multivariate_gaussian|gmm)$'
-        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(evaluate|evaluate_blender|evaluate_blend_file|evaluate_seed|evaluate_seed_blender|evaluate_seed_blend_file)(@|$)' stage_list.txt)
+        grep -E '^(stages/[a-z_]+/dvc.yaml:)?(evaluate|evaluate_blender|evaluate_seed|evaluate_seed_blender)(@|$)' stage_list.txt)
 else
     stages=("$@")
 fi

@@ -80,9 +80,10 @@ def test_every_rig_with_a_motion_library_is_in_one_family(params):
         if name in available_rigs() and name not in OUTSIDE_THE_PIPELINE
     )
     pipeline = params["pipeline"]
+    own_files = [rig for rig in pipeline["blender_rigs"] if rig.startswith("blend_file:")]
     families = pipeline["rigs"] + pipeline["blender_rigs"] + pipeline["blender_map_rigs"]
-    assert sorted(families) == with_library
-    assert pipeline["blender_rigs"] == ["rigify_wolf"]
+    assert sorted(set(families) - set(own_files)) == with_library
+    assert pipeline["blender_rigs"] == ["rigify_wolf", *own_files]  # the .blend fixture's corpus
     # rigify_human is only mapped: its fit and Table 1 (~9 min) are over the quick budget
     assert pipeline["blender_map_rigs"] == ["rigify_human"]
     assert set(pipeline["blender_map_rigs"]) <= set(pipeline["map_rigs"])
@@ -107,16 +108,16 @@ def test_the_planned_work_per_stage_kind(stages, params):
         kinds[kind] = kinds.get(kind, 0) + 1
     assert kinds == {
         "check_params": 1,
-        "animate": len(params["pipeline"]["rigs"]) + 1,
-        "pose": len(params["pipeline"]["rigs"]) + 1,
-        "supersample": 6 * len(rigs) + 1,
-        "fit_nn": 6 * len(rigs) + 1,
-        "fit_gpr": 4 * len(rigs) + 1,
-        "fit_mean": len(params["pipeline"]["table1_rigs"]) + 1,
+        "animate": len(params["pipeline"]["rigs"]) + len(blender),
+        "pose": len(params["pipeline"]["rigs"]) + len(blender),
+        "supersample": 6 * len(rigs) + len(blender),
+        "fit_nn": 6 * len(rigs) + len(blender),
+        "fit_gpr": 4 * len(rigs) + len(blender),
+        "fit_mean": len(params["pipeline"]["table1_rigs"]) + len(blender),
         "heldout": len(params["pipeline"]["table1_rigs"]),
         "evaluate_splits": 2 * len(params["pipeline"]["table1_rigs"]),
         "sample_figures": len(rigs),
-        "evaluate": 3,
+        "evaluate": len(table1) + len(blender),
         "evaluate_samplers": len(rigs),
         "evaluate_kernels": len(rigs),
         "sample_sweep": 2,
@@ -131,24 +132,21 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "map_partial": 2,
         "animate_map": len(map_only),
         "pose_map": len(map_only),
-        # a user's .blend (issue #19): the file, then its corpus to Table 1
+        # a user's .blend (issue #19): the file, then the Blender families run it
         "blend_fixture": 1,
-        **{f"{kind}_blend_file": 1 for kind in BLEND_FILE_STAGES},
         # Table 1's networks per replicate training seed (issue #36): built-in rigs, the
-        # Blender rig and the user's .blend; only the network rows evaluated
+        # Blender rigs (the user's .blend among them); only the network rows evaluated
         "fit_nn_seed": (len(table1) + len(blender)) * seeds,
         "evaluate_seed": (len(table1) + len(blender)) * seeds,
         "fit_nn_joint_space_seed": len(table1) * seeds,
-        "fit_nn_seed_blend_file": seeds,
-        "evaluate_seed_blend_file": seeds,
     }
     assert len(stages) == (
-        27 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
-        + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 1 + len(BLEND_FILE_STAGES)
+        21 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 7 * len(blender)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
-        + (3 * len(table1) + 2 * len(blender) + 2) * seeds
+        + (3 * len(table1) + 2 * len(blender)) * seeds
     )  # fmt: skip
-    assert len(blender) == 1
+    assert blender == ["rigify_wolf", "blend_file:hero"]
 
 
 LATENT_STEPS = ("fit", "match", "synthesize", "evaluate")
@@ -182,22 +180,24 @@ def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_pape
     assert paper["max_iter"] == 300 and paper["size"] == "paper"
 
 
-BLEND_FILE_STAGES = ("animate", "pose", "supersample", "fit_nn", "fit_gpr", "fit_mean", "evaluate")
-
-
-def test_a_users_blend_runs_every_stage_through_rig_blend_file(stages, params):
-    """The *_blend_file stages know the fixture only by its path (rig=blend_file rig.path=...),
-    write under its name, and the report reads their rows (pipeline.blend_file_rigs)."""
+def test_a_users_blend_runs_through_the_blender_families_by_its_rig_config(stages, params):
+    """The fixture is one of the Blender rigs, named by its config (conf/rig/blend_file:hero.yaml
+    gives rig=blend_file its path): no stage names the file's path in its command, each
+    depends on the file, writes under the rig's name, and the report reads its rows."""
     fixture = "data/blend_fixture/hero.blend"
     assert paths(stages["blend_fixture"].outs) == [fixture]
-    assert params["pipeline"]["blend_file_rigs"] == ["blend_file:hero"]
-    for kind in BLEND_FILE_STAGES:
-        stage = stages[f"{kind}_blend_file"]
-        assert f"rig=blend_file rig.path={fixture} rig.armature=rig" in stage.cmd, kind
-        assert fixture in paths(stage.deps), kind
-    assert paths(stages["animate_blend_file"].outs) == ["data/blend_file:hero/corpus"]
-    metrics = paths(o for o in stages["evaluate_blend_file"].outs if o.metric)
-    assert metrics == ["metrics/blend_file:hero/methods"]
+    hero = "blend_file:hero"
+    assert hero in params["pipeline"]["blender_rigs"]
+    for name, stage in stages.items():
+        if name.endswith(f"@{hero}") or f"@{hero}-" in name:
+            assert "rig.path" not in stage.cmd and fixture in paths(stage.deps), name
+    assert paths(stages[f"animate_blender@{hero}"].outs) == [f"data/{hero}/corpus"]
+    metrics = paths(o for o in stages[f"evaluate_blender@{hero}"].outs if o.metric)
+    assert metrics == [f"metrics/{hero}/methods"]
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = apply_rig_overrides(compose(config_name="config", overrides=[f"rig={hero}"]))
+    assert (cfg.rig.name, cfg.rig.path, cfg.rig.armature) == ("blend_file", fixture, "rig")
+    assert "script" not in cfg.evaluate.methods and cfg.budget.gpr_points == 150  # no retarget map
 
 
 def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params):
@@ -251,9 +251,9 @@ def test_the_blender_family_runs_table_1_only(stages):
     assert f"fit_nn_blender@{wolf}-pca_gaussian" in stages
     assert f"fit_gpr_blender@{wolf}-multiquadric" in stages
     evaluate = stages[f"evaluate_blender@{wolf}"]
-    assert (
-        "nn_autodiff_jacobian" not in evaluate.cmd and "evaluate.frames_per_clip=12" in evaluate.cmd
-    )
+    # the same command as the built-in rigs': methods and budgets come from the rig's
+    # _overrides_ (test_the_wolf_budget_comes_from_its_rig_config_over_the_command_line)
+    assert evaluate.cmd == stages["evaluate@biped"].cmd
     assert [o.def_path for o in evaluate.outs if o.metric] == [f"metrics/{wolf}/methods"]
     assert all(not o.use_cache for o in evaluate.outs)
 
@@ -263,7 +263,7 @@ def test_the_blender_family_runs_table_1_only(stages):
     [
         "evaluate@quadruped",
         "evaluate_blender@rigify_wolf",
-        "evaluate_blend_file",
+        "evaluate_blender@blend_file:hero",
         "evaluate_splits@biped-heldout",
         "evaluate_samplers@biped",
         "evaluate_kernels@biped",

@@ -567,7 +567,7 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
         "quadruped", "biped", "face", "squirrel", "rigify_wolf", "blend_file:hero"
     )  # fmt: skip
     # the evaluate stages: the matrix, the Blender wolf's own (Table 1 only, no autodiff), and
-    # the user's .blend of the *_blend_file stages (pipeline.blend_file_rigs)
+    # the user's .blend the Blender families run (blend_file:<stem> in pipeline.blender_rigs)
     assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf", "blend_file:hero")
     assert settings.methods_for("blend_file:hero") == (
         "gpr", "gpr_learned_jacobian", "gpr_computed_jacobian", "nn", "nn_computed_jacobian",

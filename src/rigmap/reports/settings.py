@@ -53,8 +53,8 @@ class ReportSettings:
     sampler whose network the Table 1 rows ``nn*`` use (their files are
     ``methods/<method>-<nn_sampler>.json``; GPR and Script rows use ``none``).
     ``clips`` restricts the expected test clips (``None``: every clip of the rig's
-    test corpus). ``blend_file_rigs`` (``blend_file:<stem>``, from
-    ``pipeline.blend_file_rigs``) are users' own files: added to ``rigs`` and
+    test corpus). ``blend_file_rigs`` (``blend_file:<stem>``, the report stage takes them
+    from ``pipeline.blender_rigs``) are users' own files: added to ``rigs`` and
     ``method_rigs``, with ``BLEND_FILE_EXCLUDED_METHODS`` left out. ``catalogue`` labels
     the rows; a method, sampler or kernel it does not know is labelled by its own name.
     """
