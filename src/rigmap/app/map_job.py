@@ -43,6 +43,7 @@ from rigmap.map.confidence import frame_confidence
 from rigmap.map.joint_map import JointMap, JointMapError, MappedTargets
 from rigmap.map.outputs import MappedClip, write_map_outputs
 from rigmap.map.partial import JointSubset
+from rigmap.map.partial_tracks import names_rig_joints, rig_joint_targets
 from rigmap.map.skeleton_match import (
     Skeleton,
     check_frames,
@@ -228,13 +229,16 @@ def read_clips(
     out: Path,
     log: Log,
     window: FrameWindow | None = None,
-) -> tuple[list[MappedTargets], JointMap]:
+) -> tuple[list[MappedTargets], JointMap | None]:
     """Every input as the rig's mapped joints, and the retarget map whose joints they are.
 
     ``map.retarget`` given: that map for every file. Otherwise the rig's default map for a
     file that has its source joints, and for a BVH without them (or with
     ``map.retarget=auto``) its skeleton matched to ``map.rigs.<rig>.roles``; the matched
     map is saved as ``<out>/<clip>.retarget.yaml`` (once per skeleton) and its path logged.
+    Joint tracks that the default map does not fit and whose joints are all the rig's own
+    (the quadruped's four paws) are taken as they are, with no map
+    (:mod:`rigmap.map.partial_tracks`; the map returned is then None).
     ``window``: the frames mapped (default: ``map``'s, checked).
     """
     window = window or frame_window(options)
@@ -255,9 +259,10 @@ def read_clips(
             if path.suffix.lower() != ".npz":
                 window.check_length(len(tracks.positions), tracks.fps, path)
         retarget = fixed or (default if default and _fits(default, tracks) else None)
-        if retarget is None and motion is None:  # joint tracks: the default map says what lacks
+        own = retarget is None and motion is None and names_rig_joints(tracks, rig)
+        if retarget is None and motion is None and not own:  # the default map says what lacks
             retarget = default or retarget_map(options, rig.name, config_dir)
-        was_matched = retarget is None
+        was_matched = retarget is None and not own  # own: tracks of the rig's joints (feet…)
         if was_matched:
             retarget = _matched_map(path, motion, tracks, rig.name, options, out, matched, log)
         if motion is not None:
@@ -265,7 +270,7 @@ def read_clips(
         maps.append(retarget)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # unused source joints: summarised below instead
-            targets = retarget.apply(rig, tracks)
+            targets = rig_joint_targets(tracks, rig) if own else retarget.apply(rig, tracks)
         if path.suffix.lower() != ".npz":  # cut to the window (an npz was cut as it was read)
             cut = window.slice(targets.fps)
             if len(targets.positions[cut]) == 0:
@@ -335,10 +340,10 @@ def _matched_map(
     return matched[key]
 
 
-def _subset_map(retarget: JointMap, default: JointMap | None) -> JointMap:
+def _subset_map(retarget: JointMap | None, default: JointMap | None) -> JointMap | None:
     """The map that names the joint subset: a matched map driving the default map's rig
-    joints shares its name (and so its cached model)."""
-    if default is not None and set(retarget.joints) == set(default.joints):
+    joints shares its name (and so its cached model); None for tracks of the rig's joints."""
+    if retarget is not None and default is not None and set(retarget.joints) == set(default.joints):
         return dataclasses.replace(retarget, name=default.name)
     return retarget
 
