@@ -1,13 +1,16 @@
 """The ``map_partial`` stage's work: partial input and motion editing on a rig's test clips.
 
 Reads the rig's train corpus and poses and its test clips (:class:`rigmap.store.Layout`),
-fits one subset mapping per input (every joint, the feet, the effectors), scores them
+fits one subset mapping per input (every joint, then the rig's subsets: the feet and the
+effectors of a body, the face's landmarks for FaceIK), scores them
 (:mod:`rigmap.map.partial_evaluation`), maps the motion-editing demo back with the full
-mapping (:mod:`rigmap.map.motion_edit`), and writes into ``metrics/<rig>/map_partial/``:
+mapping (:mod:`rigmap.map.motion_edit`) when the rig has one, and writes into
+``metrics/<rig>/map_partial/``:
 
 - ``partial_inputs.json``: one row per (input, guess/refined) plus the settings;
 - ``partial_inputs.csv``: the same rows as a table the report includes;
-- ``motion_edit.json``: how closely the rig follows the edited feet and hand.
+- ``motion_edit.json``: how closely the rig follows the edited feet and hand (a rig with
+  ``map_partial.edit_joints``; the face has no locomotion to edit, so no demo).
 """
 
 from __future__ import annotations
@@ -69,34 +72,23 @@ def map_partial(
     subsets: Mapping[str, JointSubset],
     make_regressor: Callable[[], object],
     settings: PartialInputSettings,
-    edit: MotionEdit,
+    edit: MotionEdit | None,
     *,
     edit_clip: str,
     edit_frames: int,
 ) -> list[Path]:
     """Evaluate ``subsets`` on ``rig``'s test clips; edit the first ``edit_frames`` frames of
     the train clip ``edit_clip`` (Fig. 7 edits locomotion made from animator data) and map
-    it back with the full mapping. Returns the files written."""
+    it back with the full mapping (``edit`` None: no demo, no ``motion_edit.json``).
+    Returns the files written."""
     from rigmap.evaluation.methods import TestSet
 
     started = time.perf_counter()
     training, poses = read_training(rig, layout)
-    world = clip_world(poses, edit_clip, edit_frames)
+    world = None if edit is None else clip_world(poses, edit_clip, edit_frames)
     test_set = TestSet.load(rig, layout)
     fitted = fit_subset_mappings(rig, subsets, training, make_regressor)
     rows = evaluate_partial_inputs(rig, fitted, training, test_set, settings)
-    edit_settings = MapSettings(
-        refine_iterations=EDIT_REFINE_ITERATIONS, prior_weight=settings.prior_weight
-    )
-    edited = map_edit(
-        rig,
-        fitted[FULL_INPUT][0],
-        world,
-        edit,
-        edit_settings,
-        control_std=training.std,
-        hold_values=training.median,
-    )
     folder = layout.map_partial_metrics(rig.name)
     table = pd.DataFrame([r.to_dict() for r in rows])
     meta = {
@@ -109,20 +101,42 @@ def map_partial(
         "training std squared (§6.1)",
         "seconds": time.perf_counter() - started,
     }
-    edit_record = {
-        "rig": rig.name,
-        "clip": edit_clip,
-        **edited.to_dict(),
-        "edit": asdict(edit),
-        "refine_iterations": EDIT_REFINE_ITERATIONS,
-    }
-    return [
+    written = [
         write_json_atomic(
             folder / "partial_inputs.json", json_ready({**meta, "rows": table.to_dict("records")})
         ),
         _write_csv(folder / "partial_inputs.csv", table),
-        write_json_atomic(folder / "motion_edit.json", json_ready(edit_record)),
     ]
+    if edit is not None:
+        record = _edit_record(rig, fitted[FULL_INPUT][0], world, edit, training, settings)
+        written.append(
+            write_json_atomic(
+                folder / "motion_edit.json", json_ready({**record, "clip": edit_clip})
+            )
+        )
+    return written
+
+
+def _edit_record(rig, mapping, world, edit: MotionEdit, training, settings) -> dict:
+    """The motion-editing demo mapped back with the full ``mapping``: its record."""
+    edit_settings = MapSettings(
+        refine_iterations=EDIT_REFINE_ITERATIONS, prior_weight=settings.prior_weight
+    )
+    edited = map_edit(
+        rig,
+        mapping,
+        world,
+        edit,
+        edit_settings,
+        control_std=training.std,
+        hold_values=training.median,
+    )
+    return {
+        "rig": rig.name,
+        **edited.to_dict(),
+        "edit": asdict(edit),
+        "refine_iterations": EDIT_REFINE_ITERATIONS,
+    }
 
 
 def _write_csv(path: Path, table: pd.DataFrame) -> Path:
@@ -147,15 +161,13 @@ def map_partial_from_config(config: Mapping[str, Any]) -> list[Path]:
     with load(rig_options) as rig:
         subsets = _subsets(rig, options)
         joints = (options.get("edit_joints") or {}).get(rig.name)
-        if joints is None:
-            raise MapPartialConfigError(
-                f"map_partial.edit_joints has no entry for rig {rig.name!r}"
-            )
         edit_options = dict(options["edit"])
         edit_frames = int(edit_options.pop("frames"))
         edit_clip = str(edit_options.pop("clip"))
         edit_options = {k: tuple(v) if isinstance(v, list) else v for k, v in edit_options.items()}
-        edit = MotionEdit(tuple(joints["feet"]), joints["hand"], **edit_options)
+        edit = None  # no edit_joints entry (the face): no motion-editing demo
+        if joints is not None:
+            edit = MotionEdit(tuple(joints["feet"]), joints["hand"], **edit_options)
         settings = PartialInputSettings(
             int(options["refine_iterations"]),
             int(options["refine_every"]),
@@ -181,11 +193,13 @@ def map_partial_from_config(config: Mapping[str, Any]) -> list[Path]:
 
 
 def _subsets(rig, options: Mapping[str, Any]) -> dict[str, JointSubset]:
-    """The subsets ``input_joints`` names, from ``subsets.<rig>``, checked against the rig."""
+    """The subsets ``input_joints`` names (None: every one of the rig's, in order), from
+    ``subsets.<rig>``, checked against the rig."""
     table = (options.get("subsets") or {}).get(rig.name)
     if not table:
         raise MapPartialConfigError(f"map_partial.subsets has no entry for rig {rig.name!r}")
-    names = list(options.get("input_joints") or [])
+    chosen = options.get("input_joints")
+    names = list(table) if chosen is None else list(chosen)
     unknown = [n for n in names if n not in table]
     if unknown or not names:
         raise MapPartialConfigError(

@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from rigmap.reports.catalog import rig_label
-from rigmap.reports.table import Column, Table
+from rigmap.reports.table import MISSING, Column, Table
 
 MOCAP_NOTE = (
     "Real CMU mocap (../shared/mocap/) mapped onto each rig by `rigmap map`: joint error on "
@@ -23,10 +23,18 @@ MOCAP_NOTE = (
     "database was created with funding from NSF EIA-0196217."
 )
 PARTIAL_NOTE = (
-    "A mapping trained on a joint subset (feet, seven effectors) beside the full input, on "
-    "the test clips: error on the joints given and on the whole body, before and after "
-    "refinement (refined on the frames the stage refines)."
+    "A mapping trained on a joint subset beside the mapping from every joint (full), on the "
+    "test clips: error on the joints given and on the whole body (every joint, against the "
+    "animator's pose), before and after refinement (refined on the frames the stage "
+    "refines); 'Whole body, full input' is the full mapping's on the same frames."
 )
+#: the paper's figure of each subset the map_partial stage names (conf/map_partial)
+SUBSET_FIGURES = {
+    "feet": "feet only (Fig. 6)",
+    "effectors": "seven effectors (Fig. 5)",
+    "landmarks": "FaceIK landmarks (Fig. 10)",
+}
+FULL_INPUT = "full"  # rigmap.map.partial_evaluation.FULL_INPUT: the row of every joint
 
 
 def mocap_table(metrics_root: str | Path) -> Table | None:
@@ -72,11 +80,14 @@ def mocap_table(metrics_root: str | Path) -> Table | None:
 
 
 def partial_table(metrics_root: str | Path) -> Table | None:
-    """Given-joint and whole-body errors per subset and stage of ``map_partial``, or None."""
+    """Given-joint and whole-body errors per subset and stage of ``map_partial``, beside the
+    full input's whole-body error; or None when the stage did not run."""
     files = sorted(Path(metrics_root).glob("*/map_partial/partial_inputs.csv"))
     if not files:
         return None
     data = pd.concat([pd.read_csv(path) for path in files], ignore_index=True)
+    full = data[data.subset == FULL_INPUT].set_index(["rig", "stage"])["body_error_cm"]
+    data["full_input_body_error_cm"] = [full.get((r.rig, r.stage)) for r in data.itertuples()]
     rows = [
         [
             rig_label(r.rig),
@@ -85,6 +96,7 @@ def partial_table(metrics_root: str | Path) -> Table | None:
             str(r.frames),
             f"{r.given_error_cm:.2f}",
             f"{r.body_error_cm:.2f}",
+            MISSING if pd.isna(r.full_input_body_error_cm) else f"{r.full_input_body_error_cm:.2f}",
             f"{r.ground_truth_error:.2f}",
         ]
         for r in data.itertuples()
@@ -96,16 +108,42 @@ def partial_table(metrics_root: str | Path) -> Table | None:
         Column("Frames"),
         Column("Given joints (cm RMS)", "Joint Error", short_group="joint"),
         Column("Whole body (cm RMS)", "Joint Error", short_group="joint"),
+        Column("Whole body, full input (cm RMS)", "Joint Error", short_group="joint"),
         Column("Ground Truth Error"),
     ]
     return Table(
         name="table_map_partial",
-        title="Partial input: feet only and seven effectors beside the full joints (Figs 5, 6)",
+        title=_partial_title(data),
         columns=columns,
         rows=rows,
         data=data,
-        notes=[PARTIAL_NOTE],
+        notes=[PARTIAL_NOTE, *_whole_input_notes(data)],
     )
+
+
+def _partial_title(data: pd.DataFrame) -> str:
+    """The table's title from the subsets it holds, in their order."""
+    subsets = [s for s in dict.fromkeys(data.subset) if s != FULL_INPUT]
+    named = [SUBSET_FIGURES.get(s, s) for s in subsets]
+    listed = named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
+    return f"Partial input: {listed} beside the full joints"
+
+
+def _whole_input_notes(data: pd.DataFrame) -> list[str]:
+    """A note per rig whose subset is every joint it has (the face's landmarks): its rows
+    and the full input's are then the same mapping."""
+    notes = []
+    for rig, rows in data.groupby("rig", sort=False):
+        every = rows.loc[rows.subset == FULL_INPUT, "given_joints"]
+        covering = rows.loc[
+            (rows.subset != FULL_INPUT) & rows.given_joints.isin(every), "subset"
+        ].unique()
+        for subset in covering:
+            notes.append(
+                f"{rig_label(rig)}: its {subset} are all {int(every.iloc[0])} of its joints, "
+                "so their rows are the full input's: the given joints are the whole body."
+            )
+    return notes
 
 
 def _pair(result: float, source: float) -> str:
