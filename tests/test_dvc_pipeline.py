@@ -130,6 +130,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         **{f"latent_{step}": len(params["latent"]["rigs"]) for step in LATENT_STEPS},
         "map_mocap": len(params["pipeline"]["map_rigs"]),
         "map_partial": 2,
+        "map_path": 1,  # Fig. 7 on the biped (issue #42)
         "animate_map": len(map_only),
         "pose_map": len(map_only),
         # a user's .blend (issue #19): the file, then the Blender families run it
@@ -141,7 +142,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn_joint_space_seed": len(table1) * seeds,
     }
     assert len(stages) == (
-        21 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        22 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 7 * len(blender)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
         + (3 * len(table1) + 2 * len(blender)) * seeds

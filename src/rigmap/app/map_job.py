@@ -93,18 +93,28 @@ def map_from_config(
     """Map ``config["input"]`` onto ``config["rig"]``; one output folder per clip, written
     whole (:func:`write_map_outputs`, with the preview and a Blender rig's ``.blend``). A clip
     of more than :data:`PROGRESS_FRAMES` frames shows its steps on a progress bar (stderr)."""
+    from rigmap.app import map_path_options as path_options
     from rigmap.rigs import load
 
     options = config["map"]
     window = frame_window(options)  # options first: a bad one is named before any file is read
-    sources = input_files(config.get("input"))
+    path_edit = path_options.path_edit_from_options(options)  # map.path: Fig. 7's edit
+    corpus_clip = options.get("corpus_clip")
+    sources = [] if corpus_clip else input_files(config.get("input"))
     preview = bool(options.get("preview", True))
     with load(rig_options(config)) as rig:
         out = Path(config.get("out") or Layout.user_output("map", rig.name))
-        clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
+        if corpus_clip:
+            clips = [path_options.corpus_targets(config, rig, corpus_clip)]
+            retarget = retarget_map(options, rig.name, config_dir)
+        else:
+            clips, retarget = read_clips(sources, rig, options, config_dir, out, log, window)
         subset = subset_for(options, rig, retarget, options.get("subset", "mocap"))
-        model = _model(config, rig, subset, log)
         settings = map_settings(options, rig.name)
+        edited = {}
+        if path_edit is not None:
+            clips, edited = path_options.edit_clips(path_edit, rig, clips, settings.feet)
+        model = _model(config, rig, subset, log)
         done = []
         for targets in _progress(clips, len(clips) > 1, "map"):
             with _step_bar(targets) as bar:
@@ -121,6 +131,9 @@ def map_from_config(
                 _advance(bar, "confidence")
                 folder = out / _stem(targets.source)
                 extra = partial(_extra_outputs, rig, result, preview)
+                if targets.source in edited:
+                    clip = edited[targets.source]
+                    extra = partial(path_options.with_path_outputs, extra, path_edit, clip, result)
                 done.append(
                     write_map_outputs(folder, result, rig, confidence=confidence, extra=extra)
                 )

@@ -31,6 +31,7 @@ from rigmap.reports.index_page import sample_grid_figures, write_index
 from rigmap.reports.latent_tables import latent_figures, latent_tables
 from rigmap.reports.mapping_tables import mocap_table, partial_table
 from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
+from rigmap.reports.path_tables import path_figures, path_table
 from rigmap.reports.rig_facts import rig_facts
 from rigmap.reports.settings import ReportSettings
 from rigmap.reports.table import Table, write_table
@@ -135,6 +136,7 @@ def build_report(
     _remove_stale_figures(figures_folder, {f.path.resolve() for f in figures})
     grids, grid_notes = sample_grid_figures(layout.figures(), settings.sampler_rigs)
     grids += latent_figures(layout.figures())  # the latent stages' Fig 2
+    grids += path_figures(layout.figures())  # the map_path stage's Fig 7, when it ran
     notes += grid_notes
 
     index = write_index(
@@ -169,6 +171,7 @@ def _tables(tree: dict, facts: list, settings: ReportSettings, metrics_root: Pat
         tables.append(splits)
     # the mapping stages' tables, when map_mocap and map_partial ran
     tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
+    tables += [t for t in (path_table(metrics_root),) if t]  # when map_path ran (Fig 7)
     tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
     tables += edits_tables(metrics_root)  # when the edit stages ran (#17)
     return tables
