@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from rigmap.app.map_path_options import PathOptionError, path_edit_from_options
-from rigmap.map.cycles import find_cycle, local_pose, loop_cycle
+from rigmap.map.cycles import CycleError, find_cycle, local_pose, loop_cycle
 from rigmap.map.path_edit import GroundPath, PathEdit, PathEditError, heading, read_path
 from rigmap.map.terrain import HeightField, Procedural, TerrainError, read_height_field
 
@@ -111,6 +111,16 @@ def test_looping_finds_the_cycle_and_keeps_the_seams_continuous():
         assert np.abs(d2_naive - d2_source).max() > 0.9 * residual
     travel = np.linalg.norm(np.diff(blended[:, 0, [0, 2]], axis=0), axis=1)
     assert travel.max() < 1.5 * np.median(travel)  # the root goes on, no jump back
+
+
+def test_the_cycle_is_the_pose_returning_not_the_smallest_lag():
+    """Drift (the head and hips sinking 1 cm a frame) makes every long lag worse than a short
+    one; the period is still the lag where the pose returns."""
+    world = walker(120, period=36)
+    world[:, [1, 2, 5], 1] -= np.arange(120)[:, None]
+    assert find_cycle(world, 0, FPS).period == 36
+    with pytest.raises(CycleError, match="never returns"):
+        find_cycle(world[:, :1] + np.arange(120)[:, None, None] ** 2 * [0.0, 1.0, 0.0], 0, FPS)
 
 
 @pytest.mark.parametrize(

@@ -51,10 +51,15 @@ def find_cycle(
     min_period_s: float = MIN_PERIOD_S,
     max_period_s: float = MAX_PERIOD_S,
 ) -> Cycle:
-    """The period (frames) at which the root-relative pose repeats best, at most half the
-    clip, and the start whose seam is smallest."""
-    local = local_pose(world, root).reshape(len(world), -1)
-    frames = len(local)
+    """The period (frames) at which the root-relative pose repeats best (the deepest local
+    minimum of its mean squared difference over lags, each coordinate's linear drift
+    removed), at most half the clip, and the start whose seam is smallest."""
+    pose = local_pose(world, root).reshape(len(world), -1)
+    frames = len(pose)
+    time = np.arange(frames) - (frames - 1) / 2
+    local = pose - pose.mean(axis=0)
+    if frames > 1:  # a slow drift (a turn, a sinking head) hidden from the comparison
+        local -= np.outer(time, time @ local / (time @ time))
     low = max(2, round(min_period_s * fps))
     high = min(frames // 2, round(max_period_s * fps))
     if high < low:
@@ -62,10 +67,19 @@ def find_cycle(
             f"a clip of {frames} frames at {fps:g} fps holds no two cycles of "
             f"{min_period_s:g}-{max_period_s:g} s: give a longer locomotion clip"
         )
-    lags = np.arange(low, high + 1)
-    scores = [np.mean((local[lag:] - local[:-lag]) ** 2) for lag in lags]
-    period = int(lags[int(np.argmin(scores))])
-    seams = ((local[period:] - local[:-period]) ** 2).reshape(frames - period, -1, 3)
+    lags = np.arange(1, high + 2)  # one past ``high``: a minimum at ``high`` is seen as one
+    scores = np.array([np.mean((local[lag:] - local[:-lag]) ** 2) for lag in lags])
+    # a smooth clip differs little from itself a few frames on: the period is the deepest
+    # local minimum (the pose returning), never the rise from lag 0
+    dips = [k for k in range(1, len(lags) - 1) if scores[k - 1] > scores[k] <= scores[k + 1]]
+    dips = [k for k in dips if lags[k] >= low]
+    if not dips:
+        raise CycleError(
+            f"no cycle of {min_period_s:g}-{max_period_s:g} s in a clip of {frames} frames at "
+            f"{fps:g} fps: the pose never returns (give straight locomotion of two cycles or more)"
+        )
+    period = int(lags[min(dips, key=lambda k: scores[k])])
+    seams = ((pose[period:] - pose[:-period]) ** 2).reshape(frames - period, -1, 3)
     per_start = np.sqrt(seams.sum(axis=2).mean(axis=1))
     start = int(np.argmin(per_start))
     return Cycle(start, period, float(per_start[start]))
