@@ -138,6 +138,27 @@ def test_planted_heels_and_toes_hold_to_a_tenth_of_a_mm_in_the_keys(biped, train
     assert unpinned.skate_result_cm > 5 * result.skate_result_cm  # the hold is what pins
 
 
+def test_planted_frames_given_by_the_caller_are_the_ones_held(biped, trained, walk_2s):
+    """A path edit knows its stance frames (rigmap.map.path_edit): map_clip holds those, in the
+    mapping's own foot order, instead of detecting them; a mismatch is one clear error."""
+    from rigmap.map.contacts import Contacts
+
+    mapping, _, std, median = trained
+    settings = MapSettings(refine_iterations=0, feet=FEET)
+    frames = len(walk_2s.positions)
+    given = np.zeros((frames, 4), dtype=bool)
+    given[: frames // 2, 0] = given[frames // 2 :, 3] = True  # ball_r, then foot_l
+    planted = Contacts(("ball_r", "ball_l", "foot_r", "foot_l"), given)
+    options = {"control_std": std, "hold_values": median}
+    result = map_clip(biped, walk_2s, mapping, settings, planted=planted, **options)
+    assert result.contacts.feet == FEET
+    expected = given[:, [3, 2, 1, 0]]
+    np.testing.assert_array_equal(result.contacts.planted, expected)
+    short = Contacts(planted.feet, given[:-1])
+    with pytest.raises(MapError, match="planted frames given for feet"):
+        map_clip(biped, walk_2s, mapping, settings, planted=short, **options)
+
+
 def test_the_hold_moves_only_the_legs_controls(biped, trained, walk_2s):
     """Root motion, the COG and the body stay as mapped: the foot controls found by
     probing the rig are the legs' IK and foot-roll controls, none held."""

@@ -126,6 +126,7 @@ def map_from_config(
                     control_std=model.control_std,
                     hold_values=model.hold_values,
                     on_step=partial(_advance, bar),
+                    planted=edited[targets.source].contacts if targets.source in edited else None,
                 )
                 confidence = frame_confidence(model.mapping, result.targets)
                 _advance(bar, "confidence")

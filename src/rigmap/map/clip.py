@@ -143,10 +143,14 @@ def map_clip(
     control_std: np.ndarray,
     hold_values: np.ndarray,
     on_step: Callable[[str], None] = _no_step,
+    planted: Contacts | None = None,
 ) -> MapResult:
     """Map ``targets`` onto ``rig``; ``control_std`` and ``hold_values`` are per used control
     (training-corpus std, and the value a held control keeps, e.g. its corpus median).
-    ``on_step`` is called with each of :data:`MAP_STEPS` as it ends (for progress)."""
+    ``on_step`` is called with each of :data:`MAP_STEPS` as it ends (for progress).
+    ``planted``: the feet's planted frames when the caller knows them (a path edit holds its
+    stance feet on a slope, where the height test of :func:`detect_contacts` finds few);
+    None: detected from the targets."""
     joints = mapping.subset.joints
     missing = [j for j in joints if j not in targets.joint_names]
     if missing:
@@ -157,7 +161,7 @@ def map_clip(
     world = targets.positions[:, [targets.joint_names.index(j) for j in joints]]
     seconds: dict[str, float] = {}
     feet = [f for f in settings.feet if f in joints]  # contact joints the targets drive
-    contacts = detect_contacts(world, feet, joints, targets.fps) if feet else None
+    contacts = _contacts(world, feet, joints, targets, planted) if feet else None
     source = world
     if contacts is not None and settings.pin_feet:
         world = reachable_pins(rig, pin_contacts(world, contacts, joints), source, contacts, joints)
@@ -205,6 +209,20 @@ def map_clip(
 
 
 CONTACT_TOLERANCE_CM = 0.05  # key reduction keeps planted joints this close (ours)
+
+
+def _contacts(world, feet, joints, targets: MappedTargets, planted: Contacts | None) -> Contacts:
+    """The given planted frames of the feet the mapping drives, else those detected."""
+    if planted is None:
+        return detect_contacts(world, feet, joints, targets.fps)
+    if planted.planted.shape[0] != len(world) or not set(feet) <= set(planted.feet):
+        raise MapError(
+            f"{targets.source}: planted frames given for feet {list(planted.feet)} over "
+            f"{planted.planted.shape[0]} frames; the targets have {len(world)} frames and "
+            f"feet {feet}"
+        )
+    columns = [planted.feet.index(f) for f in feet]
+    return Contacts(tuple(feet), planted.planted[:, columns])
 
 
 def _hold(rig, Y, pinned, contacts, mapping, settings, control_std, fps, seconds) -> np.ndarray:
