@@ -41,6 +41,10 @@ def test_families_come_from_every_file_with_their_file(tmp_path):
     assert dvc_target(families, "fit") == "stages/fit/dvc.yaml:fit"
     assert dvc_target(families, "report") == "report"
     assert dvc_target(families, "unknown@x") == "unknown@x"  # DVC names what it cannot find
+    # a matrix key with a colon (a .blend's rig, blend_file:hero) is a name, not an address
+    assert dvc_target(families, "fit@blend_file:hero") == "stages/fit/dvc.yaml:fit@blend_file:hero"
+    address = "stages/fit/dvc.yaml:fit@blend_file:hero"
+    assert dvc_target(families, address) == address
 
 
 def test_a_family_defined_twice_is_refused_naming_both_files(tmp_path):

@@ -202,8 +202,10 @@ _DOT_EDGE = re.compile(r'^"([^"]+)" -> "([^"]+)";$', re.MULTILINE)
 
 def dvc_target(families: Mapping[str, StageFamily], target: str) -> str:
     """A stage or family name as DVC addresses it: ``stages/<family>/dvc.yaml:<name>`` when
-    its family lives in a stage file (:mod:`rigmap.store.pipeline_files`); else unchanged."""
-    found = families.get(family_of(target)) if ":" not in target else None
+    its family lives in a stage file (:mod:`rigmap.store.pipeline_files`); else unchanged
+    (an address already, or a root stage). A matrix key may hold a colon itself
+    (``animate_blender@blend_file:hero``), so an address is told by its ``.yaml:``."""
+    found = families.get(family_of(target)) if short_name(target) == target else None
     return target if found is None else found.address(target)
 
 
