@@ -1,5 +1,6 @@
 """``rigmap`` command line: rigs, corpus, export to Blender, fit, evaluate, map, pose, reproduce,
-and the link to a rig's runs in the MLflow UI (``rigmap tracking url``).
+simulate (a soft body in Blender mapped onto the squirrel), and the link to a rig's runs in the
+MLflow UI (``rigmap tracking url``).
 
 Subcommands take plain flags (argparse); experiment commands pass Hydra
 overrides (``key=value``) straight to the pipeline apps.
@@ -122,6 +123,9 @@ def _parser() -> argparse.ArgumentParser:
     from rigmap.app.studio import add_studio_command
 
     add_studio_command(commands, compose_config, find_config_dir)
+    from rigmap.app.simulate import add_simulate_command
+
+    add_simulate_command(commands, compose_config, find_config_dir)
     return parser
 
 

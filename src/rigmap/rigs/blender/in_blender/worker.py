@@ -205,6 +205,13 @@ class Worker:
         self.session = None  # the file replaces whatever was open
         return read_shape_keys(args["path"], args.get("vertices_at"))
 
+    def op_simulate_soft_body(self, args, arrays):
+        from softbody import simulate
+
+        self.session = None  # the scene is replaced by the simulation's
+        parts = (arrays[k] for k in ("rest", "triangles", "springs", "pinned"))
+        return simulate(*parts, args["scenario"])
+
     def op_generate_rigify(self, args, arrays):
         from rigify_generate import generate
 
