@@ -131,6 +131,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "map_mocap": len(params["pipeline"]["map_rigs"]),
         "map_partial": 2,
         "map_path": 1,  # Fig. 7 on the biped (issue #42)
+        "simulate": 1,  # the squirrel simulated in Blender, mapped (Fig. 9, issue #42)
         "animate_map": len(map_only),
         "pose_map": len(map_only),
         # a user's .blend (issue #19): the file, then the Blender families run it
@@ -142,7 +143,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn_joint_space_seed": len(table1) * seeds,
     }
     assert len(stages) == (
-        22 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        23 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 7 * len(blender)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
         + (3 * len(table1) + 2 * len(blender)) * seeds
@@ -221,7 +222,8 @@ def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
     for rig in set(params["pipeline"]["rigs"]) - set(params["pipeline"]["sweep_rigs"]):
         assert f"pose@{rig}" in stages
         assert not [name for name in stages if name.endswith((f"@{rig}", f"@{rig}-gmm"))
-                    and not name.startswith(("animate@", "pose@", "latent_"))]  # fmt: skip
+                    and not name.startswith(("animate@", "pose@", "latent_",
+                                             "simulate@"))]  # fmt: skip
     for rig in params["pipeline"]["sweep_rigs"]:
         for sampler in available_samplers():
             supersample = stages[f"supersample@{rig}-{sampler}"]

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: today's length of all the stage files together (dvc.yaml and stages/*/dvc.yaml), so they
 #: do not grow back; issue #35 asks for 200, which takes changing what DVC plans
 #: (docs/pipeline.md, "Why the files are not shorter")
-MAX_LINES = 378
+MAX_LINES = 391
 
 #: each stage family and the params.yaml lists (or literal sizes) its matrix multiplies
 FAMILIES: dict[str, tuple[str | int, ...]] = {
@@ -61,6 +61,7 @@ FAMILIES: dict[str, tuple[str | int, ...]] = {
     "fit_nn_joint_space": ("pipeline.table1_rigs",),
     "map_partial": (2,),  # biped and quadruped
     "map_path": (1,),  # the biped (Fig. 7, issue #42)
+    "simulate": (1,),  # the squirrel simulated in Blender, mapped (Fig. 9, issue #42)
     "fit_nn_seed": ("pipeline.table1_rigs", "pipeline.blender_samplers", "pipeline.spread_seeds"),
     "fit_nn_seed_blender": (
         "pipeline.blender_rigs",
@@ -142,6 +143,7 @@ def test_fits_evaluations_and_figures_add_up(stages, params):
         [f"reports/figures/samples_{rig}.png" for rig in rigs]
         + [f"reports/figures/latent_{rig}.png" for rig in latent]
         + ["reports/figures/map_path_biped.png"]
+        + ["reports/figures/simulate_squirrel.png"]
     )
 
 

@@ -34,6 +34,7 @@ from rigmap.reports.metrics_tree import SWEEP_FOLDER, load_metrics
 from rigmap.reports.path_tables import path_figures, path_table
 from rigmap.reports.rig_facts import rig_facts
 from rigmap.reports.settings import ReportSettings
+from rigmap.reports.simulation_tables import simulation_figures, simulation_table
 from rigmap.reports.table import Table, write_table
 from rigmap.reports.tables import (
     kernels_table,
@@ -137,6 +138,7 @@ def build_report(
     grids, grid_notes = sample_grid_figures(layout.figures(), settings.sampler_rigs)
     grids += latent_figures(layout.figures())  # the latent stages' Fig 2
     grids += path_figures(layout.figures())  # the map_path stage's Fig 7, when it ran
+    grids += simulation_figures(layout.figures())  # the simulate stage's Fig 9, when it ran
     notes += grid_notes
 
     index = write_index(
@@ -172,6 +174,7 @@ def _tables(tree: dict, facts: list, settings: ReportSettings, metrics_root: Pat
     # the mapping stages' tables, when map_mocap and map_partial ran
     tables += [t for t in (mocap_table(metrics_root), partial_table(metrics_root)) if t]
     tables += [t for t in (path_table(metrics_root),) if t]  # when map_path ran (Fig 7)
+    tables += [t for t in (simulation_table(metrics_root),) if t]  # when simulate ran (Fig 9)
     tables += latent_tables(metrics_root)  # when the latent stages ran (#18)
     tables += edits_tables(metrics_root)  # when the edit stages ran (#17)
     return tables

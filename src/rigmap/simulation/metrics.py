@@ -61,6 +61,7 @@ def summary(rig, frames: pd.DataFrame, mapping: VertexMapping, facts: dict) -> d
             "vertex_error_rms_cm": rms,
             "vertex_error_rms_percent_of_height": 100.0 * rms / height,
             "vertex_error_max_cm": float(frames["vertex_error_cm"].max()),
+            "vertex_error_median_cm": float(frames["vertex_error_cm"].median()),
             "guess_vertex_error_rms_cm": _rms(frames["guess_vertex_error_cm"]),
             "seconds_per_frame": mapping.seconds_per_frame,
             "frames_per_second": 1.0 / mapping.seconds_per_frame,
