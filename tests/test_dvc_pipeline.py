@@ -102,6 +102,7 @@ def test_the_planned_work_per_stage_kind(stages, params):
     rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
     map_only = params["pipeline"]["blender_map_rigs"]
     table1, seeds = params["pipeline"]["table1_rigs"], len(params["pipeline"]["spread_seeds"])
+    mesh, mesh_fit = params["pipeline"]["mesh_table1_rigs"], params["pipeline"]["mesh_fit_rigs"]
     kinds: dict[str, int] = {}
     for name in stages:
         kind = name.split("@")[0].removesuffix("_blender")
@@ -132,6 +133,10 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "map_partial": 2,
         "map_path": 1,  # Fig. 7 on the biped (issue #42)
         "simulate": 1,  # the squirrel simulated in Blender, mapped (Fig. 9, issue #42)
+        "map_partial_face": 1,  # FaceIK (Fig. 10, issue #42)
+        # the face's and squirrel's Table 1 (issue #42): their fits where no sweep makes them
+        **{f"{kind}_mesh": len(mesh_fit) for kind in ("supersample", "fit_nn", "fit_gpr")},
+        **{f"{kind}_mesh": len(mesh) for kind in ("fit_mean", "evaluate")},
         "animate_map": len(map_only),
         "pose_map": len(map_only),
         # a user's .blend (issue #19): the file, then the Blender families run it
@@ -143,7 +148,8 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn_joint_space_seed": len(table1) * seeds,
     }
     assert len(stages) == (
-        23 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        24 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        + 3 * len(mesh_fit) + 2 * len(mesh)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 7 * len(blender)
         + len(LATENT_STEPS) * len(params["latent"]["rigs"])
         + (3 * len(table1) + 2 * len(blender)) * seeds
@@ -216,14 +222,16 @@ def test_a_rig_only_mapped_gets_its_corpus_and_poses_and_its_map(stages, params)
 
 def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
     """Every rig of the sweep family: each sampler and kernel; the other built-in rigs get
-    their corpus and poses only (Table 3), and the latent stages of latent.rigs (issue #18)."""
+    their corpus and poses, the latent stages of latent.rigs (issue #18), and Table 1 and
+    FaceIK by the mesh family (issue #42: test_the_mesh_rigs_join_table_1_by_a_family_...)."""
     assert set(params["pipeline"]["sweep_rigs"]) <= set(params["pipeline"]["rigs"])
     assert set(params["pipeline"]["table1_rigs"]) <= set(params["pipeline"]["sweep_rigs"])
     for rig in set(params["pipeline"]["rigs"]) - set(params["pipeline"]["sweep_rigs"]):
         assert f"pose@{rig}" in stages
         assert not [name for name in stages if name.endswith((f"@{rig}", f"@{rig}-gmm"))
-                    and not name.startswith(("animate@", "pose@", "latent_",
-                                             "simulate@"))]  # fmt: skip
+                    and not name.startswith(("animate@", "pose@", "latent_", "simulate@",
+                                             "fit_mean_mesh@",
+                                             "evaluate_mesh@", "map_partial_face@"))]  # fmt: skip
     for rig in params["pipeline"]["sweep_rigs"]:
         for sampler in available_samplers():
             supersample = stages[f"supersample@{rig}-{sampler}"]
@@ -242,6 +250,45 @@ def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
         ]
         for stage in (f"animate@{rig}", f"pose@{rig}", f"supersample@{rig}-gmm"):
             assert f"conf/rig/{rig}.yaml" in paths(stages[stage].deps)
+
+
+def test_the_mesh_rigs_join_table_1_by_a_family_of_their_own(stages, params):
+    """The face and the squirrel in Table 1 (issue #42): the network and GPR of Table 1 fitted
+    where no sweep fits them (experiment=quick), the mean predictor, and the evaluation with
+    the methods their rig configs name; in experiment=paper the sweeps fit them instead."""
+    mesh, mesh_fit = params["pipeline"]["mesh_table1_rigs"], params["pipeline"]["mesh_fit_rigs"]
+    assert mesh == mesh_fit == ["face", "squirrel"]
+    assert not set(mesh) & set(params["pipeline"]["sweep_rigs"])
+    for rig in mesh:
+        assert paths(stages[f"supersample_mesh@{rig}-pca_gaussian"].outs) == [
+            f"data/{rig}/samples/pca_gaussian.npz"
+        ]
+        assert paths(stages[f"fit_nn_mesh@{rig}-pca_gaussian"].outs) == [
+            f"models/{rig}/nn-pca_gaussian-none"
+        ]
+        gpr = stages[f"fit_gpr_mesh@{rig}-multiquadric"]
+        assert paths(gpr.outs) == [f"models/{rig}/gpr-none-multiquadric"]
+        assert filled(gpr) == filled(stages["fit_gpr@biped-multiquadric"]).replace("biped", rig)
+        assert paths(stages[f"fit_mean_mesh@{rig}"].outs) == [f"models/{rig}/mean-none-none"]
+        evaluate = stages[f"evaluate_mesh@{rig}"]
+        assert evaluate.cmd == stages["evaluate@biped"].cmd
+        assert f"models/{rig}" in paths(evaluate.deps)
+        assert [o.def_path for o in evaluate.outs if o.metric] == [f"metrics/{rig}/methods"]
+        with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+            cfg = apply_rig_overrides(compose(config_name="config", overrides=[f"rig={rig}"]))
+        methods = list(cfg.evaluate.methods)
+        assert "script" not in methods and not [m for m in methods if "joint_space" in m]
+        assert {"gpr", "nn", "nn_computed_jacobian", "mean"} <= set(methods)
+        assert cfg.evaluate.frames_per_clip is None  # whole test clips
+    face = stages["map_partial_face@face"]
+    assert face.cmd == stages["map_partial@biped"].cmd
+    assert [o.def_path for o in face.outs if o.metric] == [
+        "metrics/face/map_partial/partial_inputs.json"
+    ]
+    paper = yaml.safe_load(compose_params(ROOT / "conf", ["experiment=paper"]))["pipeline"]
+    assert paper["mesh_fit_rigs"] == [] and set(paper["mesh_table1_rigs"]) <= set(
+        paper["sweep_rigs"]
+    )  # the paper's sweeps fit their models: no output made by two stages
 
 
 def test_the_blender_family_runs_table_1_only(stages):

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: today's length of all the stage files together (dvc.yaml and stages/*/dvc.yaml), so they
 #: do not grow back; issue #35 asks for 200, which takes changing what DVC plans
 #: (docs/pipeline.md, "Why the files are not shorter")
-MAX_LINES = 391
+MAX_LINES = 400
 
 #: each stage family and the params.yaml lists (or literal sizes) its matrix multiplies
 FAMILIES: dict[str, tuple[str | int, ...]] = {
@@ -62,6 +62,13 @@ FAMILIES: dict[str, tuple[str | int, ...]] = {
     "map_partial": (2,),  # biped and quadruped
     "map_path": (1,),  # the biped (Fig. 7, issue #42)
     "simulate": (1,),  # the squirrel simulated in Blender, mapped (Fig. 9, issue #42)
+    "map_partial_face": (1,),  # FaceIK (Fig. 10, issue #42)
+    # the face's and squirrel's Table 1 (issue #42): Table 1's network sampler and GPR kernel
+    "supersample_mesh": ("pipeline.mesh_fit_rigs", 1),
+    "fit_nn_mesh": ("pipeline.mesh_fit_rigs", 1),
+    "fit_gpr_mesh": ("pipeline.mesh_fit_rigs", 1),
+    "fit_mean_mesh": ("pipeline.mesh_table1_rigs",),
+    "evaluate_mesh": ("pipeline.mesh_table1_rigs",),
     "fit_nn_seed": ("pipeline.table1_rigs", "pipeline.blender_samplers", "pipeline.spread_seeds"),
     "fit_nn_seed_blender": (
         "pipeline.blender_rigs",

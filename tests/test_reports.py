@@ -478,7 +478,9 @@ def test_table1_covers_only_the_method_rigs(project):
     only_table3 = ReportSettings(rigs=RIGS, method_rigs=("quadruped",), sampler_rigs=("quadruped",))
     notes = methods_table(tree, only_table3).notes
     assert any("compared on Quadruped; Face appears in Table 3." in n for n in notes), notes
-    with pytest.raises(ValueError, match=r"method_rigs \['biped', 'rigify_wolf'\] are not among"):
+    with pytest.raises(
+        ValueError, match=r"method_rigs \['biped', 'squirrel', 'rigify_wolf'\] are not among"
+    ):
         ReportSettings(rigs=RIGS)
     with pytest.raises(ValueError, match=r"sampler_rigs \['biped'\] are not among rigs"):
         ReportSettings(rigs=RIGS, method_rigs=RIGS, sampler_rigs=("biped",))
@@ -509,6 +511,10 @@ def test_a_methods_only_rig_with_a_frame_budget_is_labelled(project, tmp_path):
     assert len(budget) == 1 and budget[0].endswith(
         "Its GPR keeps 40 support points (budget.gpr_points)."
     )
+    assert [n for n in table.notes if n.startswith("Budget of Face")] == [
+        "Budget of Face (from the metrics files): the first 2 frames of a clip; GPR of 40 "
+        "support points."
+    ]  # the run's budget, as each rig's metrics files recorded it
     assert set(sampling_table(tree, settings).data["rig"]) == {"quadruped"}
     assert set(kernels_table(tree, settings).data["rig"]) == {"quadruped"}
     # one rig's rows scored on different frames would not compare: refused, naming the rig
@@ -566,9 +572,17 @@ def test_report_stage_reads_rows_from_the_evaluate_config():
     assert settings.rigs == (
         "quadruped", "biped", "face", "squirrel", "rigify_wolf", "blend_file:hero"
     )  # fmt: skip
-    # the evaluate stages: the matrix, the Blender wolf's own (Table 1 only, no autodiff), and
-    # the user's .blend the Blender families run (blend_file:<stem> in pipeline.blender_rigs)
-    assert settings.method_rigs == ("quadruped", "biped", "rigify_wolf", "blend_file:hero")
+    # the evaluate stages: the matrix, the mesh rigs' family (issue #42), the Blender wolf's own
+    # (Table 1 only, no autodiff), and the user's .blend the Blender families run
+    # (blend_file:<stem> in pipeline.blender_rigs)
+    assert settings.method_rigs == (
+        "quadruped", "biped", "face", "squirrel", "rigify_wolf", "blend_file:hero"
+    )  # fmt: skip
+    for mesh in ("face", "squirrel"):  # evaluate_mesh: their rig configs' _overrides_ methods
+        assert settings.methods_for(mesh) == (
+            "gpr", "gpr_learned_jacobian", "gpr_computed_jacobian", "nn", "nn_computed_jacobian",
+            "nn_learned_jacobian", "nn_autodiff_jacobian", "mean",
+        )  # fmt: skip
     assert settings.methods_for("blend_file:hero") == (
         "gpr", "gpr_learned_jacobian", "gpr_computed_jacobian", "nn", "nn_computed_jacobian",
         "nn_learned_jacobian", "mean",

@@ -8,6 +8,8 @@ retarget script; autodiff only for differentiable rigs) are listed in
 runs Table 1 and Table 3 only: it is not among the ``sampler_rigs`` (Table 2
 and the kernel table). So do a user's own files (``blend_file_rigs``, named
 ``blend_file:<stem>``): their rows join Table 1 and Table 3 under the file's name.
+The face and the squirrel join Table 1 by the mesh family (``pipeline.mesh_table1_rigs``,
+issue #42), without the Script row and the joint-space rows.
 """
 
 from __future__ import annotations
@@ -26,10 +28,12 @@ JOINT_SPACE_METHODS: tuple[str, ...] = (
     "nn_joint_space_tuned",
 )
 #: the evaluate stages run the script baseline only where one exists (quadruped, biped, and
-#: the Blender rigs' constraint retarget) and autodiff only on differentiable rigs
+#: the Blender rigs' constraint retarget), autodiff only on differentiable rigs, and the
+#: joint-space network only where its fit runs (the mesh rigs' Table 1 is a small family:
+#: their rig configs' ``_overrides_`` name its methods)
 DEFAULT_EXCLUDED_METHODS: dict[str, tuple[str, ...]] = {
-    "face": ("script",),
-    "squirrel": ("script",),
+    "face": ("script", *JOINT_SPACE_METHODS),
+    "squirrel": ("script", *JOINT_SPACE_METHODS),
     "rigify_wolf": ("nn_autodiff_jacobian", *JOINT_SPACE_METHODS),
 }
 #: a user's .blend (rig=blend_file) has no retarget script, no autodiff, no joint-space network
@@ -49,7 +53,8 @@ class ReportSettings:
     ``rigs`` appear in Table 3; ``sampler_rigs`` (a subset; ``None``: every rig but
     ``METHODS_ONLY_RIGS``) in Table 2 and the kernel table; ``method_rigs`` (a subset)
     in Table 1 — the evaluate stage compares the methods on the quadruped and the
-    biped, like the paper, and on Rigify's wolf (a Blender rig). ``nn_sampler`` is the
+    biped, like the paper, evaluate_mesh on the face and the squirrel, and evaluate_blender
+    on Rigify's wolf (a Blender rig). ``nn_sampler`` is the
     sampler whose network the Table 1 rows ``nn*`` use (their files are
     ``methods/<method>-<nn_sampler>.json``; GPR and Script rows use ``none``).
     ``clips`` restricts the expected test clips (``None``: every clip of the rig's
@@ -60,7 +65,7 @@ class ReportSettings:
     """
 
     rigs: tuple[str, ...] = tuple(r.key for r in RIGS)
-    method_rigs: tuple[str, ...] = ("quadruped", "biped", "rigify_wolf")
+    method_rigs: tuple[str, ...] = ("quadruped", "biped", "face", "squirrel", "rigify_wolf")
     sampler_rigs: tuple[str, ...] | None = None
     methods: tuple[str, ...] | None = None  # None: the catalogue's (the evaluate lists)
     samplers: tuple[str, ...] | None = None

@@ -113,7 +113,8 @@ def methods_table(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> T
                         **_paper_record(paper),
                     }
                 )
-    notes = _methods_notes(settings) + budget_notes + _left_out_notes(tree, others, settings)
+    notes = _methods_notes(settings) + budget_notes + run_budget_notes(tree, settings)
+    notes += _left_out_notes(tree, others, settings)
     notes += seed_notes(tree, settings)
     return Table(
         name="table1_methods",
@@ -234,6 +235,42 @@ def _frame_budget_note(metrics: RigMetrics, methods: Sequence[str], first: int) 
     if len(points) == 1:
         note += f" Its GPR keeps {points.pop()} support points (budget.gpr_points)."
     return note
+
+
+#: how a run budget's values read in the report (budget.* of the metrics files' ``extra``)
+BUDGET_PHRASES = (
+    ("gpr_points", "GPR of {} support points"),
+    ("length_scales", "{} length scales"),
+    ("cv_splits", "{} cross-validation splits"),
+    ("hidden", "network of {} hidden units"),
+    ("epochs", "{} epochs"),
+    ("samples", "{} supersamples"),
+    ("refine_iterations", "refinement of at most {} iterations"),
+)
+
+
+def run_budget_notes(tree: Mapping[str, RigMetrics], settings: ReportSettings) -> list[str]:
+    """Which budget each rig's Table 1 rows ran at, read from their metrics files: one note per
+    budget, naming the rigs that share it."""
+    groups: dict[tuple, list[str]] = {}
+    for rig, metrics in tree.items():
+        for method in settings.methods_for(rig):
+            extra = metrics.methods[method].extra
+            budget = extra.get("budget") or {}
+            key = (extra.get("experiment"), extra.get("frames_per_clip"), *sorted(budget.items()))
+            if budget and rig not in groups.setdefault(key, []):
+                groups[key].append(rig)
+    notes = []
+    for (experiment, first, *budget), rigs in groups.items():
+        values = dict(budget)
+        parts = [text.format(values[key]) for key, text in BUDGET_PHRASES if key in values]
+        frames = "whole test clips" if first is None else f"the first {first} frames of a clip"
+        where = frames if experiment is None else f"experiment {experiment}, {frames}"
+        notes.append(
+            f"Budget of {', '.join(rig_label(r) for r in rigs)} (from the metrics files): "
+            f"{where}; {', '.join(parts)}."
+        )
+    return notes
 
 
 MEAN_PREDICTOR = "mean"  # the method key of the yardstick row (conf/method/mean.yaml)
