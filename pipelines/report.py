@@ -7,10 +7,11 @@ clip names and train corpus (``<paths.data>/<rig>/corpus/``); writes
 
 Which rows are expected: methods, samplers and kernels come from the ``evaluate`` config
 (what the evaluate stages ran), the rigs of Table 2 and the kernel table from
-``pipeline.sweep_rigs``, users' own .blend files (Tables 1 and 3) from the
-``blend_file:<stem>`` names in ``pipeline.blender_rigs``, the network rows' sampler from
-``sampler``; a ``report`` block, if the config has one, may set ``rigs``,
-``excluded_methods``, ``clips`` (see rigmap.reports.settings.ReportSettings):
+``pipeline.sweep_rigs``, Table 1's rigs from the lists its families run
+(``pipeline.table1_rigs``, ``mesh_table1_rigs``, ``blender_rigs``), users' own .blend files
+(Tables 1 and 3) from the ``blend_file:<stem>`` names in ``pipeline.blender_rigs``, the
+network rows' sampler from ``sampler``; a ``report`` block, if the config has one, may set
+``rigs``, ``excluded_methods``, ``clips`` (see rigmap.reports.settings.ReportSettings):
 
     python pipelines/report.py
     python pipelines/report.py '+report.rigs=[quadruped,biped]'
@@ -60,8 +61,13 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
     if pipeline is not None and pipeline.get("sweep_rigs") is not None:
         values["sampler_rigs"] = list(pipeline.sweep_rigs)  # what the sweep stages ran
     if pipeline is not None and pipeline.get("blender_rigs") is not None:
-        values["blend_file_rigs"] = [  # the users' .blend files among the Blender rigs
-            rig for rig in pipeline.blender_rigs if str(rig).startswith(BLEND_FILE_PREFIX)
+        blender = [str(rig) for rig in pipeline.blender_rigs]
+        own = [rig for rig in blender if rig.startswith(BLEND_FILE_PREFIX)]  # users' .blend files
+        values["blend_file_rigs"] = own
+        values["method_rigs"] = [  # what the Table 1 families evaluated
+            *pipeline.get("table1_rigs", []),
+            *pipeline.get("mesh_table1_rigs", []),
+            *[rig for rig in blender if rig not in own],
         ]
     if cfg.get("sampler") is not None and cfg.sampler.get("_target_") is not None:
         values["nn_sampler"] = sampler_name(cfg.sampler)
@@ -74,9 +80,9 @@ def report_settings(cfg: DictConfig) -> ReportSettings:
 def with_pipeline_lists(cfg: DictConfig, params_file: Path = PARAMS_FILE) -> DictConfig:
     """``cfg`` with params.yaml's ``pipeline`` lists when the stage config dropped them.
 
-    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs two of
-    its lists, the rigs the sweep stages ran (``pipeline.sweep_rigs``) and the users' files
-    (``pipeline.blender_rigs``), and params.yaml is where DVC recorded them (param
+    Stages run without ``pipeline`` (rigmap.stage.stage_config); the report needs its lists
+    of the rigs each table's stages ran (``sweep_rigs``, ``table1_rigs``, ``mesh_table1_rigs``,
+    ``blender_rigs`` with the users' files), and params.yaml is where DVC recorded them (param
     dependencies of this stage: ``dvc exp run -S`` changes them there, not in conf/).
     """
     if cfg.get("pipeline") is not None or not params_file.is_file():
