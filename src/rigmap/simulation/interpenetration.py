@@ -13,26 +13,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from rigmap.rigs.mesh.proximity import winding_numbers as mesh_winding_numbers
+
 INSIDE = 0.5  # |winding number| above this: inside
 
 
 def winding_numbers(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """The winding number of the closed mesh ``(vertices, triangles)`` about each point;
-    ``points`` ``(..., 3)`` -> ``(...)``."""
+    ``points`` ``(..., 3)`` -> ``(...)`` (the mesh package's solid-angle sum, any shape)."""
     points = np.asarray(points, dtype=np.float64)
-    corners = np.asarray(vertices, dtype=np.float64)[np.asarray(triangles)]  # (T, 3, 3)
-    flat = points.reshape(-1, 3)
-    a, b, c = (corners[None, :, k, :] - flat[:, None, :] for k in range(3))  # (P, T, 3)
-    la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
-    numerator = np.einsum("ptk,ptk->pt", a, np.cross(b, c))
-    denominator = (
-        la * lb * lc
-        + np.einsum("ptk,ptk->pt", a, b) * lc
-        + np.einsum("ptk,ptk->pt", b, c) * la
-        + np.einsum("ptk,ptk->pt", c, a) * lb
+    flat = mesh_winding_numbers(
+        points.reshape(-1, 3), np.asarray(vertices, dtype=np.float64), np.asarray(triangles)
     )
-    solid = 2.0 * np.arctan2(numerator, denominator)
-    return (solid.sum(axis=1) / (4.0 * np.pi)).reshape(points.shape[:-1])
+    return flat.reshape(points.shape[:-1])
 
 
 def inside(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -140,13 +140,6 @@ def evaluated_vertices(obj, frame: float) -> np.ndarray:
     scene = bpy.context.scene
     whole = int(np.floor(frame))
     scene.frame_set(whole, subframe=frame - whole)
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = evaluated.to_mesh()
-    try:
-        local = np.empty(3 * len(mesh.vertices), dtype=np.float32)
-        mesh.vertices.foreach_get("co", local)
-    finally:
-        evaluated.to_mesh_clear()
-    world = np.array(evaluated.matrix_world, dtype=np.float64)
-    local = local.reshape(-1, 3).astype(np.float64)
-    return local @ world[:3, :3].T + world[:3, 3]
+    from evaluated_mesh import evaluated_world_vertices
+
+    return evaluated_world_vertices(obj)

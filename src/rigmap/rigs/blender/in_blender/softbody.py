@@ -145,25 +145,14 @@ def cloth_modifier(obj, cloth: dict, frames: int):
     return modifier
 
 
-def evaluated_world_vertices(obj) -> np.ndarray:
-    """The object's evaluated vertices (after the cloth modifier), world metres."""
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = evaluated.to_mesh()
-    try:
-        local = np.empty(3 * len(mesh.vertices), dtype=np.float32)
-        mesh.vertices.foreach_get("co", local)
-    finally:
-        evaluated.to_mesh_clear()
-    world = np.array(evaluated.matrix_world, dtype=np.float64)
-    return local.reshape(-1, 3).astype(np.float64) @ world[:3, :3].T + world[:3, 3]
-
-
 def simulate(rest, triangles, springs, pinned, scenario: dict) -> tuple[dict, dict]:
     """Run the scenario (module docstring) and read every frame's vertices back.
 
     Returns the info (frames, landing frame, Blender's version, seconds) and
     ``{"vertices": (frames, V, 3)}`` in world metres, Blender's axes.
     """
+    from evaluated_mesh import evaluated_world_vertices
+
     started = time.perf_counter()
     frames, fps = int(scenario["frames"]), float(scenario["fps"])
     scene = new_empty_scene(int(fps))
