@@ -131,7 +131,7 @@ def _pyplot():
 
 
 def _contact_sheet(scene: _Scene, out: Path, panels: int, columns: int, title: str) -> Path:
-    from rigmap.viz.atomic import save_figure
+    from rigmap.viz.atomic import save_and_close
 
     plt = _pyplot()
     frames = len(scene.world)
@@ -150,10 +150,7 @@ def _contact_sheet(scene: _Scene, out: Path, panels: int, columns: int, title: s
         scene.draw(ax, int(index))
     fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
-    try:
-        return save_figure(fig, out, dpi=90)
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out, dpi=90)
 
 
 def _gif(scene: _Scene, out: Path, fps: float, title: str) -> Path:
@@ -184,7 +181,7 @@ def render_pose(
         from rigmap.viz.mesh import render_mesh_views
 
         return render_mesh_views(rig, controls, out, title=title)
-    from rigmap.viz.atomic import save_figure
+    from rigmap.viz.atomic import save_and_close
     from rigmap.viz.skeleton import VIEWS, draw_skeleton, project
 
     plt = _pyplot()
@@ -200,7 +197,4 @@ def render_pose(
         ax.grid(alpha=0.2)
     fig.suptitle(title)
     fig.tight_layout()
-    try:
-        return save_figure(fig, out, dpi=90)
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out, dpi=90)

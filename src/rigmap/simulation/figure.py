@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rigmap.viz.atomic import save_figure
+from rigmap.viz.atomic import save_and_close
 from rigmap.viz.mesh import VIEWS, rasterise
 
 SIDE = next(view for view in VIEWS if view.name == "side")
@@ -69,10 +69,7 @@ def simulation_figure(
         fontsize=11,
     )
     fig.tight_layout()
-    try:
-        return save_figure(fig, out_path, dpi=100, format="png")
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out_path, dpi=100, format="png")
 
 
 def _curves(ax, frames: pd.DataFrame, picks: list[int]) -> None:

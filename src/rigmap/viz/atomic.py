@@ -21,3 +21,14 @@ def save_figure(fig, out_path: str | Path, **savefig_kwargs) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return out
+
+
+def save_and_close(fig, out_path: str | Path, **savefig_kwargs) -> Path:
+    """:func:`save_figure`, then the figure closed whatever happened (pyplot keeps every open
+    figure alive: a long run that draws many would grow without it)."""
+    import matplotlib.pyplot as plt
+
+    try:
+        return save_figure(fig, out_path, **savefig_kwargs)
+    finally:
+        plt.close(fig)

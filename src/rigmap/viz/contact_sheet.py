@@ -112,7 +112,7 @@ def write_contact_sheet(
     """A PNG grid of ``panels`` evenly spaced frames (frame numbers in the corners) and,
     for a character with feet, a strip of foot heights over the whole clip."""
     plt = _pyplot()
-    from rigmap.viz.atomic import save_figure
+    from rigmap.viz.atomic import save_and_close
 
     if panels < 1 or columns < 1:
         raise ValueError(f"panels and columns must be >= 1, got {panels} and {columns}")
@@ -142,10 +142,7 @@ def write_contact_sheet(
         _draw_foot_strip(fig.add_subplot(grid[rows, :]), played, feet, picks)
     fig.suptitle(title or f"{played.rig.name} — {played.clip_name}", fontsize=11)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
-    try:
-        return save_figure(fig, out_path, dpi=100)
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out_path, dpi=100)
 
 
 def write_gif(

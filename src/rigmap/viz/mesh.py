@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.rigs.mesh.geometry import vertex_normals
-from rigmap.viz.atomic import save_figure
+from rigmap.viz.atomic import save_and_close
 
 DEFAULT_COLOR = (0.78, 0.74, 0.70)
 BACKGROUND = (1.0, 1.0, 1.0)
@@ -114,10 +114,7 @@ def render_mesh_views(
         fontsize=11,
     )
     fig.tight_layout()
-    try:
-        return save_figure(fig, out_path, dpi=110, format="png")
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out_path, dpi=110, format="png")
 
 
 def _check_mesh_controls(rig, controls, pose_labels) -> np.ndarray:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.catalog import default_catalogue
-from rigmap.viz.atomic import save_figure
+from rigmap.viz.atomic import save_and_close
 from rigmap.viz.mesh import DEFAULT_COLOR, rasterise
 from rigmap.viz.mesh import VIEWS as MESH_VIEWS
 from rigmap.viz.skeleton import draw_skeleton, project
@@ -191,10 +191,7 @@ def draw_sample_figure(
     fig.subplots_adjust(left=LABEL_INCHES / fig.get_figwidth(), right=0.99, bottom=0.01)
     fig.subplots_adjust(top=1 - TITLE_INCHES / fig.get_figheight())
     fig.subplots_adjust(wspace=0.04, hspace=0.08)
-    try:
-        path = save_figure(fig, out_path, dpi=100, format="png")
-    finally:
-        plt.close(fig)
+    path = save_and_close(fig, out_path, dpi=100, format="png")
     return SampleFigure(Path(path), view, rows)
 
 

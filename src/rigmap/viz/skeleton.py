@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rigmap.viz.atomic import save_figure
+from rigmap.viz.atomic import save_and_close
 
 # (horizontal axis, vertical axis, horizontal sign) per view
 VIEWS: dict[str, tuple[int, int, float]] = {
@@ -107,7 +107,4 @@ def render_skeleton_views(
         ax.grid(alpha=0.2)
     fig.suptitle(title or f"{rig.name}: {rig.n_joints} joints, {rig.n_controls} controls")
     fig.tight_layout()
-    try:
-        return save_figure(fig, out_path, dpi=110)
-    finally:
-        plt.close(fig)
+    return save_and_close(fig, out_path, dpi=110)
