@@ -250,7 +250,8 @@ def test_an_output_folder_that_cannot_be_written_is_named(project):
 def test_missing_blender_is_named_before_any_stage(project, monkeypatch):
     """Issue 20: a missing Blender environment failed only after 87 stages and 32 minutes."""
     monkeypatch.setenv("RIGMAP_BLENDER", str(project / "no-such-blender"))
-    needs = r"Blender rig\(s\) \['rigify_wolf', 'rigify_human'\] need Blender"
+    # the wolf, the .blend fixture (a Blender rig of its own config) and the human only mapped
+    needs = r"Blender rig\(s\) \['rigify_wolf', 'blend_file:hero', 'rigify_human'\] need Blender"
     with pytest.raises(PreflightError, match=needs):
         check_pipeline_needs(project, _params(project), NO_TRACKING_ENV)
 
