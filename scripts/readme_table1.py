@@ -28,6 +28,8 @@ GROUPS = (
 RIG_LABELS = {
     "quadruped": "quadruped",
     "biped": "biped",
+    "face": "face (mesh rig, its 6 landmarks)",
+    "squirrel": "squirrel (mesh rig, its 1 125 vertices)",
     "rigify_wolf": "rigify_wolf (Blender, first 12 frames per clip)",
     "blend_file:hero": "blend_file:hero (rigmap's .blend fixture, 12 frames of its test clip)",
 }
