@@ -204,7 +204,7 @@ class ParentRun:
     def log_datasets(self, datasets: Sequence[DatasetInput]) -> None:
         """The files the sweep read, as MLflow datasets (see :mod:`rigmap.tracking.datasets`)."""
         if datasets:
-            self.tracker.client.log_inputs(self.run_id, datasets=list(datasets))
+            log_inputs(self.tracker.client, self.run_id, datasets)
 
     def log_table(self, table: pd.DataFrame, artifact_file: str) -> None:
         """A table artifact (MLflow's JSON table, shown as a grid in the run's artifacts)."""
@@ -392,6 +392,39 @@ def _log_params(client: MlflowClient, run_id: str, params: Mapping[str, str]) ->
         client.log_batch(run_id, params=items[start : start + _BATCH])
 
 
+#: how often a dataset insert that lost a race is tried again (ours: the winner has committed
+#: by then, so the second try finds the dataset and only links it)
+DATASET_RETRIES = 3
+
+
+def log_inputs(client: MlflowClient, run_id: str, datasets: Sequence[DatasetInput]) -> None:
+    """``client.log_inputs``, tried again when another stage inserted the same dataset first.
+
+    MLflow's store looks a dataset up by (experiment, name, digest) and inserts it when
+    missing; two stages running side by side that read the same file (the held-out and the
+    training split's evaluations read one corpus) can both miss it, and the slower insert
+    fails on the store's unique constraint. On the next try the dataset is there.
+    """
+    for attempt in range(DATASET_RETRIES + 1):
+        try:
+            client.log_inputs(run_id, datasets=list(datasets))
+            return
+        except MlflowException as error:
+            if attempt == DATASET_RETRIES or not _lost_insert_race(error):
+                raise
+            time.sleep(0.2 * (attempt + 1))
+
+
+def _lost_insert_race(error: BaseException) -> bool:
+    """Whether ``error`` (or what caused it) is a unique-constraint violation."""
+    while error is not None:
+        text = str(error).lower()
+        if "unique constraint" in text or type(error).__name__ == "IntegrityError":
+            return True
+        error = error.__cause__
+    return False
+
+
 def _log_metrics(
     client: MlflowClient,
     run_id: str,
@@ -400,7 +433,7 @@ def _log_metrics(
 ) -> None:
     """The run's metrics, and the datasets they were measured on."""
     if datasets:
-        client.log_inputs(run_id, datasets=list(datasets))
+        log_inputs(client, run_id, datasets)
     now = int(time.time() * 1000)
     items = [Metric(k, v, now, 0) for k, v in metrics.items()]
     for start in range(0, len(items), 1000):  # MLflow's limit per batch
