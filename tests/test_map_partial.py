@@ -218,6 +218,10 @@ def test_interactive_posing_follows_a_drag(biped, effector_mapping):
     np.testing.assert_allclose(
         np.sqrt(((at[effector_mapping.subset.columns(biped)] - drag[-1]) ** 2).sum(1).mean()),
         distances[-1], atol=1e-6)  # fmt: skip
+    for result in (results[-1], carried_results[-1]):  # every joint, from the chosen call
+        posed = biped.pose(result.controls[None])
+        world_joints = (np.asarray(posed.positions) + np.asarray(posed.cog)[:, None])[0]
+        np.testing.assert_allclose(result.joints, world_joints, atol=1e-9)
     batch = pose_from_effectors(biped, effector_mapping, drag[-1][None],
                                 MapSettings(refine_iterations=3, prior_weight=0.0),
                                 control_std=std, hold_values=median)[1]  # fmt: skip

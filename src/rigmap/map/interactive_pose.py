@@ -45,11 +45,14 @@ STEP_LENGTHS = np.array([1.0, 0.5, 0.25])
 
 @dataclass
 class PoseResult:
-    """One pose: the full control row, its RMS distance to the targets (cm), its cost."""
+    """One pose: the full control row, its RMS distance to the targets (cm), its cost, and
+    every joint's world position (cm; from the evaluation that chose it: a page showing the
+    pose needs no other rig call)."""
 
     controls: np.ndarray  # (C,)
     distance_cm: float
     rig_evaluations: int
+    joints: np.ndarray | None = None  # (J, 3)
 
 
 class InteractivePoser:
@@ -115,25 +118,26 @@ class InteractivePoser:
         guess[self.held] = self.hold_values[self.held]
         lower, upper = np.minimum(self.lower, guess), np.maximum(self.upper, guess)
         starts = [guess] if self.last is None else [guess, self.last[0] + guess - self.last[1]]
-        y, x, error = self._best(np.clip(np.array(starts), lower, upper), goal)
+        y, x, error, joints = self._best(np.clip(np.array(starts), lower, upper), goal)
         evaluations = len(starts)
         fresh = self.J is None or not self.carry
         if fresh:
             evaluations += self._recompute(y)
         for _ in range(self.steps):
-            y_new, x_new, new_error = self._step(y, x, goal, lower, upper)
+            y_new, x_new, new_error, new_joints = self._step(y, x, goal, lower, upper)
             evaluations += len(STEP_LENGTHS)
             if new_error >= error and not fresh:  # the carried Jacobian no longer fits
                 evaluations += self._recompute(y)
                 fresh = True
-                y_new, x_new, new_error = self._step(y, x, goal, lower, upper)
+                y_new, x_new, new_error, new_joints = self._step(y, x, goal, lower, upper)
                 evaluations += len(STEP_LENGTHS)
             if new_error >= error:
                 break
-            y, x, error = y_new, x_new, new_error
+            y, x, error, joints = y_new, x_new, new_error, new_joints
         self.last = (y, guess)
         distance = np.sqrt(np.mean(((goal - x).reshape(k, 3) ** 2).sum(axis=1)))
-        return PoseResult(self.rig.expand_used(y[None])[0], float(distance), evaluations)
+        full = self.rig.expand_used(y[None])[0]
+        return PoseResult(full, float(distance), evaluations, joints)
 
     def _recompute(self, y: np.ndarray) -> int:
         """A forward-difference Jacobian at ``y``; returns the rig evaluations it cost."""
@@ -151,18 +155,21 @@ class InteractivePoser:
         solver = damped_solver((self.J * self.scale)[None], self.damping)
         step = solver.solve((goal - x)[None])[0] * self.scale
         trials = np.clip(y + STEP_LENGTHS[:, None] * step, lower, upper)
-        y_new, x_new, new_error = self._best(trials, goal)
+        y_new, x_new, new_error, joints = self._best(trials, goal)
         self.J = broyden_update(self.J[None], (y_new - y)[None], (x_new - x)[None])[0]
-        return y_new, x_new, new_error
+        return y_new, x_new, new_error, joints
 
     def _best(self, candidates: np.ndarray, goal: np.ndarray):
         """The candidate rows ``(P, U)`` closest to ``goal``, evaluated in one rig call:
-        its controls, flat subset positions and mean squared error."""
+        its controls, flat subset positions, mean squared error and every joint's world
+        position (None for a rig the view cannot see whole)."""
         x = np.asarray(self.view.evaluate(self.rig.expand_used(candidates)))
         x = x.reshape(len(candidates), -1)
         errors = np.mean((goal - x) ** 2, axis=1)
         best = int(np.argmin(errors))
-        return candidates[best], x[best], float(errors[best])
+        world = self.view.last_world
+        joints = None if world is None or len(world) != len(candidates) else world[best].copy()
+        return candidates[best], x[best], float(errors[best]), joints
 
 
 #: random poses on which :func:`moving_controls` looks for the controls that move a subset

@@ -35,12 +35,16 @@ class WorldSubsetRig(Rig):
         # numpy batches through the inner rig's cached TorchScript traces (built-in rigs):
         # the same numbers at about twice the rate on small batches (TorchRig.traced_pose)
         self.traced = traced and hasattr(rig, "traced_pose")
+        #: ``(N, J, 3)`` world positions of all the rig's joints at the last numpy batch
+        self.last_world: np.ndarray | None = None
 
     def _pose(self, Y) -> Pose:
         traced = self.traced and isinstance(Y, np.ndarray)
         pose = self._traced_pose(Y) if traced else self.inner.pose(Y)
         world = pose.positions[:, self._columns] + pose.cog[:, None, :]
-        if not isinstance(world, np.ndarray):  # a torch batch stays torch (differentiable)
+        if isinstance(world, np.ndarray):  # every joint's world position, for who shows them
+            self.last_world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
+        else:  # a torch batch stays torch (differentiable)
             import torch
 
             zeros = torch.zeros_like(pose.cog)
