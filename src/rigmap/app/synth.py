@@ -197,21 +197,13 @@ def _run(args, compose_config) -> int:
 
 
 def blend_writer(rig):
-    """How a synthesised take becomes a .blend: keys on a Blender rig's own controls
-    (:func:`rigmap.rigs.blender.export_blend`), or shape keys on a mesh rig's mesh
-    (:func:`rigmap.rigs.blender.shape_keys.export_shape_key_blend`)."""
-    if getattr(rig, "session_options", None) is not None:
-        from rigmap.rigs.blender import export_blend
+    """:func:`rigmap.rigs.blender.lookup.blend_writer`, its refusal naming ``--out``."""
+    from rigmap.rigs.blender.writers import blend_writer as writer_of
 
-        return export_blend
-    if callable(getattr(rig, "mesh", None)):
-        from rigmap.rigs.blender.shape_keys import export_shape_key_blend
-
-        return export_shape_key_blend
-    raise ValueError(
-        f"--out: rig {rig.name!r} has neither a Blender file nor a mesh to write a .blend of; "
-        "write a .parquet"
-    )
+    try:
+        return writer_of(rig)
+    except ValueError as error:
+        raise ValueError(f"--out: {error}; write a .parquet") from None
 
 
 def _demo(args, compose_config) -> int:
