@@ -89,8 +89,8 @@ pull: setup
 	$(BIN)/python -m rigmap.dvc_remote check pull
 	PATH=$(BIN):$$PATH $(BIN)/dvc pull
 
-# The studio in the browser (rigmap studio: pose, review, play) on the main job's data:
-# open http://127.0.0.1:8080 (Ctrl-C stops it).
+# The studio in the browser (rigmap studio: pose, play, review, edit) on the main job's data:
+# open http://127.0.0.1:8081 (Pose, Play) or http://127.0.0.1:8080 (Review, Edit); Ctrl-C stops it.
 studio: setup
 	$(BIN)/rigmap studio
 

@@ -1,16 +1,17 @@
-"""The studio's Play view streaming the latent face (issue #43 item 4); prints JSON.
+"""The studio's Play page streaming the latent face (issue #43 item 4); prints JSON.
 
 Goal (issue #43): Play streams at 24 frames/s with no frame later than 1/24 s at p99.
 
-The view runs for ``--seconds`` with a scripted game of noughts and crosses (X a seeded
-random free cell every ``--turn-seconds`` through the view's click handler, the computer
+The session runs for ``--seconds`` with a scripted game of noughts and crosses (X a seeded
+random free cell every ``--turn-seconds`` through the session's click handler, the computer
 O replying a second later; a new game two seconds after each end), so the controller
 keeps switching models and playing takes as in a session. With ``--client chromium`` a
-real page (Debian's Chromium through Playwright, software WebGL, as the browser tests)
-receives and draws every frame on the same 2 cores; ``none`` measures the server alone.
+real Play page (Debian's Chromium through Playwright, software WebGL, as the browser
+tests) receives and draws every frame on the same 2 cores; ``none`` measures the server
+alone (the stream runs as if a page were open).
 
 Reported: frames sent in the measured window, sustained frames/s (frames over wall
-time), lateness (the frame handed to viser minus its deadline ``t0 + k/fps``) p50/p99/max
+time), lateness (the frame sent to the page minus its deadline ``t0 + k/fps``) p50/p99/max
 in ms, frames later than 1/24 s, clock restarts after a stall, and each frame's
 computation (step + mesh) p50/p99 ms. Wall-clock on a shared machine: load average
 printed. The models: ``--models DIR`` (a ``paths.models`` folder holding
@@ -87,29 +88,30 @@ def scripted_game(view, stop: threading.Event, turn_seconds: float, seed: int) -
 
 
 @contextmanager
-def page_of(url: str, client: str):
-    """Chromium at ``url`` recording the face's vertex updates as they reach it, or None."""
+def page_of(url: str, client: str, session):
+    """Chromium at ``url`` recording the face's frames as they reach it, or None (the
+    session then streams as if a page showed it)."""
     if client == "none":
+        session.show(True)
         yield None
         return
     sys.path.insert(0, str(ROOT / "tests"))
     from browser import chromium_page
     from rigmap.studio import probe
-    from rigmap.studio.play_view import FACE_NODE
 
     with chromium_page() as page:
-        probe.watch_vertex_updates(page, FACE_NODE)
+        probe.watch_messages(page, "frame")
         page.goto(url)
         yield page
 
 
 def in_page(page, period_ms: float) -> dict:
-    """The stream as the page saw it: face updates that reached it in the measured window,
+    """The stream as the page saw it: face frames that reached it in the measured window,
     their rate, and their lateness against a steady 1/fps schedule, on arrival and at the
     next animation frame (page clock)."""
     from rigmap.studio import probe
 
-    updates = probe.vertex_updates(page)
+    updates = probe.messages_seen(page)
     arrived, drawn = updates[:, 0], updates[~np.isnan(updates[:, 1]), 1]
     late_arrival = probe.schedule_lateness(arrived, period_ms)
     late_drawn = probe.schedule_lateness(drawn, period_ms)
@@ -131,7 +133,7 @@ def measure(view, seconds: float, turn_seconds: float, seed: int, page=None) -> 
     if page is not None:
         from rigmap.studio import probe
 
-        probe.vertex_updates(page, clear=True)
+        probe.messages_seen(page, clear=True)
     stop, played = threading.Event(), {}
     game = threading.Thread(
         target=lambda: played.update(scripted_game(view, stop, turn_seconds, seed))
@@ -176,21 +178,22 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     from rigmap.rigs import load
-    from rigmap.studio.app import Studio
-    from rigmap.studio.play_view import PlayView
+    from rigmap.studio.page_server import PageServer
+    from rigmap.studio.play_page import PlayChannel
+    from rigmap.studio.play_session import PlaySession
 
-    with redirect_stdout(sys.stderr):  # progress and viser's banner: stdout is the JSON
+    with redirect_stdout(sys.stderr):  # progress: stdout is the JSON
         fitted, table = fitted_models(args.models)
-        view = PlayView(load("face"), fitted, table, fps=args.fps, seed=args.seed)
-        studio = Studio([view], port=0)
+        view = PlaySession(load("face"), fitted, table, fps=args.fps, seed=args.seed)
+        pages = PageServer({"play": PlayChannel(view)}, host="127.0.0.1", port=0)
         load_before = os.getloadavg()
         try:
-            with page_of(studio.url, args.client) as page:
+            with page_of(pages.links()["Play"], args.client, view) as page:
                 if page is not None:
-                    page.get_by_role("button", name="New game").wait_for(timeout=60_000)
+                    page.get_by_role("button", name="5", exact=True).wait_for(timeout=60_000)
                 result = measure(view, args.seconds, args.turn_seconds, args.seed, page)
         finally:
-            studio.stop()
+            pages.stop()
     result = {
         "benchmark": "studio_play",
         "client": args.client,

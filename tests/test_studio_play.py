@@ -1,4 +1,4 @@
-"""The studio's Play view (issue #43 item 4): a latent face driven at 24 fps by commands
+"""The studio's Play page (issue #43 item 4): a latent face driven at 24 fps by commands
 and by a game of noughts and crosses against the user (Bailey et al. 2016 §7's demo).
 
 The face's six game emotions are fitted small (4 PCA components, 2 latent dimensions,
@@ -18,7 +18,9 @@ import pytest
 
 from rigmap.latent.game import EVENT_EMOTIONS, Board, GameError, computer_move, game_events
 from rigmap.latent.synthesis import Play, Transition
-from rigmap.studio.play_view import DeadlineClock, PlayView
+from rigmap.studio.page_server import CommandError, PageServer, decode
+from rigmap.studio.play_page import PlayChannel
+from rigmap.studio.play_session import DeadlineClock, PlaySession
 from rigmap.studio.scene import to_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -109,11 +111,12 @@ def test_the_game_reports_its_events_and_the_computer_blocks_and_wins():
 
 # ---------------------------------------------------------------------- the stream
 def test_the_stream_sends_the_controllers_frames_and_follows_commands(models):
-    from rigmap.studio.app import Studio
-
     rig, fitted, table = models
-    view = PlayView(rig, fitted, table, seed=0)
-    studio = Studio([view], port=0)
+    view = PlaySession(rig, fitted, table, seed=0)
+    channel = PlayChannel(view)
+    sent_messages = []
+    channel.broadcast = sent_messages.append  # what the page would get
+    view.show(True)  # as a page opening does
     started = time.perf_counter()
     try:
         wait_for(lambda: view.clock.frames >= 12, 10, "12 frames streamed")
@@ -126,17 +129,21 @@ def test_the_stream_sends_the_controllers_frames_and_follows_commands(models):
         view.show(True)
         wait_for(lambda: view.clock.frames >= paused + 4, 10, "the stream resumed")
         assert not view.command(Play("no such take"))
-        assert "PLAY refused: unknown segment 'no such take'" in view.status.content
+        assert "PLAY refused: unknown segment 'no such take'" in view.status()
         take = fitted.sets["roar"].names[1]
         assert view.command(Transition("roar")) and view.command(Play(take))
-        assert view.take_menu.options == tuple(fitted.sets["roar"].names)
+        assert view.take_names() == list(fitted.sets["roar"].names)
+        with pytest.raises(CommandError, match="cell 9: expected 0-8"):
+            channel.command({"type": "cell", "cell": 9})
+        with pytest.raises(CommandError, match="idle: frames must be an integer >= 1"):
+            channel.command({"type": "idle", "frames": "12; rm -rf /"})
         wait_for(
             lambda: any(isinstance(e.command, Play) for e in view.controller.log),
             60,
             "the PLAY finished",
         )
     finally:
-        studio.stop()
+        view.close()
     assert [m for _, m in view.models] == ["neutral", "roar"]
     (entry,) = [e for e in view.controller.log if isinstance(e.command, Play)]
     sent = dict(view.played)
@@ -146,9 +153,12 @@ def test_the_stream_sends_the_controllers_frames_and_follows_commands(models):
     frames = range(entry.end - len(rows) + 1, entry.end + 1)
     np.testing.assert_allclose(np.array([sent[f] for f in frames]), expected, atol=1e-9)
     assert np.ptp(expected, axis=0).max() > 0.1  # the take moves the face
-    _, last_controls = view.played[-1]
+    last_frame, last_controls = view.played[-1]
     mesh = np.asarray(rig.mesh(rig.expand_used(last_controls)[None]))[0]
-    np.testing.assert_allclose(view.mesh.vertices, to_scene(mesh), atol=1e-6)
+    frames = [decode(m) for m in sent_messages if decode(m)[0]["type"] == "frame"]
+    header, points = frames[-1]
+    assert header["frame"] == last_frame  # the page got the last frame played, as points
+    np.testing.assert_allclose(points.reshape(-1, 3), to_scene(mesh), atol=1e-6)
 
 
 # ---------------------------------------------------------------------- the browser
@@ -170,22 +180,17 @@ def test_a_game_is_played_to_the_end_by_clicks_and_the_face_reacts(models):
     cell, the page shows the end, every event changed the controller's expression."""
     from browser import chromium_page, keep_screenshot
     from rigmap.studio import probe
-    from rigmap.studio.app import Studio
-    from rigmap.studio.play_view import FACE_NODE
 
     rig, fitted, table = models
-    view = PlayView(rig, fitted, table, seed=3, reply_seconds=0.3)
-    studio = Studio([view], port=0)
+    view = PlaySession(rig, fitted, table, seed=3, reply_seconds=0.3)
+    pages = PageServer({"play": PlayChannel(view)}, host="127.0.0.1", port=0)
     preference = [4, 0, 2, 6, 8, 1, 3, 5, 7]  # centre, corners, edges
     try:
         with chromium_page(viewport={"width": 1200, "height": 900}) as page:
-            probe.watch_vertex_updates(page, FACE_NODE)  # what benchmarks/studio_play.py times
-            page.goto(studio.url)
+            probe.watch_messages(page, "frame")  # what benchmarks/studio_play.py times
+            page.goto(pages.links()["Play"])
             page.get_by_role("button", name="5", exact=True).wait_for(timeout=30_000)
-            rest = np.array(view.mesh.vertices)
-            notices = page.locator(".mantine-Notification-closeButton")  # software WebGL's
-            for k in range(notices.count()):
-                notices.nth(k).click()
+            rest = np.array(view.vertices)
             clicks = 0
             while not view.board.over:
                 wait_for(lambda: view.board.turn == "x" or view.board.over, 10, "X's turn")
@@ -202,16 +207,16 @@ def test_a_game_is_played_to_the_end_by_clicks_and_the_face_reacts(models):
             last_event = view.events[-1]["events"][-1]
             assert last_event == {"x": "win", "o": "loss", None: "draw"}[outcome]
             wait_for(lambda: view.controller.model == EVENT_EMOTIONS[last_event], 30, "the end")
-            wait_for(lambda: "now: PLAY" in view.status.content, 30, "the end's take")
+            wait_for(lambda: "now: PLAY" in view.status(), 30, "the end's take")
             time.sleep(0.3)  # into the take (~2 s): the screenshot shows the end's expression
             png = page.screenshot()
-            left = int(page.get_by_text("Connected").bounding_box()["x"]) - 40  # the panel's
+            left = int(page.locator("canvas").bounding_box()["width"])  # the panel's edge
             assert _skin_pixels(png, left) > 20_000  # the face is drawn, lit
             keep_screenshot(png, "play.png")  # docs/studio/play.png with RIGMAP_SCREENSHOTS
-            updates = probe.vertex_updates(page)
+            updates = probe.messages_seen(page)
     finally:
-        studio.stop()
-    # the stream reached the page as face updates, each followed by a frame that drew it
+        pages.stop()
+    # the stream reached the page as face frames, each followed by a frame that drew it
     # (frames run their callbacks in order: every update before the last drawn one is drawn;
     # the newest may still wait for its frame when the page is read)
     drawn = ~np.isnan(updates[:, 1])
@@ -227,4 +232,4 @@ def test_a_game_is_played_to_the_end_by_clicks_and_the_face_reacts(models):
     assert curious_frame >= view.events[0]["frame"]
     assert view.models[-1][1] == EVENT_EMOTIONS[last_event]
     assert {m for _, m in view.models[1:]} <= {e["emotion"] for e in view.events}
-    assert np.abs(np.array(view.mesh.vertices) - rest).max() > 1e-3  # the face moved (m)
+    assert np.abs(np.array(view.vertices) - rest).max() > 1e-3  # the face moved (m)

@@ -1,6 +1,7 @@
-"""`rigmap studio`'s Pose view (issue #43): served and written folders, the camera's
-projection, the bind address, and in a real Chromium: a drag with mouse events on an
-effector's gizmo poses the rig (the server's pose and the page's pixels both change)."""
+"""`rigmap studio`'s Pose page (issue #43): served and written folders, the camera's
+projection, the bind address, what the pages serve and refuse, and in a real Chromium: a
+drag with mouse events on an effector's handle poses the rig (the server's pose and the
+page's pixels both change)."""
 
 from __future__ import annotations
 
@@ -103,6 +104,7 @@ def studio(project):
         out=project / "studio_out",
         host="127.0.0.1",
         port=0,
+        pages_port=0,
     )
     yield served
     served.stop()
@@ -111,15 +113,87 @@ def studio(project):
 def test_it_binds_the_loopback_address_only(studio):
     import psutil
 
-    listening = [
-        c.laddr.ip
-        for c in psutil.net_connections(kind="tcp")
-        if c.status == psutil.CONN_LISTEN and c.laddr.port == studio.port
-    ]
-    assert listening and set(listening) <= {"127.0.0.1"}
+    for port in (studio.port, studio.pages.port):
+        listening = [
+            c.laddr.ip
+            for c in psutil.net_connections(kind="tcp")
+            if c.status == psutil.CONN_LISTEN and c.laddr.port == port
+        ]
+        assert listening and set(listening) <= {"127.0.0.1"}
+        with socket.create_connection(("127.0.0.1", port), timeout=5):
+            pass
     assert studio.url == f"http://127.0.0.1:{studio.port}"
-    with socket.create_connection(("127.0.0.1", studio.port), timeout=5):
-        pass
+    assert studio.pages.links() == {"Pose": f"http://127.0.0.1:{studio.pages.port}/"}
+
+
+# --------------------------------------------------------------------------- the Pose page
+def _get(port: int, path: str) -> tuple[int, str, dict]:
+    """A raw GET of ``path`` as sent (no client-side normalising of ``..``)."""
+    import http.client
+
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    try:
+        connection.request("GET", path)
+        response = connection.getresponse()
+        return response.status, response.read().decode(), dict(response.getheaders())
+    finally:
+        connection.close()
+
+
+def test_the_pages_serve_their_own_files_and_nothing_else(studio):
+    port = studio.pages.port
+    status, body, headers = _get(port, "/")
+    assert status == 200 and "rigmap studio · Pose" in body
+    assert headers["Content-Security-Policy"].startswith("default-src 'self'")
+    assert _get(port, "/pose.js")[0] == 200 and _get(port, "/studio.css")[0] == 200
+    for path in ("/../pyproject.toml", "/%2e%2e/pyproject.toml", "/etc/passwd", "/page/pose.js"):
+        status, body, _ = _get(port, path)
+        assert status == 404 and "not served" in body, path
+    status, body, _ = _get(port, "/play")  # no latent models in this project: no Play page
+    assert status == 404 and "not served" in body
+
+
+def test_the_pose_socket_refuses_other_origins_and_bad_commands(studio):
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    from rigmap.studio.page_server import decode
+
+    url = f"ws://127.0.0.1:{studio.pages.port}/pose/ws"
+    with pytest.raises(InvalidStatus, match="403"):
+        connect(url, origin="http://attacker.example").close()
+    with pytest.raises(InvalidStatus, match="404"):
+        connect(f"ws://127.0.0.1:{studio.pages.port}/nothing/ws").close()
+    driver = studio.pages["pose"].driver
+    before = driver.targets.copy()
+    with connect(url, origin=f"http://127.0.0.1:{studio.pages.port}") as socket_:
+        greeting = [decode(socket_.recv(timeout=10))[0]["type"] for _ in range(3)]
+        assert greeting == ["rigs", "scene", "links"]
+        effector = driver.session.effectors[0]
+        for command, message in (
+            ("{not json", "not JSON"),
+            ('["drag"]', "a JSON object with a type"),
+            ('{"type": "shell", "cmd": "touch /tmp/x"}', "unknown command 'shell'"),
+            ('{"type": "rig", "name": "../../etc"}', "rig '../../etc': not one of"),
+            ('{"type": "drag", "phase": "fly", "target": [0, 0, 0]}', "drag phase 'fly'"),
+            (
+                f'{{"type": "drag", "phase": "move", "effector": "{effector}", "target": [0, 0]}}',
+                "expected [x, y, z]",
+            ),
+            (
+                f'{{"type": "drag", "phase": "move", "effector": "{effector}", '
+                '"target": [NaN, 0, 0]}',
+                "three finite numbers",
+            ),
+            (
+                '{"type": "drag", "phase": "move", "effector": "tail", "target": [0, 0, 0]}',
+                "'tail': not an effector",
+            ),
+        ):
+            socket_.send(command)
+            header, _ = decode(socket_.recv(timeout=10))
+            assert header["type"] == "error" and message in header["message"], command
+    np.testing.assert_array_equal(driver.targets, before)  # nothing was acted on
 
 
 def _canvas_pixels(page) -> np.ndarray:
@@ -129,34 +203,47 @@ def _canvas_pixels(page) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int16)
 
 
+def _pick_rig(page, rig: str) -> None:
+    """The rig chosen in the page's menu, as a user does, and its scene drawn."""
+    page.wait_for_selector("#rig option", state="attached", timeout=60_000)
+    page.select_option("#rig", rig)
+    page.wait_for_function(
+        "(r) => document.getElementById('status').textContent.startsWith(r + ' ·')",
+        arg=rig,
+        timeout=180_000,  # the first load fits the rig's effector mapping
+    )
+
+
 @pytest.mark.browser
 @pytest.mark.parametrize(("rig", "joint"), [("biped", "hand_r"), ("face", None)])
 def test_dragging_an_effector_with_the_mouse_poses_the_rig(studio, rig, joint):
     from browser import chromium_page, keep_screenshot
     from rigmap.studio import probe
 
-    view = studio.views["Pose"]
-    view.rig_menu.value = rig  # as picking it in the page does
-    joint = joint or view.session.effectors[0]
-    rest = view.record.controls.copy()
-    count = view.record.count
-    with chromium_page(studio.url) as page:
+    pose = studio.pages["pose"]
+    driver = pose.driver
+    with chromium_page(studio.pages.url) as page:
+        _pick_rig(page, rig)
+        joint = joint or driver.session.effectors[0]
+        k = driver.session.effectors.index(joint)
+        rest, count = driver.record.controls.copy(), driver.record.count
+        target_before = driver.targets[k].copy()
         box = probe.canvas_box(page)
         probe.watch_poses(page)
         time.sleep(1.0)  # the first frame drawn
         before = _canvas_pixels(page)
-        gizmo_before = np.array(view.gizmo(joint).position)
-        start = probe.gizmo_point(view, joint, box)
+        start = probe.handle_point(pose, joint, box)
         latencies = probe.timed_drag(page, start, probe.wiggle(start, 6, step_px=4.0, span=6))
         time.sleep(0.5)
         after = _canvas_pixels(page)
         keep_screenshot(page.screenshot(), f"pose_{rig}.png")
-    moved = np.array(view.gizmo(joint).position) - gizmo_before
-    assert moved[0] > 0.001 and abs(moved[1]) < 1e-9 and abs(moved[2]) < 1e-9  # along +X only
-    assert view.record.count >= count + len(latencies) and len(latencies) == 6
-    used = view.session.rig.controls.used_indices
-    assert np.abs(view.record.controls[used] - rest[used]).max() > 1e-3  # the rig moved
-    assert view.record.distance_cm < 2.0  # and it reached the dragged effector
+    moved = driver.targets[k] - target_before
+    # the handle moves in the camera's view plane: a move to the right is +X only
+    assert moved[0] > 0.1 and abs(moved[1]) < 1e-9 and abs(moved[2]) < 1e-9
+    assert driver.record.count >= count + len(latencies) and len(latencies) == 6
+    used = driver.session.rig.controls.used_indices
+    assert np.abs(driver.record.controls[used] - rest[used]).max() > 1e-3  # the rig moved
+    assert driver.record.distance_cm < 2.0  # and it reached the dragged effector
     changed = np.abs(after - before).sum(axis=2) > 30
     assert changed.mean() > 1e-3  # the page shows it
 
@@ -165,18 +252,20 @@ def test_dragging_an_effector_with_the_mouse_poses_the_rig(studio, rig, joint):
 def test_the_page_exports_the_pose_into_the_output_folder_only(studio, project):
     from browser import chromium_page
 
-    view = studio.views["Pose"]
-    view.rig_menu.value = "biped"
+    driver = studio.pages["pose"].driver
     before = set(os.listdir(project))
-    with chromium_page(studio.url) as page:
+    with chromium_page(studio.pages.url) as page:
+        _pick_rig(page, "biped")
         page.get_by_role("button", name="Export pose (JSON)").click()
         page.wait_for_function(
             "() => document.body.textContent.includes('Exported pose/biped-')", timeout=60_000
         )
     (written,) = (project / "studio_out" / "pose").glob("biped-*.json")
     document = json.loads(written.read_text())
-    rig = view.session.rig
-    assert document["rig"] == "biped" and set(document["effectors"]) == set(view.session.effectors)
+    rig = driver.session.rig
+    assert document["rig"] == "biped" and set(document["effectors"]) == set(
+        driver.session.effectors
+    )
     assert sorted(document["used_controls"]) == sorted(rig.used_controls)
     assert set(os.listdir(project)) - before <= {"studio_out"}
 
@@ -186,3 +275,47 @@ def test_the_command_line_names_a_bad_folder(tmp_path, capsys):
 
     assert main(["studio", "--folder", str(tmp_path / "none"), "--port", "0"]) != 0
     assert "--folder" in capsys.readouterr().err
+
+
+@pytest.mark.browser
+@pytest.mark.blender
+def test_the_page_exports_the_faces_pose_as_a_blend_key_and_says_why_not_for_the_biped(
+    studio, project
+):
+    """The face's pose as shape keys keyed at frame 1, read back from Blender: each key's
+    weight is its control's (value - default) / (upper - default) (export_shape_key_blend);
+    the biped, a rig with no Blender file and no mesh, is refused in the page."""
+    from browser import chromium_page
+    from rigmap.rigs.blender.shape_keys import read_shape_key_blend
+
+    driver = studio.pages["pose"].driver
+    with chromium_page(studio.pages.url) as page:
+        _pick_rig(page, "biped")
+        page.get_by_role("button", name="Export .blend key").click()
+        page.wait_for_function(
+            "() => document.getElementById('error').textContent.includes('neither a Blender')",
+            timeout=60_000,
+        )
+        _pick_rig(page, "face")
+        count = driver.record.count
+        effector = driver.session.effectors[0]
+        driver.drag(effector, driver.targets[0] + np.array([0.0, 0.4, 0.2]), phase="start")
+        wait = time.monotonic() + 30
+        while driver.record.count == count and time.monotonic() < wait:
+            time.sleep(0.05)
+        controls = driver.record.controls.copy()
+        page.get_by_role("button", name="Export .blend key").click()
+        page.wait_for_function(
+            "() => document.body.textContent.includes('Exported pose/face-')", timeout=180_000
+        )
+    (written,) = (project / "studio_out" / "pose").glob("face-*.blend")
+    rig = driver.session.rig
+    used = rig.controls.used_indices
+    table = read_shape_key_blend(written)
+    row = table[table["frame"] == 1].iloc[0]
+    lower, upper = rig.controls.defaults[used], rig.controls.upper[used]
+    expected = (controls[used] - lower) / (upper - lower)
+    got = np.array([row[name] for name in rig.used_controls])
+    assert np.abs(expected).max() > 1e-3  # the drag moved the face
+    np.testing.assert_allclose(got, expected, atol=1e-5)
+    assert not list((project / "studio_out" / "pose").glob("biped-*.blend"))

@@ -45,6 +45,10 @@ from rigmap.rigs.characters import face as face_rig, squirrel
 
 print(published.TABLE1[-1], sorted(latent_tables.TABLES), sorted(edits_tables.TABLES))
 print(rigify.PRESETS, sorted(face.BEATS), face_rig.COLOURS, squirrel.COLOURS)
+
+from rigmap.studio.page_server import PAGES, served_files
+
+print({route: len(body) for route, (body, _) in served_files(PAGES).items()})  # own pages
 """
 
 

@@ -26,15 +26,16 @@ class CameraPose:
     fov: float = FOV_RAD  # vertical, radians
 
 
-def front_camera(points, *, fov: float = FOV_RAD) -> CameraPose:
+def front_camera(points, *, fov: float = FOV_RAD, left_shift: float = LEFT_SHIFT) -> CameraPose:
     """A camera on +Z looking at the middle of ``points`` ``(N, 3)`` (scene units, Y up),
-    far enough for their height (and width) to fit."""
+    far enough for their height (and width) to fit, the character ``left_shift`` of the
+    frame's width left of the middle (viser's panel covers the right; 0 on a page without)."""
     points = np.asarray(points, dtype=np.float64)
     low, high = points.min(axis=0), points.max(axis=0)
     centre = (low + high) / 2
     extent = max(high[1] - low[1], high[0] - low[0], 1e-3)
     distance = MARGIN * extent / (2 * np.tan(fov / 2)) + (high[2] - low[2]) / 2
-    aim = centre + np.array([LEFT_SHIFT * 2 * distance * np.tan(fov / 2) * ASPECT, 0.0, 0.0])
+    aim = centre + np.array([left_shift * 2 * distance * np.tan(fov / 2) * ASPECT, 0.0, 0.0])
     position = aim + np.array([0.0, 0.0, distance])
     return CameraPose(position, aim, np.array([0.0, 1.0, 0.0]), fov)
 

@@ -61,8 +61,7 @@ from rigmap.studio.edit_clips import (
     vector,
 )
 from rigmap.studio.playback import FrameClock, PlaysFrames
-from rigmap.studio.pose_view import GIZMO_SHARE
-from rigmap.studio.scene import SkeletonDrawing, from_scene
+from rigmap.studio.scene import GIZMO_SHARE, SkeletonDrawing, from_scene
 from rigmap.studio.served_folder import ServedFolder
 from rigmap.studio.writes import OutputFolder
 

@@ -1,17 +1,17 @@
-"""The Play view: a latent model driven live by the user's commands and by a game of
-noughts and crosses, as the paper's demo (Bailey et al. 2016 §7).
+"""Play: a latent model driven live by the user's commands and by a game of noughts and
+crosses, as the paper's demo (Bailey et al. 2016 §7), apart from any page.
 
 One streaming thread owns a deadline clock (:class:`DeadlineClock`): each frame is computed
 ahead (the controller's step, its used controls put into the rig's full row, the face's
-mesh), then handed to viser at its deadline, ``start + k/fps``. The next deadline is the
-last one plus ``1/fps``, never "now plus a frame", so the work a frame takes does not slow
-the rate. A frame's lateness (handed over minus deadline) is kept for the benchmark's p99.
-"Handed over" is the mesh update queued on viser's websocket; the socket write happens on
-viser's event loop. Each frame runs torch on one thread (``rigmap.torch_threads``: on the
+mesh), then handed to ``publish`` at its deadline, ``start + k/fps`` (the Play page,
+:mod:`rigmap.studio.play_page`, sends it to the browser there and then). The next deadline
+is the last one plus ``1/fps``, never "now plus a frame", so the work a frame takes does
+not slow the rate. A frame's lateness (handed over minus deadline) is kept for the
+benchmark's p99. Each frame runs torch on one thread (``rigmap.torch_threads``: on the
 2-core machine two threads made a step's p99 23 ms instead of 2.5 ms, measured).
 
-The GUI's callbacks (viser's thread pool) submit commands under the lock the stream steps
-under. The game: the user is X, the computer O (:func:`rigmap.latent.game.computer_move`:
+The page's commands (its websocket's thread) are submitted under the lock the stream
+steps under. The game: the user is X, the computer O (:func:`rigmap.latent.game.computer_move`:
 win, else block, else a seeded random cell), replying ``reply_seconds`` after X so the
 face has begun to react. Each move's event queues its emotion's commands
 (:func:`rigmap.latent.game.emotion_commands`: TRANSITION to it if it is a model, PLAY one
@@ -40,21 +40,17 @@ from rigmap.latent.particle import ParticleSettings
 from rigmap.latent.synthesis import (
     Controller,
     Idle,
-    Move,
     Play,
     SynthesisSettings,
     Transition,
 )
-from rigmap.studio.camera import aim_every_page, front_camera
-from rigmap.studio.scene import add_surface, to_scene
+from rigmap.studio.scene import to_scene
 from rigmap.torch_threads import one_thread
 
-SCENE = "/play"
-FACE_NODE = f"{SCENE}/face"  # the face's mesh in the scene
-FACE_COLOR = (225, 190, 170)  # as the Pose view's
 #: ours: O answers a second after X (the synth demo's 24 frames a turn)
 REPLY_SECONDS = 1.0
-#: ours: the status line is rewritten every 6th frame (4 a second) and on every event
+#: ours: the state (status line, board) is published every 6th frame (4 a second) and on
+#: every event
 STATUS_EVERY = 6
 #: ours: a stall longer than this restarts the deadlines instead of bursting to catch up
 MAX_BEHIND_S = 0.5
@@ -130,18 +126,19 @@ def describe(command) -> str:
     return f"MOVE to {where}"
 
 
-class PlayView:
-    """The view over ``fitted`` (:class:`~rigmap.latent.library.FittedModels`) and
-    ``table`` (:class:`~rigmap.latent.transitions.TransitionTable`) of ``rig`` (a mesh
-    rig: ``mesh``, ``faces``); ``fps`` is the clock's and the particle's rate."""
-
-    name = "Play"
+class PlaySession:
+    """Play over ``fitted`` (:class:`~rigmap.latent.library.FittedModels`) and ``table``
+    (:class:`~rigmap.latent.transitions.TransitionTable`) of ``rig`` (a mesh rig: ``mesh``,
+    ``faces``); ``fps`` is the clock's and the particle's rate. ``publish(kind, session)``
+    hears ``"frame"`` (at each frame's deadline: :attr:`vertices`, :attr:`frame`) and
+    ``"state"`` (the status, the board or the takes changed). The stream runs while
+    :meth:`show` says a page shows it."""
 
     def __init__(self, rig, fitted, table, *, fps=24.0, seed=0, reply_seconds=REPLY_SECONDS):
         if not fitted.models:
-            raise ValueError("the Play view needs at least one latent model")
+            raise ValueError("Play needs at least one latent model")
         if not callable(getattr(rig, "mesh", None)) or getattr(rig, "faces", None) is None:
-            raise ValueError(f"the Play view draws a mesh; rig {rig.name!r} has none")
+            raise ValueError(f"Play draws a mesh; rig {rig.name!r} has none")
         self.rig, self.fitted, self.table = rig, fitted, table
         self.fps = float(fps)
         start = "neutral" if "neutral" in fitted.models else next(iter(fitted.models))
@@ -165,65 +162,20 @@ class PlayView:
         self.played: deque[tuple[int, np.ndarray]] = deque(maxlen=KEPT_FRAMES)
         self.work: deque[float] = deque(maxlen=KEPT_FRAMES)  # seconds computing each frame
         self.message = ""  # the last refusal, one line
+        self.publish: Callable[[str, PlaySession], None] = lambda kind, session: None
+        self.vertices = to_scene(np.asarray(rig.mesh(rig.default_controls(1)))[0])
+        self.frame = -1  # the frame whose vertices were published last
         self._reply_at: int | None = None  # the frame O moves on
         self._stop, self._visible = threading.Event(), threading.Event()
         self._thread = threading.Thread(target=self._stream, name="studio-play", daemon=True)
-        self.mesh = None
-
-    # ------------------------------------------------------------------ page
-    def build(self, server, gui) -> None:
-        self.server = server
-        rig = self.rig
-        rest = to_scene(np.asarray(rig.mesh(rig.default_controls(1)))[0])
-        self.camera = front_camera(rest)
-        self.mesh = add_surface(server.scene, FACE_NODE, rest, rig.faces, FACE_COLOR)
-        self.status = gui.add_markdown("")
-        with gui.add_folder("Commands"):
-            self._build_commands(gui)
-        with gui.add_folder("Noughts and crosses"):
-            self.board_text = gui.add_markdown("")
-            self.rows = [
-                gui.add_button_group(f"Row {r + 1}", options=self._row_labels(r)) for r in range(3)
-            ]
-            self.new_game_button = gui.add_button("New game")
-        for r, row in enumerate(self.rows):
-            row.on_click(lambda event, r=r: self._cell_clicked(r, event.target.value))
-        self.new_game_button.on_click(lambda _event: self.new_game())
-        self._show_board()
-        self._show_status()
         self._thread.start()
 
-    def _build_commands(self, gui) -> None:
-        model = self.controller.model
-        self.model_menu = gui.add_dropdown("Model", options=list(self.fitted.models))
-        self.model_menu.value = model
-        self.transition_button = gui.add_button("TRANSITION")
-        self.take_menu = gui.add_dropdown("Take", options=self.fitted.sets[model].names)
-        self.play_button = gui.add_button("PLAY")
-        self.frame_input = gui.add_number("Frame", initial_value=0, min=0, step=1)
-        self.move_button = gui.add_button("MOVE")
-        self.idle_input = gui.add_number("Idle frames", initial_value=IDLE_FRAMES, min=1, step=1)
-        self.idle_button = gui.add_button("IDLE")
-        self.transition_button.on_click(
-            lambda _event: self.command(Transition(self.model_menu.value))
-        )
-        self.play_button.on_click(lambda _event: self.command(Play(self.take_menu.value)))
-        self.move_button.on_click(
-            lambda _event: self.command(
-                Move(take=self.take_menu.value, frame=int(self.frame_input.value))
-            )
-        )
-        self.idle_button.on_click(lambda _event: self.command(Idle(int(self.idle_input.value))))
-
     def show(self, visible: bool) -> None:
-        """Stream only while shown; a shown view puts every page's camera on the face."""
-        if self.mesh is not None:
-            self.mesh.visible = visible
-        if not visible:
+        """Stream only while a page shows it (paused: the clock starts again on resume)."""
+        if visible:
+            self._visible.set()
+        else:
             self._visible.clear()
-            return
-        aim_every_page(self.camera, self.server)
-        self._visible.set()
 
     def close(self) -> None:
         self._stop.set()
@@ -240,16 +192,13 @@ class PlayView:
                 self.message = ""
             except LatentInputError as error:
                 self.message = f"{type(command).__name__.upper()} refused: {error}"
-        self._show_takes()
-        self._show_status()
+        self.publish("state", self)
         return not self.message
 
-    def _show_takes(self) -> None:
-        """The Take menu lists the takes of the model the next command runs in."""
+    def take_names(self) -> list[str]:
+        """The takes of the model the next command runs in (what PLAY and MOVE may name)."""
         with self.lock:
-            names = tuple(self.fitted.sets[self.controller.model_after_queue()].names)
-        if tuple(self.take_menu.options) != names:
-            self.take_menu.options = names
+            return list(self.fitted.sets[self.controller.model_after_queue()].names)
 
     # ------------------------------------------------------------------ game
     def click_cell(self, cell: int) -> None:
@@ -264,23 +213,12 @@ class PlayView:
                 self._react("x", kinds)
                 if not self.board.over:
                     self._reply_at = self.controller.frame + self.reply_frames
-        self._show_board()
-        self._show_takes()
-        self._show_status()
-
-    def _cell_clicked(self, row: int, label: str) -> None:
-        if label.isdigit():
-            self.click_cell(int(label) - 1)
-        else:
-            with self.lock:
-                self.message = f"Row {row + 1}: that cell is taken"
-            self._show_status()
+        self.publish("state", self)
 
     def new_game(self) -> None:
         with self.lock:
             self.board, self._reply_at, self.message = Board(), None, ""
-        self._show_board()
-        self._show_status()
+        self.publish("state", self)
 
     def _react(self, player: str, kinds: list[str]) -> None:
         """The face answers the move's last event (under the lock)."""
@@ -320,20 +258,19 @@ class PlayView:
             try:
                 frame, controls, vertices, moved = self._next_frame()
             except Exception as error:  # shown in the page; the studio keeps serving
-                self.status.content = f"**Play stopped**: {type(error).__name__}: {error}"
+                with self.lock:
+                    self.message = f"Play stopped: {type(error).__name__}: {error}"
+                self.publish("state", self)
                 return
             self.work.append(time.perf_counter() - began)
             if clock.wait(self._stop.wait):
                 return
-            self.mesh.vertices = vertices
-            self.server.flush()  # on its deadline, not at the next of viser's 1/60 s windows
+            self.vertices, self.frame = vertices, frame
+            self.publish("frame", self)
             clock.sent()
             self.played.append((frame, controls))
-            if moved:
-                self._show_board()
-                self._show_takes()
             if moved or frame % STATUS_EVERY == 0:
-                self._show_status()
+                self.publish("state", self)
 
     def _next_frame(self):
         """``(frame, used controls, vertices in scene units, O moved)``, before its deadline."""
@@ -350,45 +287,36 @@ class PlayView:
         return frame, controls, vertices, moved
 
     # ------------------------------------------------------------------ text
-    def _row_labels(self, row: int) -> tuple[str, ...]:
-        """A free cell is labelled by its number (1-9), a taken one by its mark."""
-        cells = self.board.cells[3 * row : 3 * row + 3]
-        return tuple(
-            str(3 * row + k + 1) if mark is None else mark.upper() for k, mark in enumerate(cells)
-        )
+    def cell_labels(self) -> list[str]:
+        """Each cell's label: a free cell its number (1-9), a taken one its mark."""
+        with self.lock:
+            cells = list(self.board.cells)
+        return [str(k + 1) if mark is None else mark.upper() for k, mark in enumerate(cells)]
 
     def game_state(self) -> str:
         board = self.board
         winner = board.winner()
         if winner == "x":
-            return "Game over: **X wins** (you)"
+            return "Game over: X wins (you)"
         if winner == "o":
-            return "Game over: **O wins** (the computer)"
+            return "Game over: O wins (the computer)"
         if board.over:
-            return "Game over: **draw**"
-        return "**X to play** (you)" if board.turn == "x" else "O is thinking…"
+            return "Game over: draw"
+        return "X to play (you)" if board.turn == "x" else "O is thinking…"
 
-    def _show_board(self) -> None:
-        with self.lock:
-            labels = [self._row_labels(r) for r in range(3)]
-            state = self.game_state()
-        for row, options in zip(self.rows, labels, strict=True):
-            if tuple(row.options) != options:
-                row.options = options
-        grid = "\n---+---+---\n".join(" " + " | ".join(cells) for cells in labels)
-        self.board_text.content = f"```\n{grid}\n```\n\n{state}"
-
-    def _show_status(self) -> None:
+    def status(self) -> str:
+        """The status lines: the model, the frame, the command under way and those queued,
+        the expression and the event behind it, the last refusal."""
         with self.lock:
             controller = self.controller
             active = controller._entry.command if controller._entry is not None else None
             queued = [describe(c) for c in controller.queue]
-            line = f"**{controller.model}** · frame {controller.frame}"
+            line = f"{controller.model} · frame {controller.frame}"
             line += f" · now: {describe(active)}" if active is not None else " · idling"
             line += f" · queued: {', '.join(queued)}" if queued else " · nothing queued"
             last = self.events[-1] if self.events else None
             why = f" ({last['player'].upper()}: {', '.join(last['events'])})" if last else ""
-            text = f"{line}\n\nExpression: **{self.expression}**{why}"
+            text = f"{line}\nExpression: {self.expression}{why}"
             if self.message:
-                text += f"\n\n{self.message}"
-        self.status.content = text
+                text += f"\n{self.message}"
+        return text

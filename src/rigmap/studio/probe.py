@@ -1,9 +1,10 @@
-"""Driving the Pose view from a real browser as a user does, and timing it there: shared
-by the browser tests and ``benchmarks/studio.py`` (Playwright pages; nothing here runs in
-the studio itself).
+"""Driving the studio's pages from a real browser as a user does, and timing it there:
+shared by the browser tests and ``benchmarks/studio*.py`` (Playwright pages; nothing here
+runs in the studio itself).
 
-A drag is real mouse input (Chromium's own pointer events) on a gizmo's axis arrow, found
-on the canvas from the view's camera (:func:`rigmap.studio.camera.screen_point`). Latency is
+A drag is real mouse input (Chromium's own pointer events) on the Pose page's handle or a
+viser gizmo's axis arrow, found on the canvas from the page's camera
+(:func:`rigmap.studio.camera.screen_point`). Latency is
 measured in the page's clock: from the ``pointermove`` event's time stamp to the animation
 frame in which the page first shows the pose it caused (the status line's pose count), timed
 when that frame's callbacks run (a frame's own time stamp is its start, which can precede
@@ -17,6 +18,7 @@ import re
 import numpy as np
 
 from rigmap.studio.camera import screen_point
+from rigmap.studio.scene import to_scene
 
 #: where on an axis arrow the mouse grabs it, as a share of the gizmo's scale (measured: the
 #: arrow's shaft is grabbed at 0.8; at 0.6 the press can miss it and orbit the camera)
@@ -49,10 +51,19 @@ def canvas_box(page) -> dict:
 
 
 def gizmo_point(view, joint: str, box: dict, *, along=(1.0, 0.0, 0.0)) -> tuple[float, float]:
-    """The page pixel of ``joint``'s gizmo arrow (``along`` one of its axes)."""
+    """The page pixel of ``joint``'s gizmo arrow (``along`` one of its axes) in a viser view."""
     gizmo = view.gizmo(joint)
     point = np.asarray(gizmo.position) + ARROW_GRAB * view.gizmo_scale * np.asarray(along)
     x, y = screen_point(view.camera, point, box["width"], box["height"])
+    return box["x"] + x, box["y"] + y
+
+
+def handle_point(pose_page, effector: str, box: dict) -> tuple[float, float]:
+    """The page pixel of ``effector``'s handle on the Pose page (its target, drawn where the
+    page's camera sees it)."""
+    driver = pose_page.driver
+    target = to_scene(driver.targets[driver.session.effectors.index(effector)])
+    x, y = screen_point(pose_page.camera, target, box["width"], box["height"])
     return box["x"] + x, box["y"] + y
 
 
@@ -68,8 +79,9 @@ def frames_seen(page) -> int:
     return int(page.evaluate("window.__frames.length"))
 
 
-#: viser's gizmo sends at most one update per 50 ms while dragging (its client's throttle):
-#: a move sooner than that waits in the page. Drags are paced just above it (ours).
+#: viser's gizmo (the Edit view's) sends at most one update per 50 ms while dragging (its
+#: client's throttle): a move sooner than that waits in the page. Drags are paced just above
+#: it (ours); the Pose page sends every move, and is timed at the same pace as before.
 PACE_S = 0.06
 
 
@@ -106,24 +118,23 @@ def wiggle(start, n: int, *, step_px: float = 2.0, span: int = 10) -> list[tuple
     return [(x0 + step_px * min(p, 2 * span - p), y0) for p in phases]
 
 
-#: Installed before the page's scripts run (``page.add_init_script``): viser decodes its
-#: websocket in a worker that posts each batch of scene messages to the page; this records,
-#: in the page's clock, when a batch updating ``name``'s vertices reached the page and the
-#: animation frame that follows it (the first frame able to show them).
-WATCH_VERTEX_UPDATES = """(() => {
-  window.__vertexUpdates = [];
-  const NativeWorker = window.Worker;
-  window.Worker = class extends NativeWorker {
+#: Installed before the page's scripts run (``page.add_init_script``): records, in the
+#: page's clock, when each message of a studio page's websocket whose header is of ``KIND``
+#: reached the page and the animation frame that follows it (the first frame able to show
+#: it). The header is read as rigmap.studio.page_server.encode writes it.
+WATCH_MESSAGES = """(() => {
+  window.__messages = [];
+  const NativeSocket = window.WebSocket;
+  window.WebSocket = class extends NativeSocket {
     constructor(...args) {
       super(...args);
       this.addEventListener('message', (event) => {
-        const data = event.data;
-        if (!data || data.type !== 'message_batch') { return; }
-        const hit = data.messages.some((m) => m.type === 'SceneNodeUpdateMessage'
-          && m.name === NAME && m.updates && 'vertices' in m.updates);
-        if (!hit) { return; }
+        if (!(event.data instanceof ArrayBuffer)) { return; }
+        const size = new DataView(event.data).getUint32(0, true);
+        const text = new TextDecoder().decode(new Uint8Array(event.data, 4, size));
+        if (JSON.parse(text).type !== KIND) { return; }
         const entry = [performance.now(), null];
-        window.__vertexUpdates.push(entry);
+        window.__messages.push(entry);
         requestAnimationFrame(() => { entry[1] = performance.now(); });
       });
     }
@@ -131,20 +142,20 @@ WATCH_VERTEX_UPDATES = """(() => {
 })();"""
 
 
-def watch_vertex_updates(page, name: str) -> None:
-    """Record when each update of scene mesh ``name``'s vertices reaches the page; call
-    before the page loads (see :data:`WATCH_VERTEX_UPDATES`)."""
+def watch_messages(page, kind: str) -> None:
+    """Record when each message of ``kind`` (``frame``: Play's) reaches the page; call before
+    the page loads (see :data:`WATCH_MESSAGES`)."""
     import json
 
-    page.add_init_script(script=WATCH_VERTEX_UPDATES.replace("NAME", json.dumps(name)))
+    page.add_init_script(script=WATCH_MESSAGES.replace("KIND", json.dumps(kind)))
 
 
-def vertex_updates(page, *, clear: bool = False) -> np.ndarray:
-    """``(N, 2)`` page times (ms) of the vertex updates so far: reached the page, next
+def messages_seen(page, *, clear: bool = False) -> np.ndarray:
+    """``(N, 2)`` page times (ms) of the watched messages so far: reached the page, next
     frame (NaN until drawn); ``clear`` starts a new record."""
     rows = page.evaluate(
-        "(clear) => { const rows = window.__vertexUpdates.slice();"
-        " if (clear) { window.__vertexUpdates.length = 0; } return rows; }",
+        "(clear) => { const rows = window.__messages.slice();"
+        " if (clear) { window.__messages.length = 0; } return rows; }",
         clear,
     )
     return np.array([[a, np.nan if f is None else f] for a, f in rows], dtype=np.float64).reshape(

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 CM_PER_SCENE_UNIT = 100.0
+#: a gizmo's size as a share of the character's height (ours: grabbable, not in the way)
+GIZMO_SHARE = 0.085
 
 
 def to_scene(points_cm) -> np.ndarray:
@@ -41,11 +43,18 @@ def bone_pairs(rig) -> np.ndarray:
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
+def has_surface(rig) -> bool:
+    """A mesh rig: one with ``world_vertices`` and faces, drawn as its surface."""
+    return (
+        callable(getattr(rig, "world_vertices", None)) and getattr(rig, "faces", None) is not None
+    )
+
+
 def world_pose(rig, controls) -> tuple[np.ndarray, np.ndarray | None]:
-    """Joints ``(J, 3)`` and, for a mesh rig (one with ``world_vertices`` and faces), every
-    vertex ``(V, 3)``, in the world (cm), from one evaluation of the rig: a mesh rig's joints
-    are some of its vertices."""
-    if callable(getattr(rig, "world_vertices", None)) and getattr(rig, "faces", None) is not None:
+    """Joints ``(J, 3)`` and, for a mesh rig (:func:`has_surface`), every vertex ``(V, 3)``,
+    in the world (cm), from one evaluation of the rig: a mesh rig's joints are some of its
+    vertices."""
+    if has_surface(rig):
         surface = np.asarray(rig.world_vertices(np.asarray(controls, dtype=np.float64)))
         return surface[np.asarray(rig.joint_vertices)], surface
     return world_joints(rig, controls), None
