@@ -115,7 +115,7 @@ def test_the_stream_sends_the_controllers_frames_and_follows_commands(models):
     view = PlaySession(rig, fitted, table, seed=0)
     channel = PlayChannel(view)
     sent_messages = []
-    channel.broadcast = sent_messages.append  # what the page would get
+    channel.broadcast = lambda message, replaceable=False: sent_messages.append(message)
     view.show(True)  # as a page opening does
     started = time.perf_counter()
     try:

@@ -319,3 +319,64 @@ def test_the_page_exports_the_faces_pose_as_a_blend_key_and_says_why_not_for_the
     assert np.abs(expected).max() > 1e-3  # the drag moved the face
     np.testing.assert_allclose(got, expected, atol=1e-5)
     assert not list((project / "studio_out" / "pose").glob("biped-*.blend"))
+
+
+def test_a_page_that_stops_reading_gets_only_the_newest_poses_and_every_other_message():
+    """A page's outbox never grows without bound nor blocks the sender: past MAX_PENDING
+    the oldest replaceable message (a pose) goes, the others (a scene, an error) stay."""
+    import threading as threading_
+
+    from rigmap.studio.page_server import MAX_PENDING, Outbox
+
+    class Stalled:  # a connection whose page does not read until it is let go
+        def __init__(self):
+            self.sent, self.go = [], threading_.Event()
+
+        def send(self, message):
+            self.go.wait(10)
+            self.sent.append(message)
+
+    connection = Stalled()
+    outbox = Outbox(connection, "pose")
+    outbox.put(b"first")  # taken by the sender at once, which then waits in send
+    time.sleep(0.2)
+    for k in range(10):
+        outbox.put(f"pose {k}".encode(), replaceable=True)
+    outbox.put(b"scene")
+    connection.go.set()
+    deadline = time.monotonic() + 10
+    while len(connection.sent) < MAX_PENDING + 1 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)
+    outbox.close()
+    assert connection.sent[0] == b"first" and connection.sent[-1] == b"scene"
+    kept = connection.sent[1:-1]
+    assert kept == [f"pose {k}".encode() for k in range(10 - len(kept), 10)]
+    assert len(connection.sent) <= MAX_PENDING + 1
+
+
+def test_stopping_the_pages_closes_an_open_page_and_leaves_no_thread(project):
+    """A page still open when the studio stops (Ctrl-C with a tab open) is disconnected,
+    and the server's connection thread ends: nothing keeps the process alive."""
+    import threading as threading_
+
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    from rigmap.studio.page_server import Channel, PageServer
+
+    pages = PageServer({"pose": Channel()}, host="127.0.0.1", port=0)
+    before = set(threading_.enumerate())
+    socket_ = connect(f"ws://127.0.0.1:{pages.port}/pose/ws")
+    socket_.recv(timeout=10)  # the links message: the connection is served
+    pages.stop()
+    with pytest.raises(ConnectionClosed):
+        while True:
+            socket_.recv(timeout=10)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        started = [t for t in set(threading_.enumerate()) - before if not t.daemon]
+        if not started:
+            break
+        time.sleep(0.05)
+    assert not started, started

@@ -20,6 +20,8 @@ from __future__ import annotations
 import http
 import json
 import threading
+from collections import deque
+from functools import partial
 from importlib import resources
 
 import numpy as np
@@ -78,10 +80,11 @@ class CommandError(ValueError):
 class Channel:
     """One page's side in Python: :meth:`greeting` for a page that connects, :meth:`command`
     for each command it sends, :meth:`opened` / :meth:`closed` as pages come and go;
-    :attr:`broadcast` (set by the server) reaches every page of the channel."""
+    :attr:`broadcast` ``(message, replaceable=False)`` (set by the server) reaches every
+    page of the channel (:class:`Outbox`)."""
 
     def __init__(self):
-        self.broadcast = lambda message: None
+        self.broadcast = lambda message, replaceable=False: None
 
     def greeting(self) -> list[bytes]:
         return []
@@ -112,6 +115,55 @@ def parse_command(message) -> dict:
     return command
 
 
+#: a page's unsent messages beyond which its oldest replaceable one (a pose, a frame) is
+#: dropped: a page that stops reading never holds up the posing or Play's clock (ours)
+MAX_PENDING = 4
+
+
+class Outbox:
+    """One page's messages, sent in order by a thread of its own. A message marked
+    ``replaceable`` (a pose, a frame: a newer one shows all it did) is dropped, oldest first,
+    when more than :data:`MAX_PENDING` wait; the others always go."""
+
+    def __init__(self, connection, name: str):
+        from websockets.exceptions import ConnectionClosed
+
+        self.connection, self.name = connection, name
+        self._closed_error = ConnectionClosed
+        self._waiting: deque[tuple[bytes, bool]] = deque()
+        self._wake = threading.Condition()
+        self._open = True
+        self._thread = threading.Thread(target=self._send_loop, name="studio-page-out", daemon=True)
+        self._thread.start()
+
+    def put(self, message: bytes, *, replaceable: bool = False) -> None:
+        with self._wake:
+            self._waiting.append((message, replaceable))
+            if len(self._waiting) > MAX_PENDING:
+                oldest = next((m for m in self._waiting if m[1]), None)
+                if oldest is not None:
+                    self._waiting.remove(oldest)
+            self._wake.notify()
+
+    def close(self) -> None:
+        with self._wake:
+            self._open = False
+            self._wake.notify()
+
+    def _send_loop(self) -> None:
+        while True:
+            with self._wake:
+                while not self._waiting and self._open:
+                    self._wake.wait()
+                if not self._open:
+                    return
+                message, _ = self._waiting.popleft()
+            try:
+                self.connection.send(message)
+            except (self._closed_error, OSError):
+                return
+
+
 class PageServer:
     """``channels`` (a page name, ``pose`` or ``play``, to its :class:`Channel`) served at
     ``host:port`` (``port`` 0: a free one); ``studio_url`` (the viser page) is linked."""
@@ -121,11 +173,11 @@ class PageServer:
 
         self.channels = dict(channels)
         self.studio_url: str | None = None
-        self._clients: dict[object, tuple[str, threading.Lock]] = {}
-        self._clients_lock = threading.Lock()
+        self._outboxes: dict[object, Outbox] = {}
+        self._outboxes_lock = threading.Lock()
         self._files = served_files(self.channels)
         for name, channel in self.channels.items():
-            channel.broadcast = lambda message, name=name: self._broadcast(name, message)
+            channel.broadcast = partial(self._broadcast, name)
         self._server = serve(
             self._connected,
             host,
@@ -133,6 +185,7 @@ class PageServer:
             process_request=self._http,
             compression=None,  # frames go once to a local page: deflate only costs time
             max_size=MAX_COMMAND_BYTES,
+            close_timeout=1.0,  # a page that does not answer the close is dropped (ours)
         )
         self.host, self.port = host, self._server.socket.getsockname()[1]
         self._thread = threading.Thread(
@@ -152,10 +205,16 @@ class PageServer:
         return {PAGES[name][1]: self.url + PAGES[name][0] for name in self.channels}
 
     def stop(self) -> None:
+        """Stop serving and close every open page's connection (its handler thread, which
+        the server does not make a daemon, then ends: an open tab never keeps the process)."""
         for channel in self.channels.values():
             channel.close()
         self._server.shutdown()
         self._thread.join(timeout=5)
+        with self._outboxes_lock:
+            connections = list(self._outboxes)
+        for connection in connections:
+            connection.close()
 
     # ------------------------------------------------------------------ http
     def _origins(self) -> set[str]:
@@ -198,39 +257,28 @@ class PageServer:
     def _connected(self, connection) -> None:
         name = connection.request.path.partition("?")[0].removesuffix("/ws").strip("/")
         channel = self.channels[name]
-        with self._clients_lock:
-            self._clients[connection] = (name, threading.Lock())
+        outbox = Outbox(connection, name)
+        with self._outboxes_lock:
+            self._outboxes[connection] = outbox
         channel.opened()
         try:
             for message in channel.greeting():
-                self._send(connection, message)
+                outbox.put(message)
             pages = {PAGES[name][1]: PAGES[name][0] for name in self.channels}
-            links = {"type": "links", "pages": pages, "studio": self.studio_url}
-            self._send(connection, encode(links))
+            outbox.put(encode({"type": "links", "pages": pages, "studio": self.studio_url}))
             for message in connection:
                 try:
                     channel.command(parse_command(message))
                 except CommandError as error:
-                    self._send(connection, encode({"type": "error", "message": str(error)}))
+                    outbox.put(encode({"type": "error", "message": str(error)}))
         finally:
-            with self._clients_lock:
-                self._clients.pop(connection, None)
+            with self._outboxes_lock:
+                self._outboxes.pop(connection, None)
+            outbox.close()
             channel.closed()
 
-    def _send(self, connection, message: bytes) -> None:
-        from websockets.exceptions import ConnectionClosed
-
-        entry = self._clients.get(connection)
-        if entry is None:
-            return
-        with entry[1]:  # one message at a time per page: threads broadcast too
-            try:
-                connection.send(message)
-            except ConnectionClosed:
-                pass
-
-    def _broadcast(self, name: str, message: bytes) -> None:
-        with self._clients_lock:
-            clients = [c for c, (channel, _) in self._clients.items() if channel == name]
-        for connection in clients:
-            self._send(connection, message)
+    def _broadcast(self, name: str, message: bytes, *, replaceable: bool = False) -> None:
+        with self._outboxes_lock:
+            outboxes = [box for box in self._outboxes.values() if box.name == name]
+        for outbox in outboxes:
+            outbox.put(message, replaceable=replaceable)

@@ -82,7 +82,8 @@ class PlayChannel(Channel):
     # ------------------------------------------------------------------ messages
     def _published(self, kind: str, session: PlaySession) -> None:
         if kind == "frame":
-            self.broadcast(encode({"type": "frame", "frame": session.frame}, session.vertices))
+            frame = encode({"type": "frame", "frame": session.frame}, session.vertices)
+            self.broadcast(frame, replaceable=True)
         else:
             self.broadcast(self._state())
 

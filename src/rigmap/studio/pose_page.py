@@ -88,7 +88,7 @@ class PoseChannel(Channel):
         elif kind == "pose":
             record = driver.record
             header = {"type": "pose", "count": record.count, "status": driver.status}
-            self.broadcast(encode(header, self._points(record)))
+            self.broadcast(encode(header, self._points(record)), replaceable=True)
         else:
             self.broadcast(encode({"type": "status", "status": driver.status}))
 
