@@ -270,11 +270,20 @@ def test_the_page_exports_the_pose_into_the_output_folder_only(studio, project):
     assert set(os.listdir(project)) - before <= {"studio_out"}
 
 
-def test_the_command_line_names_a_bad_folder(tmp_path, capsys):
+def test_the_command_line_names_a_bad_folder_and_a_taken_port(tmp_path, capsys, project):
     from rigmap.cli import main
 
     assert main(["studio", "--folder", str(tmp_path / "none"), "--port", "0"]) != 0
     assert "--folder" in capsys.readouterr().err
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        data = [f"paths.data={project / 'data'}", f"paths.models={project / 'models'}"]
+        arguments = ["--port", "0", "--pages-port", str(port), "--rigs", "face", *SMALL_MODEL]
+        assert main(["studio", "--folder", str(project), *arguments, *data]) != 0
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"--pages-port {port}: cannot serve on 127.0.0.1" in error
 
 
 @pytest.mark.browser

@@ -1,8 +1,8 @@
 """``rigmap studio``: the browser studio (:mod:`rigmap.studio`) from the shell.
 
 This module is the only studio code that reads config: it composes ``conf/map.yaml`` per
-rig (the same options as ``rigmap pose``) and hands the views plain objects: for the Pose
-view one :class:`~rigmap.studio.pose_driver.PoseSession` factory per rig, built when the user
+rig (the same options as ``rigmap pose``) and hands the pages plain objects: for the Pose
+page one :class:`~rigmap.studio.pose_driver.PoseSession` factory per rig, built when the user
 picks the rig (its effector mapping read from the cache, or fitted on the pipeline's
 corpus the first time).
 """
@@ -126,7 +126,13 @@ def build_studio(*, rigs, overrides, config_dir, folder, out=None, host, port, p
         channels["play"] = PlayChannel(play_session(overrides, config_dir))
     except FileNotFoundError as missing:  # no latent models yet: the other pages still serve
         print(f"rigmap studio: no Play page: {missing}", file=sys.stderr, flush=True)
-    pages = PageServer(channels, host=host, port=pages_port)
+    try:
+        pages = PageServer(channels, host=host, port=pages_port)
+    except OSError as error:  # the port is taken, or the address is not this machine's
+        for channel in channels.values():
+            channel.close()
+        reason = error.strerror or error
+        raise ValueError(f"--pages-port {pages_port}: cannot serve on {host}: {reason}") from None
     try:
         studio = Studio(views, host=host, port=port, pages=pages)
     except BaseException:
