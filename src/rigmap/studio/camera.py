@@ -73,3 +73,13 @@ def screen_point(camera: CameraPose, point, width: float, height: float) -> tupl
     ndc_x = float(v @ right) / (depth * half * width / height)
     ndc_y = float(v @ up) / (depth * half)
     return (ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height
+
+
+def camera_message(camera) -> dict:
+    """A :class:`CameraPose` as the studio's own pages read it (JSON)."""
+    return {
+        "position": camera.position.tolist(),
+        "look_at": camera.look_at.tolist(),
+        "up": camera.up.tolist(),
+        "fov": float(camera.fov),
+    }

@@ -200,9 +200,13 @@ class PageServer:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}"
 
+    def routes(self) -> dict[str, str]:
+        """Each page's route, by its title."""
+        return {PAGES[name][1]: PAGES[name][0] for name in self.channels}
+
     def links(self) -> dict[str, str]:
         """Each page's address, by its title."""
-        return {PAGES[name][1]: self.url + PAGES[name][0] for name in self.channels}
+        return {title: self.url + route for title, route in self.routes().items()}
 
     def stop(self) -> None:
         """Stop serving and close every open page's connection (its handler thread, which
@@ -264,8 +268,8 @@ class PageServer:
         try:
             for message in channel.greeting():
                 outbox.put(message)
-            pages = {PAGES[name][1]: PAGES[name][0] for name in self.channels}
-            outbox.put(encode({"type": "links", "pages": pages, "studio": self.studio_url}))
+            links = {"type": "links", "pages": self.routes(), "studio": self.studio_url}
+            outbox.put(encode(links))
             for message in connection:
                 try:
                     channel.command(parse_command(message))

@@ -14,10 +14,9 @@ import threading
 import numpy as np
 
 from rigmap.latent.synthesis import Idle, Move, Play, Transition
-from rigmap.studio.camera import front_camera
+from rigmap.studio.camera import camera_message, front_camera
 from rigmap.studio.page_server import Channel, CommandError, encode
 from rigmap.studio.play_session import IDLE_FRAMES, PlaySession
-from rigmap.studio.pose_page import camera_message
 
 
 class PlayChannel(Channel):

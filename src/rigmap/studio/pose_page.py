@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rigmap.studio.camera import front_camera
+from rigmap.studio.camera import camera_message, front_camera
 from rigmap.studio.page_server import Channel, CommandError, encode
 from rigmap.studio.pose_driver import PoseDriver
 from rigmap.studio.scene import bone_pairs, to_scene
@@ -130,13 +130,3 @@ class PoseChannel(Channel):
             "camera": camera_message(self.camera),
         }
         return encode(header, self._points(record))
-
-
-def camera_message(camera) -> dict:
-    """A :class:`~rigmap.studio.camera.CameraPose` as the pages read it."""
-    return {
-        "position": camera.position.tolist(),
-        "look_at": camera.look_at.tolist(),
-        "up": camera.up.tolist(),
-        "fov": float(camera.fov),
-    }
