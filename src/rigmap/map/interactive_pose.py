@@ -84,7 +84,7 @@ class InteractivePoser:
                 f"interactive posing: carry_jacobian must be true or false, got {carry_jacobian!r}"
             )
         self.rig, self.mapping, self.steps = rig, mapping, steps
-        self.view = WorldSubsetRig(rig, mapping.subset.joints, traced=True)
+        self.view = WorldSubsetRig(rig, mapping.subset.joints, traced=True, keep_world=True)
         self.held = held_controls(rig, hold)
         self.hold_values = np.asarray(hold_values, dtype=np.float64)
         self.scale = np.asarray(control_std, dtype=np.float64).copy()

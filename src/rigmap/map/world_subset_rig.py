@@ -18,7 +18,14 @@ from rigmap.rigs.base import Pose, Rig, RigInputError
 class WorldSubsetRig(Rig):
     """``evaluate(Y)`` = world positions ``(N, K, 3)`` of ``joints`` of the wrapped rig."""
 
-    def __init__(self, rig: Rig, joints: list[str] | tuple[str, ...], *, traced: bool = False):
+    def __init__(
+        self,
+        rig: Rig,
+        joints: list[str] | tuple[str, ...],
+        *,
+        traced: bool = False,
+        keep_world: bool = False,
+    ):
         unknown = [j for j in joints if j not in rig.joint_names]
         if unknown:
             raise RigInputError(f"rig {rig.name!r} has no joints {unknown}")
@@ -35,15 +42,18 @@ class WorldSubsetRig(Rig):
         # numpy batches through the inner rig's cached TorchScript traces (built-in rigs):
         # the same numbers at about twice the rate on small batches (TorchRig.traced_pose)
         self.traced = traced and hasattr(rig, "traced_pose")
-        #: ``(N, J, 3)`` world positions of all the rig's joints at the last numpy batch
+        #: with ``keep_world``: ``(N, J, 3)`` world positions of all the rig's joints at the
+        #: last numpy batch (an interactive pose shows them; refinement does not need them)
+        self.keep_world = keep_world
         self.last_world: np.ndarray | None = None
 
     def _pose(self, Y) -> Pose:
         traced = self.traced and isinstance(Y, np.ndarray)
         pose = self._traced_pose(Y) if traced else self.inner.pose(Y)
         world = pose.positions[:, self._columns] + pose.cog[:, None, :]
-        if isinstance(world, np.ndarray):  # every joint's world position, for who shows them
-            self.last_world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
+        if isinstance(world, np.ndarray):
+            if self.keep_world:
+                self.last_world = np.asarray(pose.positions) + np.asarray(pose.cog)[:, None, :]
         else:  # a torch batch stays torch (differentiable)
             import torch
 
