@@ -203,15 +203,31 @@ def _canvas_pixels(page) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int16)
 
 
-def _pick_rig(page, rig: str) -> None:
-    """The rig chosen in the page's menu, as a user does, and its scene drawn."""
+def _pick_rig(page, rig: str, driver) -> None:
+    """The rig chosen in the page's menu, as a user does, and its scene drawn; a page that
+    never shows it fails with what the page and the server said."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
     page.wait_for_selector("#rig option", state="attached", timeout=60_000)
     page.select_option("#rig", rig)
-    page.wait_for_function(
-        "(r) => document.getElementById('status').textContent.startsWith(r + ' ·')",
-        arg=rig,
-        timeout=180_000,  # the first load fits the rig's effector mapping
-    )
+    try:
+        page.wait_for_function(
+            "(r) => document.getElementById('status').textContent.startsWith(r + ' ·')",
+            arg=rig,
+            polling=100,  # a timer, not animation frames: the check runs however the page draws
+            timeout=180_000,  # the first load fits the rig's effector mapping
+        )
+    except PlaywrightTimeout:
+        shown = page.evaluate(
+            "() => [document.getElementById('status').textContent,"
+            " document.getElementById('error').textContent]"
+        )
+        pytest.fail(
+            f"{rig} not shown: page {shown}, page errors {errors}, server {driver.status!r}",
+            pytrace=False,
+        )
 
 
 @pytest.mark.browser
@@ -223,7 +239,7 @@ def test_dragging_an_effector_with_the_mouse_poses_the_rig(studio, rig, joint):
     pose = studio.pages["pose"]
     driver = pose.driver
     with chromium_page(studio.pages.url) as page:
-        _pick_rig(page, rig)
+        _pick_rig(page, rig, driver)
         joint = joint or driver.session.effectors[0]
         k = driver.session.effectors.index(joint)
         rest, count = driver.record.controls.copy(), driver.record.count
@@ -255,7 +271,7 @@ def test_the_page_exports_the_pose_into_the_output_folder_only(studio, project):
     driver = studio.pages["pose"].driver
     before = set(os.listdir(project))
     with chromium_page(studio.pages.url) as page:
-        _pick_rig(page, "biped")
+        _pick_rig(page, "biped", driver)
         page.get_by_role("button", name="Export pose (JSON)").click()
         page.wait_for_function(
             "() => document.body.textContent.includes('Exported pose/biped-')", timeout=60_000
@@ -299,13 +315,13 @@ def test_the_page_exports_the_faces_pose_as_a_blend_key_and_says_why_not_for_the
 
     driver = studio.pages["pose"].driver
     with chromium_page(studio.pages.url) as page:
-        _pick_rig(page, "biped")
+        _pick_rig(page, "biped", driver)
         page.get_by_role("button", name="Export .blend key").click()
         page.wait_for_function(
             "() => document.getElementById('error').textContent.includes('neither a Blender')",
             timeout=60_000,
         )
-        _pick_rig(page, "face")
+        _pick_rig(page, "face", driver)
         count = driver.record.count
         effector = driver.session.effectors[0]
         driver.drag(effector, driver.targets[0] + np.array([0.0, 0.4, 0.2]), phase="start")

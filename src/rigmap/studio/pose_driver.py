@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from rigmap.studio.scene import has_surface, world_pose
 from rigmap.studio.writes import OutputFolder
-from rigmap.torch_threads import blas_threads, one_thread
+from rigmap.torch_threads import single_threaded
 
 #: the controls listed in the page: the most moved from rest (the export has every one); ours
 LISTED_CONTROLS = 16
@@ -27,14 +27,8 @@ LISTED_CONTROLS = 16
 POSE_FPS = 24.0
 #: the warm-up's second pose moves the effectors this far (cm; ours: a small drag)
 WARM_UP_NUDGE_CM = 0.5
-
-
-@contextmanager
-def _one_thread():
-    """One torch and one BLAS thread: a pose is a few small calls, and the browser showing
-    it shares the machine's cores (threads only contend; rigmap.torch_threads)."""
-    with one_thread(), blas_threads(1):
-        yield
+#: the newest poses' times kept (ms; a long session does not grow them; ours)
+POSE_TIMES_KEPT = 2048
 
 
 @dataclass
@@ -53,14 +47,15 @@ class PoseSession:
 
 @dataclass
 class PoseRecord:
-    """The newest pose: its count, controls, joints and surface (cm), distance and timings."""
+    """The newest pose: its count, controls, joints and surface (cm), distance, and the
+    newest poses' times (ms)."""
 
     count: int = 0
     controls: np.ndarray | None = None
     joints: np.ndarray | None = None
     surface: np.ndarray | None = None
     distance_cm: float = float("nan")
-    pose_ms: list[float] = field(default_factory=list)
+    pose_ms: deque[float] = field(default_factory=lambda: deque(maxlen=POSE_TIMES_KEPT))
 
 
 class PoseDriver:
@@ -89,6 +84,9 @@ class PoseDriver:
         self._stop = False
         self._wake = threading.Condition()
         self._loading = threading.Lock()
+        # one rig call at a time: a rig loading warms up while the worker may still pose the
+        # last one, and the thread settings (single_threaded) are the process's, not a thread's
+        self._rig_calls = threading.Lock()
         self._worker = threading.Thread(target=self._pose_loop, name="studio-pose", daemon=True)
         self._worker.start()
 
@@ -112,8 +110,10 @@ class PoseDriver:
             joints, surface = world_pose(session.rig, session.rest)
             names = list(session.rig.joint_names)
             targets = joints[[names.index(j) for j in session.effectors]].copy()
-            with _one_thread():  # warm: a drag's first poses trace the rig (0.7 s on the
-                session.pose(targets)  # biped) and set up the carried Jacobian's step (0.4 s)
+            # warm: a drag's first poses trace the rig (0.7 s on the biped) and set up the
+            # carried Jacobian's step (0.4 s)
+            with self._rig_calls, single_threaded():
+                session.pose(targets)
                 session.pose(targets + WARM_UP_NUDGE_CM)
                 session.reset()
             with self._wake:
@@ -123,7 +123,7 @@ class PoseDriver:
                 self.record = PoseRecord(
                     controls=session.rest.copy(), joints=joints, surface=surface, distance_cm=0.0
                 )
-            self.status = self._status_line(0.0)
+                self.status = self._status_line(0.0)
             self.publish("rig", self)
 
     # ------------------------------------------------------------------ drags
@@ -159,7 +159,7 @@ class PoseDriver:
                 session, new_drag, self._new_drag = self.session, self._new_drag, False
             started = time.perf_counter()
             try:
-                with _one_thread():
+                with self._rig_calls, single_threaded():
                     if new_drag:
                         session.reset()
                     controls, distance, joints = session.pose(targets)
@@ -170,15 +170,16 @@ class PoseDriver:
                 self._say(f"{session.rig.name}: posing failed: {error}")
                 continue
             seconds = time.perf_counter() - started
-            if session is not self.session:  # another rig was picked meanwhile
-                continue
-            record = self.record
-            record.count += 1
-            record.controls = np.asarray(controls, dtype=np.float64)
-            record.joints, record.surface = joints, surface
-            record.distance_cm = float(distance)
-            record.pose_ms.append(1e3 * seconds)
-            self.status = self._status_line(seconds)
+            with self._wake:  # a rig loaded meanwhile swaps session and record under it
+                if session is not self.session:  # another rig was picked: not its pose
+                    continue
+                record = self.record
+                record.count += 1
+                record.controls = np.asarray(controls, dtype=np.float64)
+                record.joints, record.surface = joints, surface
+                record.distance_cm = float(distance)
+                record.pose_ms.append(1e3 * seconds)
+                self.status = self._status_line(seconds)
             self.publish("pose", self)
 
     def _status_line(self, seconds: float) -> str:
