@@ -61,3 +61,11 @@ def _controller() -> ThreadpoolController:
 def one_thread():
     """``torch_threads(1)``: for batched small factorisations and single-pose calls."""
     return torch_threads(1)
+
+
+@contextmanager
+def single_threaded() -> Iterator[None]:
+    """One torch and one BLAS thread: work made of many small rig batches and products
+    (mapping a clip, posing while a browser draws) where threads only contend."""
+    with torch_threads(1), blas_threads(1):
+        yield

@@ -41,7 +41,7 @@ from rigmap.map.partial import SubsetMapping
 from rigmap.map.prior_refinement import DEFAULT_PRIOR_WEIGHT, refine_toward_guess
 from rigmap.map.world_subset_rig import WorldSubsetRig
 from rigmap.refine import ComputedJacobian, damped_least_squares
-from rigmap.torch_threads import blas_threads, torch_threads
+from rigmap.torch_threads import single_threaded
 
 
 class MapError(RigmapError, ValueError):
@@ -171,7 +171,7 @@ def map_clip(
     kinds = [rig.controls.kinds[i] for i in rig.controls.used_indices]
     Y = smooth(unwrap_rotations(Y, kinds), settings.smoothing_frames)
     limits = []  # with pinning, the planted joints held, then kept near the held pose
-    with torch_threads(1), blas_threads(1):  # as the refinement: many small rig batches
+    with single_threaded():  # as the refinement: many small rig batches
         if contacts is not None and settings.pin_feet:
             Y = _hold(rig, Y, world, contacts, mapping, settings, control_std, targets.fps, seconds)
             limits = [
