@@ -10,11 +10,16 @@ objects. The application layer uses it through :mod:`rigmap.app.objects`."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from rigmap.errors import RigmapError
+
+#: Hydra keeps one initialised state per process (GlobalHydra): two threads composing at
+#: once (two studio pages loading rigs) would see each other's; every composition holds this
+HYDRA_LOCK = threading.RLock()
 
 
 class ConfigNodeError(RigmapError, ValueError):
@@ -41,13 +46,14 @@ def compose_group(config_dir: Path, group: str) -> Any:
     from hydra.initialize import get_gh_backup, restore_gh_from_backup
     from omegaconf import OmegaConf
 
-    running_app = get_gh_backup()  # inside a stage's @hydra.main Hydra is initialised already
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(config_dir=str(config_dir), version_base="1.3"):
-            config = compose(config_name="config")
-    finally:
-        restore_gh_from_backup(running_app)
+    with HYDRA_LOCK:
+        running_app = get_gh_backup()  # inside a stage's @hydra.main Hydra is initialised
+        GlobalHydra.instance().clear()
+        try:
+            with initialize_config_dir(config_dir=str(config_dir), version_base="1.3"):
+                config = compose(config_name="config")
+        finally:
+            restore_gh_from_backup(running_app)
     return OmegaConf.to_container(config[group], resolve=True)
 
 

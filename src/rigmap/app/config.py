@@ -52,10 +52,12 @@ def compose_config(
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
+    from rigmap.config_objects import HYDRA_LOCK
+
     folder = find_config_dir(config_dir)
     _check_override_syntax(overrides)
     try:
-        with initialize_config_dir(config_dir=str(folder), version_base="1.3"):
+        with HYDRA_LOCK, initialize_config_dir(config_dir=str(folder), version_base="1.3"):
             cfg = compose(
                 config_name=config_name, overrides=list(overrides), return_hydra_config=with_hydra
             )

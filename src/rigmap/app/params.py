@@ -95,10 +95,12 @@ def compose_params(config_dir: str | Path, overrides: Sequence[str] = ()) -> str
     from omegaconf import OmegaConf
     from omegaconf.errors import OmegaConfBaseException
 
+    from rigmap.config_objects import HYDRA_LOCK
+
     config_dir = Path(config_dir).resolve()
     overrides = check_overrides(overrides, config_dir)
     try:
-        with initialize_config_dir(config_dir=str(config_dir), version_base=None):
+        with HYDRA_LOCK, initialize_config_dir(config_dir=str(config_dir), version_base=None):
             cfg = compose(config_name=CONFIG_NAME, overrides=list(overrides))
         OmegaConf.resolve(cfg)
     except (HydraException, OmegaConfBaseException) as error:
