@@ -246,13 +246,21 @@ def pair_scale(tracks: list[TargetTrack]) -> ChannelScale:
 
 
 def apply_clip(model: EditModel, clip: Clip, fps: float | None = None) -> TargetTrack:
-    """The learned edit on one clip, at ``fps`` (default the clip's): resampled when the
-    predicted Δt differs from the frame time or another rate is asked for."""
+    """The learned edit on one BVH clip (:func:`propagate`)."""
     model.scale.check(clip.track)
-    result = model.apply(clip.source())
-    rate = float(fps or clip.track.fps)
-    timed = np.abs(result.values[:, 0] * clip.track.fps - 1.0).max() > TIMING_TOLERANCE
-    if timed or abs(rate - clip.track.fps) > 1e-9:
+    return propagate(model, clip.source(), fps)
+
+
+def propagate(model: EditModel, source: SourceClip, fps: float | None = None) -> TargetTrack:
+    """The learned edit on one clip (either mode), at ``fps`` (default the clip's):
+    resampled when the predicted Δt differs from the frame time or another rate is asked
+    for."""
+    track = source.track
+    model.scale.check(track)
+    result = model.apply(source)
+    rate = float(fps or track.fps)
+    timed = np.abs(result.values[:, 0] * track.fps - 1.0).max() > TIMING_TOLERANCE
+    if timed or abs(rate - track.fps) > 1e-9:
         result = fixed_rate(result, rate)
     return result
 

@@ -1,0 +1,323 @@
+"""An artist's own edits in rig mode: controls parquets of a built-in rig in and out.
+
+A controls parquet is what ``rigmap map`` writes (``controls.parquet``): a ``frame``
+column and one column per control of the rig. Rig mode edits the rig's used controls
+(:mod:`rigmap.edits.rig_mode`: the root's ``root.tx``, ``root.tz``, ``root.ry`` become
+per-frame steps and turns, §4.5), so :func:`read_controls` checks a file with one-line
+errors naming it: a ``frame`` column of consecutive whole numbers, every used control of
+the rig as a column (the missing ones named), no column that is not a control of the
+rig, numbers only and all finite (the column and frame named), at least 3 frames. A
+control the rig does not use is accepted only at its default value (it would otherwise
+be dropped unseen; a ``rigmap map`` output holds every control, the unused ones at
+their defaults), and said so in the notes. A parquet has no frame time: it is read at
+the rate the caller gives (``--fps``, default :data:`CORPUS_FPS`), which the model
+records.
+
+Rig mode needs the rig's root on the ground (the three root controls) and the joints
+that place the heading frame (:data:`HEADING_JOINTS`): the built-in biped and quadruped
+have both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import rigmap.rigs
+from rigmap.edits.pairs import PairError, pair_scale
+from rigmap.edits.propagation import EditModel
+from rigmap.edits.representation import TargetTrack
+from rigmap.edits.rig_mode import RigChannels, rig_targets
+from rigmap.edits.subjects import Subject, rig_subject
+from rigmap.store import atomic_file
+
+FRAME_COLUMN = "frame"
+ROOT_CONTROLS = ("root.tx", "root.tz", "root.ry")
+#: the joints that place the heading frame (the biped's and the quadruped's: both name them so)
+HEADING_JOINTS = ("pelvis", "thigh_l", "thigh_r")
+#: the rate of the rigs' motion library and corpus (``rigmap.animation.library`` clips play at
+#: 24 fps): what a controls parquet, which has no frame time, is read at unless told
+CORPUS_FPS = 24.0
+#: an unused control this close to its default (relative, at least 1e-9 absolute) is at it (ours)
+DEFAULT_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class RigMode:
+    """A built-in rig in rig mode: the rig, its :class:`Subject` (channels, feature joints,
+    joint positions) and the frame rate its controls parquets are read at."""
+
+    rig: object
+    subject: Subject
+    fps: float
+
+    @classmethod
+    def of(cls, rig_name: str, fps: float = CORPUS_FPS) -> RigMode:
+        """The rig ``rig_name`` (``--rig``), checked for rig mode; ``fps`` (``--fps``) too."""
+        fps = float(fps)
+        if not np.isfinite(fps) or fps <= 0:
+            raise PairError(f"--fps must be a positive number of frames per second, got {fps:g}")
+        rig = rigmap.rigs.load(rig_name)
+        missing = [c for c in ROOT_CONTROLS if c not in rig.used_controls]
+        if missing:
+            raise PairError(
+                f"--rig {rig_name}: rig mode needs the root's ground controls {list(ROOT_CONTROLS)}"
+                f" among the rig's used controls; it lacks {missing}"
+            )
+        absent = [j for j in HEADING_JOINTS if j not in rig.joint_names]
+        if absent:
+            raise PairError(
+                f"--rig {rig_name}: rig mode needs the joints {list(HEADING_JOINTS)} (they place "
+                f"the heading frame); the rig lacks {absent}"
+            )
+        return cls(rig, rig_subject(rig, ROOT_CONTROLS, HEADING_JOINTS), fps)
+
+    @classmethod
+    def from_learned(cls, learned: dict, where: str) -> RigMode:
+        """The rig mode a model folder's ``learned.json`` records (:meth:`summary`)."""
+        try:
+            name, fps = str(learned["rig"]), float(learned["fps"])
+        except (KeyError, TypeError, ValueError):
+            raise PairError(f"{where}: a rig-mode model without its rig name and fps") from None
+        return cls.of(name, fps)
+
+    @property
+    def channels(self) -> RigChannels:
+        return self.subject.channels
+
+    @property
+    def used(self) -> tuple[str, ...]:
+        return self.channels.used
+
+    def summary(self) -> dict:
+        """What ``learned.json`` records, so ``apply`` and ``fix`` know the mode."""
+        return {
+            "mode": "rig",
+            "rig": self.rig.name,
+            "fps": self.fps,
+            "root_controls": list(ROOT_CONTROLS),
+            "heading_joints": list(HEADING_JOINTS),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class RigClip:
+    """A controls parquet read for the edits: its used controls ``(F, U)`` in the rig's
+    order, the ``frame`` number of its first row, its target track and what was noted."""
+
+    path: str
+    controls: np.ndarray
+    first_frame: int
+    track: TargetTrack
+    notes: tuple[str, ...]
+
+    @property
+    def frames(self) -> tuple[int, int]:
+        """The file's frame numbers ``START:STOP`` of the clip (STOP excluded)."""
+        return self.first_frame, self.first_frame + len(self.controls)
+
+
+@dataclass(frozen=True, eq=False)
+class RigPair:
+    """An example pair of controls parquets, read and checked; every frame is an example."""
+
+    source: RigClip
+    edited: RigClip
+
+    @property
+    def examples(self) -> np.ndarray:
+        return np.ones(len(self.source.controls), dtype=bool)
+
+
+def read_controls(path, mode: RigMode, frames: tuple[int, int] | None = None) -> RigClip:
+    """One controls parquet, checked (module docstring); ``frames`` ``START:STOP`` are its
+    ``frame`` column's numbers (STOP excluded), None the whole file."""
+    values, first, notes = read_control_values(path, mode.rig)
+    start, stop = first, first + len(values)
+    if frames is not None:
+        start, stop = (int(v) for v in frames)
+        if not (first <= start < stop <= first + len(values)) or stop - start < 3:
+            raise PairError(
+                f"{path}: --frames {start}:{stop} is not a range of at least 3 of its frames "
+                f"{first}:{first + len(values)}"
+            )
+    controls = values[start - first : stop - first].copy()
+    track = rig_targets(controls, mode.channels, mode.fps, source=str(path))
+    return RigClip(str(path), controls, start, track, tuple(notes))
+
+
+def read_control_values(path, rig, min_frames: int = 3) -> tuple[np.ndarray, int, list[str]]:
+    """``(F, U)`` the used controls of a controls parquet (checked: module docstring), its
+    first frame number and the notes; a clip needs 3 frames (its steps and accelerations),
+    a fix (:mod:`rigmap.edits.fixes`) one."""
+    table = _read_table(path, min_frames)
+    first = _frame_numbers(table, path)
+    values, notes = _used_values(table, path, rig, first)
+    return values, first, notes
+
+
+def _read_table(path, min_frames: int) -> pd.DataFrame:
+    path = Path(path)
+    if not path.is_file():
+        raise PairError(f"{path}: no such controls parquet")
+    try:
+        table = pd.read_parquet(path)
+    except Exception as error:  # pyarrow raises several kinds for a damaged file
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise PairError(f"{path}: not a readable parquet file ({reason})") from None
+    if FRAME_COLUMN not in table.columns:
+        raise PairError(
+            f"{path}: no {FRAME_COLUMN!r} column (a controls parquet, as rigmap map writes it, "
+            "has a frame column and one column per control)"
+        )
+    if len(table) < min_frames:
+        raise PairError(f"{path}: {len(table)} frames; at least {min_frames} are needed")
+    return table
+
+
+def _frame_numbers(table: pd.DataFrame, path) -> int:
+    """The first frame number, after checking the column counts up by one per row."""
+    column = table[FRAME_COLUMN]
+    if not pd.api.types.is_numeric_dtype(column) or pd.api.types.is_bool_dtype(column):
+        raise PairError(f"{path}: the {FRAME_COLUMN!r} column holds {column.dtype}, not numbers")
+    frames = column.to_numpy(dtype=np.float64)
+    if not np.isfinite(frames).all() or np.any(frames != np.round(frames)):
+        row = int(np.flatnonzero(~np.isfinite(frames) | (frames != np.round(frames)))[0])
+        raise PairError(f"{path}: frame {frames[row]!r} (row {row}) is not a whole number")
+    jumps = np.flatnonzero(np.diff(frames) != 1)
+    if len(jumps):
+        row = int(jumps[0])
+        raise PairError(
+            f"{path}: the {FRAME_COLUMN!r} column is not consecutive: frame {frames[row]:g} "
+            f"(row {row}) is followed by {frames[row + 1]:g}"
+        )
+    return int(frames[0])
+
+
+def _used_values(table: pd.DataFrame, path, rig, first: int) -> tuple[np.ndarray, list[str]]:
+    """``(F, U)`` the used controls of the table, checked; the notes on unused columns."""
+    names = [str(c) for c in table.columns if c != FRAME_COLUMN]
+    known = set(rig.control_names)
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise PairError(
+            f"{path}: columns {_listed(unknown)} are not controls of rig {rig.name!r} (a "
+            "controls parquet holds frame and the rig's controls only)"
+        )
+    used = list(rig.used_controls)
+    missing = [n for n in used if n not in table.columns]
+    if missing:
+        raise PairError(
+            f"{path}: lacks {len(missing)} of the {len(used)} used controls of rig "
+            f"{rig.name!r}: {_listed(missing)}"
+        )
+    for name in names:
+        column = table[name]
+        if not pd.api.types.is_numeric_dtype(column) or pd.api.types.is_bool_dtype(column):
+            raise PairError(f"{path}: column {name!r} holds {column.dtype}, not numbers")
+    values = table[names].to_numpy(dtype=np.float64)
+    bad = np.argwhere(~np.isfinite(values))
+    if len(bad):
+        row, column = bad[0]
+        raise PairError(
+            f"{path}: column {names[column]!r} is not a finite number at frame {first + row} "
+            f"({float(values[row, column])})"
+        )
+    return table[used].to_numpy(dtype=np.float64), _unused_notes(table, path, rig, names, first)
+
+
+def _unused_notes(table: pd.DataFrame, path, rig, names: list[str], first: int) -> list[str]:
+    """Controls the rig does not use: refused unless at their defaults (then noted)."""
+    used = set(rig.used_controls)
+    unused = [n for n in names if n not in used]
+    if not unused:
+        return []
+    defaults = rig.controls.defaults[[rig.control_names.index(n) for n in unused]]
+    values = table[unused].to_numpy(dtype=np.float64)
+    off = np.abs(values - defaults) > DEFAULT_TOLERANCE * np.maximum(1.0, np.abs(defaults))
+    if off.any():
+        row, column = np.argwhere(off)[0]
+        moved = [unused[k] for k in np.flatnonzero(off.any(axis=0))]
+        raise PairError(
+            f"{path}: controls rig {rig.name!r} does not use are off their defaults: "
+            f"{_listed(moved)} (first {unused[column]!r} at frame {first + row}); rig mode "
+            "edits the used controls only and would drop them"
+        )
+    return [
+        f"{path}: {len(unused)} controls the rig does not use, all at their defaults: "
+        "read as such (not edited, not written)"
+    ]
+
+
+def _listed(names: list[str], shown: int = 8) -> str:
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return f"{names[:shown]}{more}"
+
+
+def read_rig_pair(source, edited, frames, mode: RigMode) -> RigPair:
+    """One example pair (§3: "the source and target clips are assumed to have the same
+    number of frames"): the same frame numbers in both files, then ``frames`` of both."""
+    whole = [read_controls(p, mode) for p in (source, edited)]
+    if len(whole[1].controls) != len(whole[0].controls):
+        raise PairError(
+            f"{edited}: {len(whole[1].controls)} frames, but its source {source} has "
+            f"{len(whole[0].controls)} (§3: a source and its edit have the same number of frames)"
+        )
+    if whole[1].first_frame != whole[0].first_frame:
+        a, b = whole[1].frames, whole[0].frames
+        raise PairError(
+            f"{edited}: frames {a[0]}:{a[1]}, its source {source} {b[0]}:{b[1]} (a pair's "
+            "frame columns must match)"
+        )
+    return RigPair(read_controls(source, mode, frames), read_controls(edited, mode, frames))
+
+
+def learn_rig_pairs(
+    pairs: list[RigPair], model: EditModel, subject: Subject, extra: list[tuple] = ()
+) -> EditModel:
+    """Fit ``model`` (made on ``subject.joints``) on the pairs, the channel scale from their
+    source clips (:func:`rigmap.edits.pairs.pair_scale`); ``extra``: more
+    ``(source, edited track, frame mask)`` examples (the artist's fixes)."""
+    if not pairs:
+        raise PairError("give at least one example pair (--source and --edited)")
+    scale = pair_scale([p.source.track for p in pairs])
+    examples = [(subject.source(p.source.track), p.edited.track) for p in pairs]
+    return model.fit([*examples, *extra], scale)
+
+
+def controls_files(path) -> list[Path]:
+    """A controls parquet, or the ``*.parquet`` files of a folder (sorted); none is an error."""
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".parquet" and p.is_file())
+        if not files:
+            raise PairError(
+                f"{path}: the folder holds no .parquet file (a rig-mode edit takes controls "
+                "parquets)"
+            )
+        return files
+    if not path.is_file():
+        raise PairError(f"{path}: no such controls parquet or folder")
+    if path.suffix.lower() != ".parquet":
+        raise PairError(
+            f"{path}: not a .parquet; a rig-mode edit takes controls parquets (a BVH goes with "
+            "a model learned on BVH pairs)"
+        )
+    return [path]
+
+
+def controls_table(controls: np.ndarray, used, first_frame: int = 0) -> pd.DataFrame:
+    """``frame`` (from ``first_frame``) and one column per used control."""
+    table = pd.DataFrame(np.asarray(controls, dtype=np.float64), columns=list(used))
+    table.insert(0, FRAME_COLUMN, np.arange(len(table), dtype=np.int64) + int(first_frame))
+    return table
+
+
+def write_controls(path, table: pd.DataFrame) -> Path:
+    """The table as a parquet, atomically (whole or not at all)."""
+    with atomic_file(path, suffix=".parquet") as staging:
+        table.to_parquet(staging, index=False)
+    return Path(path)
