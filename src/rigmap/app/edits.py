@@ -45,22 +45,31 @@ GLITCH_HELP = (
 def add_learn_command(verbs) -> None:
     learn = verbs.add_parser(
         "learn",
-        help="learn an edit from your example pairs (a source BVH and your edited version)",
+        help="learn an edit from your example pairs (a source and your edited version: BVH "
+        "files, or controls parquets of a built-in rig with --rig)",
         description="Fits the edit-propagation model (Ikemoto et al. 2009: two GPs and the "
         "combined solve; settings of conf/edits/default.yaml) on example pairs: --source "
         "a.bvh --edited a_edited.bvh, repeated for more pairs, each with an optional "
         "--frames START:STOP (from 0, STOP excluded; the same frames of both files). A pair "
         "must have the same skeleton, frame count and frame time (§3), every channel a "
-        "number. Writes edit.npz + edit.json (the model: arrays and JSON) and learned.json "
-        f"into --out (default {USER_OUTPUTS}/edits/<first edited file's name>/). Example: "
-        "rigmap edits learn --source walk.bvh --edited walk_arms_up.bvh --frames 40:475",
+        "number. Rig mode: --rig NAME (a built-in rig with root.tx, root.tz, root.ry "
+        "controls and pelvis/thigh joints: biped, quadruped) with controls parquets as "
+        "rigmap map writes them (a frame column of consecutive numbers and one column per "
+        "control; every used control present, no other column, finite numbers; a control "
+        "the rig does not use only at its default); --frames are then the frame column's "
+        "numbers, and the parquets are read at --fps. Writes edit.npz + edit.json (the "
+        "model: arrays and JSON) and learned.json (with the mode, and the rig and fps in "
+        f"rig mode) into --out (default {USER_OUTPUTS}/edits/<first edited file's name>/); "
+        "nothing is written when a check fails. Examples: rigmap edits learn --source "
+        "walk.bvh --edited walk_arms_up.bvh --frames 40:475; rigmap edits learn --rig biped "
+        "--source walk.parquet --edited walk_bowed.parquet",
     )
     for flag, what in (
         ("--source", "a source clip (repeat once per pair)"),
         ("--edited", "the edited version of the --source at the same place"),
     ):
         learn.add_argument(
-            flag, action="append", type=Path, metavar="BVH", required=True, help=what
+            flag, action="append", type=Path, metavar="FILE", required=True, help=what
         )
     learn.add_argument(
         "--frames",
@@ -68,8 +77,26 @@ def add_learn_command(verbs) -> None:
         metavar="START:STOP",
         help="the pair's frames (once per pair, or never: whole clips)",
     )
+    learn.add_argument(
+        "--rig",
+        default=None,
+        metavar="NAME",
+        help="rig mode: the built-in rig the controls parquets belong to (biped, quadruped)",
+    )
+    learn.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="with --rig: the parquets' frame rate (a parquet has no frame time; default 24, "
+        "the rig corpus's rate); recorded in the model, apply reads its input at it",
+    )
     learn.add_argument("--out", type=Path, default=None, help="the folder to write the model to")
-    learn.add_argument("--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP)
+    learn.add_argument(
+        "--glitch",
+        choices=("repair", "refuse"),
+        default="repair",
+        help=GLITCH_HELP + " (BVH pairs only)",
+    )
     config_dir_option(learn)
     learn.set_defaults(run=run_learn)
 
@@ -80,14 +107,21 @@ def add_fix_command(verbs) -> None:
         help="hand in corrected frames of a clip: refit the learned edit, suggest what to fix next",
         description="The incremental loop of §3 (Fig 2): --fixed is a BVH of your corrected "
         "frames (the clip's skeleton, one frame per frame of --frames START:STOP of the "
-        "--source file, from 0, STOP excluded). The fix joins the examples of the --model "
-        "folder (a copy kept in its fixes/), the edit is refitted on the pairs and every fix "
-        "so far, and the frames of highest variance on --source not fixed yet are printed "
-        "as the ones to fix next. Then rigmap edits apply --model again.",
+        "--source file, from 0, STOP excluded). For a rig-mode model (learned with --rig) "
+        "--source and --fixed are controls parquets and the fixed file's frame column holds "
+        "the numbers START..STOP-1 of the frames it replaces. The fix joins the examples of "
+        "the --model folder (a copy kept in its fixes/), the edit is refitted on the pairs "
+        "and every fix so far, and the frames of highest variance on --source not fixed yet "
+        "are printed as the ones to fix next. Then rigmap edits apply --model again.",
     )
     fix.add_argument("--model", type=Path, required=True, help="a folder of rigmap edits learn")
     fix.add_argument("--source", type=Path, required=True, help="the clip you corrected")
-    fix.add_argument("--fixed", type=Path, required=True, help="a BVH of the corrected frames")
+    fix.add_argument(
+        "--fixed",
+        type=Path,
+        required=True,
+        help="the corrected frames: a BVH, or a controls parquet for a rig-mode model",
+    )
     fix.add_argument(
         "--frames",
         required=True,
@@ -128,13 +162,19 @@ def run_fix(args) -> int:
 
 
 def add_apply_options(command) -> None:
-    """``rigmap edits apply --model DIR --input BVH|FOLDER``: a learned edit on clips."""
+    """``rigmap edits apply --model DIR --input FILE|FOLDER``: a learned edit on clips."""
     command.description += (
         " With --model DIR (a folder `rigmap edits learn` wrote) it instead applies that "
-        "edit to --input (a BVH file or a folder of them) and writes, per clip, <name>.bvh "
-        "(the clip's own hierarchy, at --fps or the clip's rate; a timing edit is resampled "
-        f"to it) and <name>.npz, and applied.json, into --out (default {USER_OUTPUTS}/edits/"
-        "<model folder's name>/applied/)."
+        "edit to --input (a file or a folder of them: BVH files, or controls parquets for "
+        "a model learned with --rig; a file of the other mode is refused) and writes, per "
+        "clip, <name>.npz (the edited track) and: for BVH, <name>.bvh (the clip's own "
+        "hierarchy, at --fps or the clip's rate); for a parquet, <name>.parquet (frame and "
+        "every used control of the rig, at --fps or the model's rate; the input is read at "
+        "the model's rate) and <name>.blend when the rig has a Blender form (the built-in "
+        "biped and quadruped have none: applied.json says so). A timing edit (a predicted "
+        "frame time) is resampled to that fixed rate. Then applied.json, into --out "
+        f"(default {USER_OUTPUTS}/edits/<model folder's name>/applied/); every clip is "
+        "checked before any file is written."
     )
     command.add_argument(
         "--model", type=Path, default=None, help="a folder written by rigmap edits learn"
@@ -143,28 +183,40 @@ def add_apply_options(command) -> None:
         "--input",
         type=Path,
         default=None,
-        metavar="BVH_OR_FOLDER",
-        help="with --model: the clip(s) to edit",
+        metavar="FILE_OR_FOLDER",
+        help="with --model: the clip(s) to edit (BVH, or controls parquets in rig mode)",
     )
     command.add_argument("--out", type=Path, default=None, help="with --model: output folder")
     command.add_argument(
         "--fps",
         type=float,
         default=None,
-        help="with --model: the output frame rate (default: the clip's)",
+        help="with --model: the output frame rate (default: the clip's; a parquet's is the "
+        "model's)",
     )
     command.add_argument(
-        "--glitch", choices=("repair", "refuse"), default="repair", help=GLITCH_HELP
+        "--glitch",
+        choices=("repair", "refuse"),
+        default="repair",
+        help=GLITCH_HELP + " (BVH clips only)",
     )
 
 
 def run_learn(args) -> int:
-    from rigmap.edits.artist import learn_folder, pair_specs
+    from rigmap.edits.artist import learn_folder, learn_rig_folder, pair_specs
+    from rigmap.edits.pairs import PairError
+    from rigmap.edits.rig_pairs import CORPUS_FPS, RigMode
 
     specs = pair_specs(args.source, args.edited, args.frames)
     out = args.out or Layout.user_output("edits", Path(specs[0][1]).stem)
     settings = load_settings(args.config_dir)
-    folder = learn_folder(specs, out, settings, args.glitch)
+    if args.rig is not None:
+        mode = RigMode.of(args.rig, CORPUS_FPS if args.fps is None else args.fps)
+        folder = learn_rig_folder(specs, out, settings, mode)
+    elif args.fps is not None:
+        raise PairError("--fps goes with --rig (controls parquets); a BVH has its frame time")
+    else:
+        folder = learn_folder(specs, out, settings, args.glitch)
     import json
 
     summary = json.loads((folder / "learned.json").read_text())
@@ -176,7 +228,8 @@ def run_learn(args) -> int:
         )
         for note in pair["notes"]:
             print(f"  {note}")
-    print(f"model: {folder / 'edit.npz'} (fit {summary['fit_s']:.1f} s)")
+    mode = f"rig {summary['rig']} at {summary['fps']:g} fps" if "rig" in summary else "skeleton"
+    print(f"model ({mode}): {folder / 'edit.npz'} (fit {summary['fit_s']:.1f} s)")
     return 0
 
 
@@ -187,15 +240,19 @@ def run_apply(args) -> int:
     if args.overrides:
         raise PairError(f"--model takes no KEY=VALUE overrides, got {args.overrides}")
     if args.input is None:
-        raise PairError("--model needs --input (a BVH file or a folder of them)")
+        raise PairError("--model needs --input (a file or a folder of them)")
     out = args.out or Layout.user_output("edits", args.model.resolve().name, "applied")
     _, summary = apply_folder(args.model, args.input, out, args.fps, args.glitch)
     for row in summary["clips"]:
         timing = " (resampled)" if row["resampled"] else ""
         print(
-            f"{row['input']} -> {row['bvh']}: {row['frames_in']} -> {row['frames_out']} "
-            f"frames at {row['fps_out']:g} fps{timing}"
+            f"{row['input']} -> {row.get('bvh') or row['parquet']}: {row['frames_in']} -> "
+            f"{row['frames_out']} frames at {row['fps_out']:g} fps{timing}"
         )
+        if row.get("blend"):
+            print(f"  {row['blend']}")
+        elif row.get("no_blend"):
+            print(f"  {row['no_blend']}")
         for note in row["notes"]:
             print(f"  {note}")
     return 0

@@ -10,11 +10,16 @@ clip with the fixed frames put in is an example on those frames only (the featur
 the whole clip; :meth:`EditModel.fit`'s frame masks). After the refit the frames of
 highest configuration variance on that clip, not fixed yet, are suggested next, as
 segments (:func:`rigmap.edits.incremental.suggest_segments`, the study's rule).
+
+A rig-mode model (learned on controls parquets, :mod:`rigmap.edits.rig_pairs`) takes its
+fix as a controls parquet too: the ``frame`` column numbers the frames it replaces (it
+must be ``START..STOP-1`` of ``--frames``), every used control of the rig a column,
+checked as the pairs are; the folder keeps ``fixes/fix_<k>.parquet``. A file of the
+other mode is refused with one line.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,9 +27,17 @@ import numpy as np
 
 from rigmap.animation import read_bvh
 from rigmap.animation.bvh_write import bvh_text
-from rigmap.edits.artist import fit_and_write
+from rigmap.edits.artist import check_mode_files, fit_and_write, read_learned
 from rigmap.edits.incremental import Suggestion, suggest_segments
 from rigmap.edits.pairs import PairError, read_clip, read_pair, rebuilt_frames, without_glitches
+from rigmap.edits.rig_mode import rig_targets
+from rigmap.edits.rig_pairs import (
+    RigMode,
+    controls_table,
+    read_control_values,
+    read_controls,
+    read_rig_pair,
+)
 from rigmap.edits.skeleton_mode import Skeleton, skeleton_targets
 
 
@@ -99,7 +112,12 @@ def fix_folder(
     """Add the fix, refit on the pairs and every fix, write the model; the suggestions and
     what was done to the fix (glitches rebuilt, also in ``learned.json``)."""
     model_dir = Path(model_dir)
-    learned = json.loads((model_dir / "learned.json").read_text())
+    learned, mode = read_learned(model_dir)
+    if not learned:
+        raise PairError(f"{model_dir}: no learned.json; not a folder of rigmap edits learn")
+    if mode == "rig":
+        return fix_rig_folder(model_dir, learned, source, fixed, frames, settings, count, segment)
+    check_mode_files([source, fixed], "skeleton", model_dir)
     glitch = learned.get("glitch", "repair")
     source = Path(source).resolve()
     clip, motion, bad, notes = check_fix(source, fixed, frames, glitch)
@@ -122,3 +140,76 @@ def fix_folder(
     mask = next(m for s, _, m in examples if s.track.source == clip.track.source)
     picks = suggest_segments([variance], {0: mask}, count, segment)
     return [replace(p, start=p.start + clip.start, stop=p.stop + clip.start) for p in picks], notes
+
+
+def check_rig_fix(source, fixed, frames: tuple[int, int], mode: RigMode):
+    """The source clip and the fix's used controls ``(STOP - START, U)``, checked: the
+    range inside the clip, the fix's ``frame`` column the range's numbers."""
+    clip = read_controls(source, mode)
+    start, stop = frames
+    first, last = clip.frames
+    if not first <= start < stop <= last:
+        raise PairError(
+            f"--frames {start}:{stop} is outside the frames of {source} ({first}:{last})"
+        )
+    values, fix_first, _ = read_control_values(fixed, mode.rig, min_frames=1)
+    if (fix_first, fix_first + len(values)) != (start, stop):
+        raise PairError(
+            f"{fixed}: frames {fix_first}:{fix_first + len(values)}, but --frames is "
+            f"{start}:{stop} (a fix's frame column numbers the frames of --source it replaces)"
+        )
+    return clip, values
+
+
+def rig_fix_examples(fixes: list[dict], mode: RigMode, folder: Path) -> list[tuple]:
+    """Rig mode's :func:`fix_examples`: ``(source, edited track, mask)`` per fixed source
+    clip, every fix of it put in (a later fix of the same frames wins); a fix's controls
+    are its ``values`` or its file's, relative to ``folder`` unless absolute."""
+    by_source: dict[str, list[dict]] = {}
+    for fix in fixes:
+        by_source.setdefault(fix["source"], []).append(fix)
+    examples = []
+    for source, items in by_source.items():
+        clip = read_controls(source, mode)
+        controls = clip.controls.copy()
+        mask = np.zeros(len(controls), dtype=bool)
+        for fix in items:
+            start, stop = (int(v) - clip.first_frame for v in fix["frames"])
+            given = fix.get("values")
+            if given is None:
+                given = read_control_values(Path(folder) / fix["file"], mode.rig, min_frames=1)[0]
+            controls[start:stop] = given
+            mask[start:stop] = True
+        edited = rig_targets(controls, mode.channels, mode.fps, source=f"{source} (fixed)")
+        examples.append((mode.subject.source(clip.track), edited, mask))
+    return examples
+
+
+def fix_rig_folder(
+    model_dir: Path, learned: dict, source, fixed, frames, settings: dict, count, segment
+) -> tuple[list[Suggestion], list[str]]:
+    """Rig mode's :func:`fix_folder` (controls parquets; the model's rig and frame rate)."""
+    rig_mode = RigMode.from_learned(learned, str(model_dir / "learned.json"))
+    check_mode_files([source, fixed], "rig", model_dir)
+    source = Path(source).resolve()
+    clip, values = check_rig_fix(source, fixed, frames, rig_mode)
+    pairs = [
+        read_rig_pair(p["source"], p["edited"], tuple(p["frames"]), rig_mode)
+        for p in learned["pairs"]
+    ]
+    fixes = list(learned.get("fixes") or [])
+    name = f"fixes/fix_{len(fixes)}.parquet"  # in the model folder, which may move
+    entry = {"source": str(source), "frames": [int(v) for v in frames], "file": name}
+    examples = rig_fix_examples([*fixes, {**entry, "values": values}], rig_mode, model_dir)
+    summary = {**rig_mode.summary(), "pairs": learned["pairs"], "fixes": [*fixes, entry]}
+    # the fix's copy is written with the model, after the fit: a failed fit writes nothing
+    table = controls_table(values, rig_mode.used, frames[0])
+    files = {model_dir / name: table.to_parquet(None, index=False)}
+    model = fit_and_write(
+        pairs, examples, model_dir, settings, summary, files, subject=rig_mode.subject
+    )
+    variance = model.predict(rig_mode.subject.source(clip.track))[0].variance
+    mask = next(m for s, _, m in examples if s.track.source == clip.track.source)
+    picks = suggest_segments([variance], {0: mask}, count, segment)
+    first = clip.first_frame
+    return [replace(p, start=p.start + first, stop=p.stop + first) for p in picks], []
