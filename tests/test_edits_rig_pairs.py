@@ -202,7 +202,7 @@ def test_a_learned_timing_edit_gives_a_longer_clip_at_a_fixed_rate(tmp_path):
     frames, _ = read_parquet_controls(out / "walk.parquet", mode)
     (row,) = json.loads((out / "applied.json").read_text())["clips"]
     ratio = (len(frames) - 1) / (held_out.n_frames - 1)
-    print("timing ratio", ratio)
+    print("timing: frames", held_out.n_frames, "->", len(frames), "ratio", ratio)
     assert len(frames) == expected == row["frames_out"] and row["fps_out"] == 24.0
     assert abs(ratio - 1.5) < 0.05, ratio
     assert read_npz_track(out / "walk.npz").fps == 24.0
@@ -323,7 +323,7 @@ def test_a_rig_fix_is_learned_and_the_next_frames_suggested(learned_biped, tmp_p
     assert entry["frames"] == [start, stop] and entry["file"] == "fixes/fix_0.parquet"
     after = error_on_fixed_frames(tmp_path / "after")
     with capsys.disabled():
-        print(f"\nrig fix: error on the fixed frames cm² before {before:.3f}, after {after:.3f}")
+        print(f"\nrig fix: error on the fixed frames cm² before {before:.3g}, after {after:.3g}")
     assert after < 0.5 * before
     # a fix numbered other than --frames, or a BVH: one line, the model folder unchanged
     stored = {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()}
@@ -332,3 +332,32 @@ def test_a_rig_fix_is_learned_and_the_next_frames_suggested(learned_biped, tmp_p
     _fails([*fix, bvh, "--frames", f"{start}:{stop}"], capsys, "cmu_07_05.bvh", "rig-mode edit")
     assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
     assert [p.name for p in (model / "fixes").iterdir()] == ["fix_0.parquet"]
+
+
+def test_a_rig_with_a_blender_form_gets_a_blend_beside_each_parquet(
+    learned_biped, tmp_path, monkeypatch
+):
+    """No rig that rig mode takes has a Blender form (the biped and quadruped have none,
+    Rigify's human is Z-up), so the .blend branch is exercised with a stand-in writer in
+    ``blend_writer``'s place (ours; it writes the table it is handed as a parquet): the
+    file appears at ``<name>.blend``, holds the parquet's table, and applied.json names it."""
+    import rigmap.rigs.blender.writers as writers
+
+    mode, model, _ = learned_biped
+    handed = []
+
+    def stand_in(rig, table, path, *, fps, action_name):
+        handed.append((rig.name, fps, action_name))
+        table.to_parquet(path, index=False)
+
+    monkeypatch.setattr(writers, "blend_writer", lambda rig: stand_in)
+    clip = write_clip(mode, library_controls(mode, "Walk", 1), tmp_path / "walk.parquet")
+    out = tmp_path / "out"
+    argv = ["edits", "apply", "--model", str(model), "--input", str(clip), "--out", str(out)]
+    assert main(argv) == 0
+    (row,) = json.loads((out / "applied.json").read_text())["clips"]
+    assert row["blend"] == str(out / "walk.blend") and "no_blend" not in row
+    assert handed == [("biped", 24.0, "walk_edit")]
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(out / "walk.blend"), pd.read_parquet(out / "walk.parquet")
+    )

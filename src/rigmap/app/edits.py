@@ -1,5 +1,6 @@
-"""The command-line side of :mod:`rigmap.edits.artist`: ``rigmap edits learn`` and the
-``--model`` options of ``rigmap edits apply``, and the edits' settings read from ``conf/``.
+"""The command-line side of :mod:`rigmap.edits.artist`: ``rigmap edits learn`` (BVH pairs, or
+a built-in rig's controls parquets with ``--rig``), ``rigmap edits fix``, the ``--model``
+options of ``rigmap edits apply``, and the edits' settings read from ``conf/``.
 Imports stay light here (the parser is built on every ``rigmap`` call); the work is
 imported when a command runs."""
 
