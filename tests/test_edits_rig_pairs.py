@@ -254,6 +254,7 @@ def test_bad_parquets_are_one_line_errors_and_write_nothing(learned_biped, tmp_p
         (learn_argv([(source, good)], out), ["--rig"]),  # parquets without --rig
         (learn_argv([(bvh, bvh)], out, "--rig", "biped"), ["cmu_07_05.bvh", "not a .parquet"]),
         (learn_argv([(source, good)], out, "--rig", "face"), ["face", "root.tx"]),
+        (learn_argv([(source, good)], out, "--rig", "nonsense"), ["--rig nonsense", "unknown"]),
         (learn_argv([(source, good)], out, "--rig", "biped", "--frames", "50:200"), ["50:200"]),
         (learn_argv([(source, good)], out, "--rig", "biped", "--fps", "0"), ["--fps"]),
         (learn_argv([(bvh, bvh)], out, "--fps", "30"), ["--fps goes with --rig"]),

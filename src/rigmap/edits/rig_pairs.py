@@ -60,7 +60,10 @@ class RigMode:
         fps = float(fps)
         if not np.isfinite(fps) or fps <= 0:
             raise PairError(f"--fps must be a positive number of frames per second, got {fps:g}")
-        rig = rigmap.rigs.load(rig_name)
+        try:
+            rig = rigmap.rigs.load(rig_name)
+        except rigmap.rigs.UnknownRigError as error:
+            raise PairError(f"--rig {rig_name}: {error}") from None
         missing = [c for c in ROOT_CONTROLS if c not in rig.used_controls]
         if missing:
             raise PairError(
