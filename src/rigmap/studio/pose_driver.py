@@ -107,12 +107,12 @@ class PoseDriver:
             except Exception as error:  # shown in the page; the studio keeps serving
                 self._say(f"{rig_name}: {error}")
                 return
-            joints, surface = world_pose(session.rig, session.rest)
             names = list(session.rig.joint_names)
-            targets = joints[[names.index(j) for j in session.effectors]].copy()
             # warm: a drag's first poses trace the rig (0.7 s on the biped) and set up the
             # carried Jacobian's step (0.4 s)
             with self._rig_calls, single_threaded():
+                joints, surface = world_pose(session.rig, session.rest)
+                targets = joints[[names.index(j) for j in session.effectors]].copy()
                 session.pose(targets)
                 session.pose(targets + WARM_UP_NUDGE_CM)
                 session.reset()
