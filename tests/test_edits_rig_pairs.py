@@ -333,32 +333,3 @@ def test_a_rig_fix_is_learned_and_the_next_frames_suggested(learned_biped, tmp_p
     _fails([*fix, bvh, "--frames", f"{start}:{stop}"], capsys, "cmu_07_05.bvh", "rig-mode edit")
     assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
     assert [p.name for p in (model / "fixes").iterdir()] == ["fix_0.parquet"]
-
-
-def test_a_rig_with_a_blender_form_gets_a_blend_beside_each_parquet(
-    learned_biped, tmp_path, monkeypatch
-):
-    """No rig that rig mode takes has a Blender form (the biped and quadruped have none,
-    Rigify's human is Z-up), so the .blend branch is exercised with a stand-in writer in
-    ``blend_writer``'s place (ours; it writes the table it is handed as a parquet): the
-    file appears at ``<name>.blend``, holds the parquet's table, and applied.json names it."""
-    import rigmap.rigs.blender.writers as writers
-
-    mode, model, _ = learned_biped
-    handed = []
-
-    def stand_in(rig, table, path, *, fps, action_name):
-        handed.append((rig.name, fps, action_name))
-        table.to_parquet(path, index=False)
-
-    monkeypatch.setattr(writers, "blend_writer", lambda rig: stand_in)
-    clip = write_clip(mode, library_controls(mode, "Walk", 1), tmp_path / "walk.parquet")
-    out = tmp_path / "out"
-    argv = ["edits", "apply", "--model", str(model), "--input", str(clip), "--out", str(out)]
-    assert main(argv) == 0
-    (row,) = json.loads((out / "applied.json").read_text())["clips"]
-    assert row["blend"] == str(out / "walk.blend") and "no_blend" not in row
-    assert handed == [("biped", 24.0, "walk_edit")]
-    pd.testing.assert_frame_equal(
-        pd.read_parquet(out / "walk.blend"), pd.read_parquet(out / "walk.parquet")
-    )

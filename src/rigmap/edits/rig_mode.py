@@ -7,7 +7,11 @@ except the root's ground translations and turn, which become the per-frame step 
 of :mod:`rigmap.edits.representation` (so where the clip stands and faces does not
 matter). The root channels are named by the caller (``root.tx``, ``root.tz``,
 ``root.ry`` on the biped: ``ry`` turns about +Y, translations in cm, one unit = one
-world cm / radian — what :func:`rigmap.regression.placement.find_placement` finds).
+world cm / radian — what :func:`rigmap.regression.placement.find_placement` finds), each
+with a sign taking it to rigmap's Y-up ground plane and turn about +Y, the axes every
+rig's ``rig.pose`` returns: a Z-up Blender rig's ``root.tx``, ``root.ty``, ``root.rz``
+are x, -z and the turn (rigmap's z is Blender's -y; a turn about Blender's +Z is one
+about rigmap's +Y, the map between the two being a proper rotation), signs (1, -1, 1).
 
 The source joint positions the features need are the rig's own (``rig.pose``: positions
 relative to the COG plus the COG's world position).
@@ -25,10 +29,12 @@ from rigmap.edits.representation import ROOT_CHANNELS, TargetError, TargetTrack,
 
 @dataclass(frozen=True)
 class RigChannels:
-    """The used controls of a rig and which three of them place the root (x, z, turn)."""
+    """The used controls of a rig, which three of them place the root (x, z, turn) and the
+    sign (±1) taking each to rigmap's x, z and turn about +Y (module docstring)."""
 
     used: tuple[str, ...]
     root: tuple[str, str, str] = ("root.tx", "root.tz", "root.ry")
+    signs: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:
         missing = [name for name in self.root if name not in self.used]
@@ -36,6 +42,8 @@ class RigChannels:
             raise TargetError(
                 f"root channels {missing} are not among the rig's {len(self.used)} used controls"
             )
+        if len(self.signs) != 3 or any(s not in (1.0, -1.0) for s in self.signs):
+            raise TargetError(f"root channel signs must be three of +1 or -1, got {self.signs}")
 
     @property
     def root_columns(self) -> list[int]:
@@ -59,7 +67,9 @@ def rig_targets(
             f"{source}: controls must be (F, {len(channels.used)}) in the used "
             f"controls' order, got {controls.shape}"
         )
-    x, z, turn = (controls[:, c] for c in channels.root_columns)
+    x, z, turn = (
+        sign * controls[:, c] for c, sign in zip(channels.root_columns, channels.signs, strict=True)
+    )
     differentials = root_differentials(x, z, turn, fps)
     pose_columns = [channels.used.index(name) for name in channels.pose]
     values = np.column_stack([differentials, controls[:, pose_columns]])
@@ -73,8 +83,9 @@ def rig_controls(track: TargetTrack, channels: RigChannels) -> np.ndarray:
         raise TargetError(f"{track.source}: its channels are not this rig's used controls")
     root = track.root()
     out = np.empty((track.n_frames, len(channels.used)))
-    for column, values in zip(channels.root_columns, (root.x, root.z, root.heading), strict=True):
-        out[:, column] = values
+    placed = (root.x, root.z, root.heading)
+    for column, sign, values in zip(channels.root_columns, channels.signs, placed, strict=True):
+        out[:, column] = sign * values
     for k, name in enumerate(channels.pose):
         out[:, channels.used.index(name)] = track.values[:, 4 + k]
     return out

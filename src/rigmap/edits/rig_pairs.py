@@ -13,9 +13,12 @@ their defaults), and said so in the notes. A parquet has no frame time: it is re
 the rate the caller gives (``--fps``, default :data:`CORPUS_FPS`), which the model
 records.
 
-Rig mode needs the rig's root on the ground (the three root controls) and the joints
-that place the heading frame (:data:`HEADING_JOINTS`): the built-in biped and quadruped
-have both.
+Rig mode needs the rig's root on the ground (three root controls) and the joints that
+place the heading frame: :data:`RIG_ROOTS` names them per rig — the built-in biped and
+quadruped (Y-up: ``root.tx``, ``root.tz``, ``root.ry``; ``pelvis``, ``thigh_l``,
+``thigh_r``) and Blender's Rigify human (Z-up: ``root.tx``, ``root.ty``, ``root.rz``,
+signs 1, -1, 1 to rigmap's axes, :mod:`rigmap.edits.rig_mode`; ``DEF-spine``, the hips,
+and ``DEF-thigh.L``/``DEF-thigh.R``).
 """
 
 from __future__ import annotations
@@ -35,9 +38,33 @@ from rigmap.edits.subjects import Subject, rig_subject
 from rigmap.store import atomic_file
 
 FRAME_COLUMN = "frame"
-ROOT_CONTROLS = ("root.tx", "root.tz", "root.ry")
-#: the joints that place the heading frame (the biped's and the quadruped's: both name them so)
-HEADING_JOINTS = ("pelvis", "thigh_l", "thigh_r")
+
+
+@dataclass(frozen=True)
+class RigRoot:
+    """Where a rig keeps its ground placement: the root controls (x, z, turn), their signs
+    to rigmap's Y-up axes, and the root, left and right joints of the heading frame."""
+
+    controls: tuple[str, str, str]
+    signs: tuple[float, float, float]
+    heading_joints: tuple[str, str, str]
+
+
+_Y_UP = RigRoot(
+    ("root.tx", "root.tz", "root.ry"), (1.0, 1.0, 1.0), ("pelvis", "thigh_l", "thigh_r")
+)
+#: the rigs rig mode takes. Rigify's human is Z-up: its root's ``tx`` is rigmap's x, ``ty``
+#: rigmap's -z and ``rz`` the turn about rigmap's +Y (conf/rig/rigify_human.yaml; checked
+#: against ``rig.pose`` in tests/test_edits_blend_rig.py)
+RIG_ROOTS = {
+    "biped": _Y_UP,
+    "quadruped": _Y_UP,
+    "rigify_human": RigRoot(
+        ("root.tx", "root.ty", "root.rz"),
+        (1.0, -1.0, 1.0),
+        ("DEF-spine", "DEF-thigh.L", "DEF-thigh.R"),
+    ),
+}
 #: the rate of the rigs' motion library and corpus (``rigmap.animation.library`` clips play at
 #: 24 fps): what a controls parquet, which has no frame time, is read at unless told
 CORPUS_FPS = 24.0
@@ -53,6 +80,7 @@ class RigMode:
     rig: object
     subject: Subject
     fps: float
+    root: RigRoot
 
     @classmethod
     def of(cls, rig_name: str, fps: float = CORPUS_FPS) -> RigMode:
@@ -64,19 +92,27 @@ class RigMode:
             rig = rigmap.rigs.load(rig_name)
         except rigmap.rigs.UnknownRigError as error:
             raise PairError(f"--rig {rig_name}: {error}") from None
-        missing = [c for c in ROOT_CONTROLS if c not in rig.used_controls]
+        root = RIG_ROOTS.get(rig.name)
+        if root is None:
+            raise PairError(
+                f"--rig {rig_name}: rig mode needs the rig's root ground controls (x, z, turn: "
+                f"root.tx, root.tz, root.ry on the biped) and heading joints, known for "
+                f"{sorted(RIG_ROOTS)} only"
+            )
+        missing = [c for c in root.controls if c not in rig.used_controls]
         if missing:
             raise PairError(
-                f"--rig {rig_name}: rig mode needs the root's ground controls {list(ROOT_CONTROLS)}"
+                f"--rig {rig_name}: rig mode needs the root's ground controls {list(root.controls)}"
                 f" among the rig's used controls; it lacks {missing}"
             )
-        absent = [j for j in HEADING_JOINTS if j not in rig.joint_names]
+        absent = [j for j in root.heading_joints if j not in rig.joint_names]
         if absent:
             raise PairError(
-                f"--rig {rig_name}: rig mode needs the joints {list(HEADING_JOINTS)} (they place "
-                f"the heading frame); the rig lacks {absent}"
+                f"--rig {rig_name}: rig mode needs the joints {list(root.heading_joints)} (they "
+                f"place the heading frame); the rig lacks {absent}"
             )
-        return cls(rig, rig_subject(rig, ROOT_CONTROLS, HEADING_JOINTS), fps)
+        subject = rig_subject(rig, root.controls, root.heading_joints, root.signs)
+        return cls(rig, subject, fps, root)
 
     @classmethod
     def from_learned(cls, learned: dict, where: str) -> RigMode:
@@ -101,8 +137,9 @@ class RigMode:
             "mode": "rig",
             "rig": self.rig.name,
             "fps": self.fps,
-            "root_controls": list(ROOT_CONTROLS),
-            "heading_joints": list(HEADING_JOINTS),
+            "root_controls": list(self.root.controls),
+            "root_signs": list(self.root.signs),
+            "heading_joints": list(self.root.heading_joints),
         }
 
 

@@ -65,9 +65,13 @@ def rig_subject(
     rig,
     root_channels=("root.tx", "root.tz", "root.ry"),
     heading_joints=("pelvis", "thigh_l", "thigh_r"),
+    root_signs=(1.0, 1.0, 1.0),
 ) -> Subject:
-    """Rig mode on a built-in rig (see the module docstring)."""
-    channels = RigChannels(tuple(rig.used_controls), tuple(root_channels))
+    """Rig mode on a built-in rig (see the module docstring); ``root_signs``: the root
+    channels' signs to rigmap's axes (:class:`~rigmap.edits.rig_mode.RigChannels`)."""
+    channels = RigChannels(
+        tuple(rig.used_controls), tuple(root_channels), tuple(float(s) for s in root_signs)
+    )
     used = rig.controls.used_indices
     defaults = rig.controls.defaults
 
