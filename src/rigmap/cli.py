@@ -258,8 +258,8 @@ def _add_edits(commands) -> None:
 
     edits = commands.add_parser(
         "edits",
-        help="learn an artist's edits (example BVH pairs, or the procedural ones) and "
-        "propagate them to other motion",
+        help="learn an artist's edits (example pairs: BVH files, or a rig's controls "
+        "parquets with --rig; or the procedural ones) and propagate them to other motion",
     )
     verbs = edits.add_subparsers(title="edit commands", metavar="EDIT_COMMAND")
     for verb, what in (
@@ -267,7 +267,8 @@ def _add_edits(commands) -> None:
         (
             "apply",
             "propagate each edit to the held-out clips into outputs/data/<subject>/edits/; "
-            "with --model DIR --input BVH|FOLDER: your learned edit, written as BVH",
+            "with --model DIR --input FILE|FOLDER: your learned edit, written as BVH, or "
+            "for controls parquets as a parquet and a .blend when the rig has a Blender form",
         ),
         ("evaluate", "score the propagated edits into outputs/metrics/<subject>/edits/"),
         (

@@ -53,8 +53,9 @@ def add_learn_command(verbs) -> None:
         "a.bvh --edited a_edited.bvh, repeated for more pairs, each with an optional "
         "--frames START:STOP (from 0, STOP excluded; the same frames of both files). A pair "
         "must have the same skeleton, frame count and frame time (§3), every channel a "
-        "number. Rig mode: --rig NAME (a built-in rig with root.tx, root.tz, root.ry "
-        "controls and pelvis/thigh joints: biped, quadruped) with controls parquets as "
+        "number. Rig mode: --rig NAME (biped, quadruped: root.tx, root.tz, root.ry and the "
+        "pelvis/thigh joints; rigify_human, Z-up: root.tx, root.ty, root.rz and DEF-spine, "
+        "DEF-thigh.L/R) with controls parquets as "
         "rigmap map writes them (a frame column of consecutive numbers and one column per "
         "control; every used control present, no other column, finite numbers; a control "
         "the rig does not use only at its default); --frames are then the frame column's "
@@ -82,7 +83,7 @@ def add_learn_command(verbs) -> None:
         "--rig",
         default=None,
         metavar="NAME",
-        help="rig mode: the built-in rig the controls parquets belong to (biped, quadruped)",
+        help="rig mode: the rig the controls parquets belong to (biped, quadruped, rigify_human)",
     )
     learn.add_argument(
         "--fps",
@@ -171,8 +172,9 @@ def add_apply_options(command) -> None:
         "clip, <name>.npz (the edited track) and: for BVH, <name>.bvh (the clip's own "
         "hierarchy, at --fps or the clip's rate); for a parquet, <name>.parquet (frame and "
         "every used control of the rig, at --fps or the model's rate; the input is read at "
-        "the model's rate) and <name>.blend when the rig has a Blender form (the built-in "
-        "biped and quadruped have none: applied.json says so). A timing edit (a predicted "
+        "the model's rate) and <name>.blend, an action keyed on those controls at the "
+        "output rate, when the rig has a Blender form (rigify_human; the built-in biped and "
+        "quadruped have none: applied.json says so). A timing edit (a predicted "
         "frame time) is resampled to that fixed rate. Then applied.json, into --out "
         f"(default {USER_OUTPUTS}/edits/<model folder's name>/applied/); every clip is "
         "checked before any file is written."
