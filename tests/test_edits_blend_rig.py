@@ -120,11 +120,11 @@ def applied(mode, tmp_path_factory):
     out = folder / "out"
     apply = ["edits", "apply", "--model", str(folder / "model"), "--input", str(clips)]
     assert main([*apply, "--out", str(out)]) == 0
-    return held_out, out
+    return held_out, out, folder / "model"
 
 
 def test_a_rigify_edit_is_learned_and_carried_to_another_walk(mode, applied):
-    held_out, out = applied
+    held_out, out, _ = applied
     table = pd.read_parquet(out / "walk.parquet")
     assert list(table.columns) == ["frame", *mode.used] and len(table) == APPLY_FRAMES
     got = table[list(mode.used)].to_numpy(dtype=np.float64)
@@ -141,7 +141,7 @@ def test_the_written_blend_plays_back_the_parquets_controls(mode, applied):
     """The ``.blend`` beside the parquet, read back by the corpus importer: one action,
     at the output rate, keyed on every used control; Blender's own F-curve values equal the
     parquet's controls to 1e-5 on every frame and control."""
-    _, out = applied
+    _, out, _ = applied
     (row,) = json.loads((out / "applied.json").read_text())["clips"]
     assert row["blend"] == str(out / "walk.blend") and "no_blend" not in row
     table = pd.read_parquet(out / "walk.parquet")
@@ -159,5 +159,25 @@ def test_the_written_blend_plays_back_the_parquets_controls(mode, applied):
         f"\nrigify .blend round trip: max |Blender - parquet| {gaps[worst]:.3g} ({worst!r}, "
         f"{np.abs(table[worst]).max():.1f} at most) over {len(table)} frames, {len(gaps)} controls"
     )
+    for name in mode.used:
+        np.testing.assert_allclose(played[name], table[name].to_numpy(), rtol=0, atol=1e-5)
+
+
+def test_the_blend_is_keyed_at_the_output_rate(mode, applied, tmp_path):
+    """``--fps 30``: the parquet resampled to 30 fps (75 frames for 60 at 24: the grid of
+    ``representation.resample``, to the last frame's time + half a frame) and the
+    ``.blend``'s scene at 30 fps, its action playing back the parquet's controls."""
+    _, out, model = applied
+    clip = out.parent / "clips" / "walk.parquet"
+    faster = tmp_path / "faster"
+    argv = ["edits", "apply", "--model", str(model), "--input", str(clip), "--out", str(faster)]
+    assert main([*argv, "--fps", "30"]) == 0
+    table = pd.read_parquet(faster / "walk.parquet")
+    assert len(table) == len(np.arange(0.0, (APPLY_FRAMES - 1) / 24 + 0.5 / 30, 1 / 30)) == 75
+    imported = import_blend_corpus(
+        faster / "walk.blend", armature="rig", split=False, check_determinism=False
+    )
+    assert imported.fps == 30 and imported.clips[0].end == 74
+    played = imported.blender_values["walk_edit"]
     for name in mode.used:
         np.testing.assert_allclose(played[name], table[name].to_numpy(), rtol=0, atol=1e-5)

@@ -333,3 +333,22 @@ def test_a_rig_fix_is_learned_and_the_next_frames_suggested(learned_biped, tmp_p
     _fails([*fix, bvh, "--frames", f"{start}:{stop}"], capsys, "cmu_07_05.bvh", "rig-mode edit")
     assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
     assert [p.name for p in (model / "fixes").iterdir()] == ["fix_0.parquet"]
+
+
+def test_a_model_learned_with_other_root_controls_is_refused(learned_biped, tmp_path, capsys):
+    """learned.json records the rig's root controls, signs and heading joints; a model whose
+    record differs from rig mode's table is refused in one line, and one written before the
+    signs were recorded is read as the Y-up rigs' 1, 1, 1."""
+    _, learned_model, examples = learned_biped
+    model = tmp_path / "model"
+    shutil.copytree(learned_model, model)
+    learned = json.loads((model / "learned.json").read_text())
+    assert learned["root_signs"] == [1.0, 1.0, 1.0]
+    out = tmp_path / "out"
+    argv = ["edits", "apply", "--model", str(model), "--input", str(examples[1][0])]
+    write_json_atomic(model / "learned.json", {**learned, "root_signs": [1.0, -1.0, 1.0]})
+    _fails([*argv, "--out", str(out)], capsys, "root_signs", "[1.0, -1.0, 1.0]", "learn")
+    assert not out.exists()
+    older = {k: v for k, v in learned.items() if k != "root_signs"}
+    write_json_atomic(model / "learned.json", older)
+    assert main([*argv, "--out", str(out)]) == 0

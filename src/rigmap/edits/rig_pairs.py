@@ -121,7 +121,20 @@ class RigMode:
             name, fps = str(learned["rig"]), float(learned["fps"])
         except (KeyError, TypeError, ValueError):
             raise PairError(f"{where}: a rig-mode model without its rig name and fps") from None
-        return cls.of(name, fps)
+        mode = cls.of(name, fps)
+        recorded = {  # a model learned before signs were recorded: the Y-up rigs' 1, 1, 1
+            "root_controls": learned.get("root_controls", list(mode.root.controls)),
+            "root_signs": learned.get("root_signs", [1.0, 1.0, 1.0]),
+            "heading_joints": learned.get("heading_joints", list(mode.root.heading_joints)),
+        }
+        now = {k: v for k, v in mode.summary().items() if k in recorded}
+        changed = [k for k in recorded if list(recorded[k]) != list(now[k])]
+        if changed:
+            raise PairError(
+                f"{where}: learned with rig {name!r}'s {changed[0]} {list(recorded[changed[0]])}, "
+                f"rig mode now uses {now[changed[0]]}: learn the model again"
+            )
+        return mode
 
     @property
     def channels(self) -> RigChannels:
