@@ -252,8 +252,8 @@ def _add_evaluate(commands) -> None:
 def _add_edits(commands) -> None:
     """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
     ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
-    ``rigmap edits learn`` and ``apply --model``: an artist's own BVH pairs
-    (:mod:`rigmap.app.edits`)."""
+    ``rigmap edits learn`` and ``apply --model``: an artist's own pairs (BVH files, or a
+    rig's controls parquets) (:mod:`rigmap.app.edits`)."""
     from rigmap.app import edits as edits_app
 
     edits = commands.add_parser(
@@ -308,7 +308,7 @@ def _add_edits(commands) -> None:
 def _edits(verb: str, args) -> int:
     from rigmap.app.edits import run_edits_stage
 
-    if verb == "apply" and args.model is not None:  # an artist's learned edit on BVH clips
+    if verb == "apply" and args.model is not None:  # an artist's learned edit on their clips
         from rigmap.app.edits import run_apply
 
         return run_apply(args)
