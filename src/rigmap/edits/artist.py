@@ -101,13 +101,7 @@ def learn_folder(specs: list[tuple], out, settings: dict, glitch: str = "repair"
     specs = [(Path(s).resolve(), Path(e).resolve(), f) for s, e, f in specs]
     pairs = [read_pair(s, e, f, glitch) for s, e, f in specs]
     rows = [
-        {
-            "source": str(s),
-            "edited": str(e),
-            "frames": [p.source.start, p.source.start + p.source.track.n_frames],
-            "example_frames": int(p.examples.sum()),
-            "notes": [*p.source.notes, *p.edited.notes, *_left_out(p)],
-        }
+        _pair_row(s, e, p, [p.source.start, p.source.start + p.source.track.n_frames], _left_out(p))
         for (s, e, _), p in zip(specs, pairs, strict=True)
     ]
     summary = {"mode": "skeleton", "pairs": rows, "glitch": glitch, "fixes": []}
@@ -123,18 +117,22 @@ def learn_rig_folder(specs: list[tuple], out, settings: dict, mode: RigMode) -> 
     specs = [(Path(s).resolve(), Path(e).resolve(), f) for s, e, f in specs]
     pairs = [read_rig_pair(s, e, f, mode) for s, e, f in specs]
     rows = [
-        {
-            "source": str(s),
-            "edited": str(e),
-            "frames": list(p.source.frames),
-            "example_frames": int(p.examples.sum()),
-            "notes": [*p.source.notes, *p.edited.notes],
-        }
-        for (s, e, _), p in zip(specs, pairs, strict=True)
+        _pair_row(s, e, p, list(p.source.frames)) for (s, e, _), p in zip(specs, pairs, strict=True)
     ]
     summary = {**mode.summary(), "pairs": rows, "fixes": []}
     fit_and_write(pairs, [], Path(out), settings, summary, subject=mode.subject)
     return Path(out)
+
+
+def _pair_row(source, edited, pair, frames: list[int], left_out=()) -> dict:
+    """A pair as ``learned.json`` lists it, in either mode."""
+    return {
+        "source": str(source),
+        "edited": str(edited),
+        "frames": frames,
+        "example_frames": int(pair.examples.sum()),
+        "notes": [*pair.source.notes, *pair.edited.notes, *left_out],
+    }
 
 
 def check_mode_files(paths, mode: str, model_dir=None) -> None:
