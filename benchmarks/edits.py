@@ -3,7 +3,8 @@
 The paper: "Estimating the parameters for the Gaussian processes consumes around 30
 seconds, and producing frame estimations … proceeds at 2–3 frames per second", with the
 training data mirrored (550 frames → 1 100). Here: the skeleton-mode CMU walks, two
-550-frame walking stretches (one of each clip, 1 100 frames) and the
+550-frame walking stretches (one of each 131 take, 1 100 frames; ``--takes cmu_07``: subject
+07's walks, 1 100 frames of three takes, :func:`takes_07`) and the
 ``arms_forward_walking`` edit; the refit is both GPs (≤ 100 L-BFGS-B iterations each),
 fitted several ways in the same run (``--methods``, alternated repeat by repeat):
 
@@ -30,6 +31,7 @@ fitting thread and of every other process during the refit (``/proc/stat``) are 
 beside the wall-clock seconds.
 
     PYTHONPATH=src:pipelines .venv/bin/python benchmarks/edits.py [--repeats 3] [--methods ...]
+        [--takes cmu_07]
 """
 
 from __future__ import annotations
@@ -50,7 +52,13 @@ from rigmap.edits.gp import SharedGP
 from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel
 from rigmap.edits.representation import ChannelScale
-from rigmap.edits.subjects import leg_length_cm_per_unit, skeleton_clip, skeleton_subject
+from rigmap.edits.study import edits_for
+from rigmap.edits.subjects import (
+    BVH_LEG,
+    leg_length_cm_per_unit,
+    skeleton_clip,
+    skeleton_subject,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 MOCAP = ROOT.parent / "shared" / "mocap"
@@ -229,15 +237,8 @@ def gil_share(n: int = 2000, outputs: int = 98) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--methods", default=DEFAULT_METHODS,
-                        help=f"comma-separated, from {', '.join(METHODS)}; s28 first")  # fmt: skip
-    args = parser.parse_args()
-    methods = args.methods.split(",")
-    if methods[0] != "s28" or not set(methods) <= set(METHODS):
-        parser.error(f"--methods: s28 first, then any of {METHODS}")
+def takes_131():
+    """Two 550-frame walking stretches, one of each 131 take; the second take predicted."""
     first, second = MOCAP / "cmu_131_01_walk.bvh", MOCAP / "cmu_131_02_walk.bvh"
     cm = leg_length_cm_per_unit(rigmap.rigs.load("biped"), first)
     subject = skeleton_subject(first, cm, "cmu_131")
@@ -246,8 +247,52 @@ def main() -> None:
     edit = Edit.from_config("arms_forward_walking", config, "skeleton")
     segments = [clips[0].frames(280, 830), clips[1].frames(500, 1050)]
     pairs = [(subject.source(s), edit.apply(s, cm)) for s in segments]
-    scale = ChannelScale.fit(clips)
-    heldout = subject.source(clips[1])
+    return subject, segments, pairs, ChannelScale.fit(clips), subject.source(clips[1])
+
+
+def takes_07():
+    """Subject 07's walks as the edits stage reads them (conf/edits/default.yaml, cmu_07:
+    the other conversion's joint names): no take holds 550 frames, so the slow walks 07_05
+    and 07_04 whole and 07_06's first frames make the same 1 100; 07_01 (1.34 m/s) predicted."""
+    settings = yaml.safe_load((ROOT / "conf/edits/default.yaml").read_text())
+    spec = settings["subjects"]["cmu_07"]
+    reference = str(ROOT / spec["reference"])
+    aliases = spec["joint_aliases"]
+    leg = tuple(aliases.get(joint, joint) for joint in BVH_LEG)
+    cm = leg_length_cm_per_unit(rigmap.rigs.load("biped"), reference, bvh_leg=leg)
+    subject = skeleton_subject(reference, cm, "cmu_07", tuple(spec["heading_joints"]))
+    config = yaml.safe_load((ROOT / "conf/edit/arms_forward_walking.yaml").read_text())
+    catalogue = {"arms_forward_walking": config}
+    edit = edits_for(catalogue, ["arms_forward_walking"], "skeleton", spec, "cmu_07")
+    edit = edit["arms_forward_walking"]
+    clips = [skeleton_clip(subject, MOCAP / f"cmu_07_{n}.bvh") for n in ("05", "04", "06")]
+    segments, left = [], 1100
+    for clip in clips:
+        take = min(left, clip.n_frames)
+        segments.append(clip.frames(0, take))
+        left -= take
+        if not left:
+            break
+    pairs = [(subject.source(s), edit.apply(s, cm, subject.skeleton)) for s in segments]
+    heldout = subject.source(skeleton_clip(subject, MOCAP / "cmu_07_01.bvh"))
+    return subject, segments, pairs, ChannelScale.fit(clips), heldout
+
+
+TAKES = {"cmu_131": takes_131, "cmu_07": takes_07}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--takes", choices=sorted(TAKES), default="cmu_131",
+                        help="the real takes learned from and predicted on")  # fmt: skip
+    parser.add_argument("--methods", default=DEFAULT_METHODS,
+                        help=f"comma-separated, from {', '.join(METHODS)}; s28 first")  # fmt: skip
+    args = parser.parse_args()
+    methods = args.methods.split(",")
+    if methods[0] != "s28" or not set(methods) <= set(METHODS):
+        parser.error(f"--methods: s28 first, then any of {METHODS}")
+    subject, segments, pairs, scale, heldout = TAKES[args.takes]()
     runs = {m: {"refit_s": [], "refit_cpu_s": [], "others_cpu_s": [], "load_1min": [],
                 "thread_cpu_s": {"kinematic": [], "acceleration": []},
                 "predict_frames_per_s": [], "predict_frames_per_cpu_s": []}
@@ -316,6 +361,9 @@ def main() -> None:
             "vs_s28": agreement,
         }  # fmt: skip
     print(json.dumps({
+        "takes": args.takes,
+        "training": [s.source for s in segments],
+        "heldout": heldout.track.source,
         "training_frames": sum(s.n_frames for s in segments),
         "kinematic_features": int(heldout.features(subject.joints)[0].shape[1]),
         "channels": len(scale.channels),
