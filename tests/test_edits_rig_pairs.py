@@ -21,7 +21,7 @@ import yaml
 
 from rigmap.app.edits import load_settings
 from rigmap.cli import main
-from rigmap.edits.artist import MODEL_STEM, new_model
+from rigmap.edits.artist import MODEL_STEM, new_model, read_track
 from rigmap.edits.pairs import pair_scale
 from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import save_model
@@ -76,16 +76,6 @@ def read_parquet_controls(path: Path, mode: RigMode) -> tuple[np.ndarray, np.nda
     table = pd.read_parquet(path)
     assert list(table.columns) == ["frame", *mode.used]
     return table["frame"].to_numpy(), table[list(mode.used)].to_numpy(dtype=np.float64)
-
-
-def read_npz_track(path: Path) -> TargetTrack:
-    with np.load(path, allow_pickle=False) as stored:
-        return TargetTrack(
-            tuple(str(c) for c in stored["channels"]),
-            stored["values"],
-            float(stored["fps"]),
-            tuple(float(v) for v in stored["start"]),
-        )
 
 
 def learn_argv(pairs, out: Path, *rest) -> list[str]:
@@ -151,7 +141,7 @@ def test_a_learned_rig_edit_is_carried_to_held_out_clips(rig_name, learned_biped
     assert not list(out.glob("*.blend"))
     for name, (source, truth_track) in truths.items():
         frames, got = read_parquet_controls(out / f"{name}.parquet", mode)
-        predicted = rig_controls(read_npz_track(out / f"{name}.npz"), mode.channels)
+        predicted = rig_controls(read_track(out / f"{name}.npz"), mode.channels)
         np.testing.assert_allclose(got, predicted, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(frames, np.arange(len(source)))
         truth = rig_controls(truth_track, mode.channels)
@@ -205,7 +195,7 @@ def test_a_learned_timing_edit_gives_a_longer_clip_at_a_fixed_rate(tmp_path):
     print("timing: frames", held_out.n_frames, "->", len(frames), "ratio", ratio)
     assert len(frames) == expected == row["frames_out"] and row["fps_out"] == 24.0
     assert abs(ratio - 1.5) < 0.05, ratio
-    assert read_npz_track(out / "walk.npz").fps == 24.0
+    assert read_track(out / "walk.npz").fps == 24.0
 
 
 def _fails(argv, capsys, *words) -> str:

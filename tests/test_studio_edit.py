@@ -25,11 +25,11 @@ import pytest
 
 from rigmap.animation import read_bvh
 from rigmap.app.edits import load_settings
-from rigmap.edits.artist import apply_folder, learn_folder
+from rigmap.edits.artist import apply_folder, learn_folder, read_track
 from rigmap.edits.fixes import fix_folder
 from rigmap.edits.skeleton_mode import skeleton_positions
 from rigmap.studio.app import Studio
-from rigmap.studio.edit_clips import hold_edit, read_track
+from rigmap.studio.edit_clips import hold_edit
 from rigmap.studio.edit_view import FIX_HALF, PICK, SEGMENT, SUGGEST, EditView
 from rigmap.studio.served_folder import ServedFolder
 from rigmap.studio.writes import OutputFolder

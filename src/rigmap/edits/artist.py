@@ -41,6 +41,7 @@ from rigmap.edits.pairs import (
     read_pair,
 )
 from rigmap.edits.propagation import EditModel, FeatureJoints, load_model, save_model
+from rigmap.edits.representation import TargetTrack
 from rigmap.edits.rig_mode import rig_controls
 from rigmap.edits.rig_pairs import (
     RigMode,
@@ -294,6 +295,18 @@ def write_track(path: Path, track) -> Path:
             start=np.array(track.start),
         )
     return Path(path)
+
+
+def read_track(npz: Path) -> TargetTrack:
+    """The edited track :func:`write_track` wrote (exact values)."""
+    with np.load(npz, allow_pickle=False) as stored:
+        return TargetTrack(
+            tuple(str(c) for c in stored["channels"]),
+            stored["values"],
+            float(stored["fps"]),
+            tuple(float(v) for v in stored["start"]),
+            source=str(npz),
+        )
 
 
 def apply_rig_folder(model: EditModel, model_dir: Path, mode: RigMode, inputs, out, fps=None):

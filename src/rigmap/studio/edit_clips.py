@@ -224,18 +224,6 @@ def joint_shift(result: np.ndarray, source: np.ndarray, joints: list[int]) -> np
     return moved[:, joints].mean(axis=0)
 
 
-def read_track(npz: Path) -> TargetTrack:
-    """The propagated track ``rigmap edits apply`` wrote beside its BVH (exact values)."""
-    with np.load(npz, allow_pickle=False) as stored:
-        return TargetTrack(
-            tuple(str(c) for c in stored["channels"]),
-            stored["values"],
-            float(stored["fps"]),
-            tuple(float(v) for v in stored["start"]),
-            source=str(npz),
-        )
-
-
 @dataclass(frozen=True, eq=False)
 class LearnedEdit:
     """An edit learned in the page: where its files are and what made it."""

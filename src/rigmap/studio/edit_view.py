@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from rigmap.animation.bvh_write import write_bvh
-from rigmap.edits.artist import apply_folder, learn_folder
+from rigmap.edits.artist import apply_folder, learn_folder, read_track
 from rigmap.edits.authoring import AuthoringError
 from rigmap.edits.fixes import fix_folder
 from rigmap.edits.skeleton_mode import track_motion
@@ -55,7 +55,6 @@ from rigmap.studio.edit_clips import (
     learned_line,
     open_clip,
     pose_edit,
-    read_track,
     rms,
     to_heading_frame,
     vector,
