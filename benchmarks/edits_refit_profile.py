@@ -13,22 +13,14 @@ import argparse
 import json
 import os
 import time
-from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.linalg import blas, cho_factor, cho_solve, lapack
 from threadpoolctl import threadpool_limits
 
-import rigmap.rigs
+from edits import takes_131  # benchmarks/: edits.py's training data
 from rigmap.edits.gp import SharedGP
-from rigmap.edits.procedural import Edit
 from rigmap.edits.propagation import EditModel
-from rigmap.edits.representation import ChannelScale
-from rigmap.edits.subjects import leg_length_cm_per_unit, skeleton_clip, skeleton_subject
-
-ROOT = Path(__file__).resolve().parents[1]
-MOCAP = ROOT.parent / "shared" / "mocap"
 
 
 class CountingGP(SharedGP):
@@ -96,17 +88,10 @@ def sections(gp: SharedGP) -> dict:
 
 def main() -> None:
     argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
-    first, second = MOCAP / "cmu_131_01_walk.bvh", MOCAP / "cmu_131_02_walk.bvh"
-    cm = leg_length_cm_per_unit(rigmap.rigs.load("biped"), first)
-    subject = skeleton_subject(first, cm, "cmu_131")
-    clips = [skeleton_clip(subject, first), skeleton_clip(subject, second)]
-    config = yaml.safe_load((ROOT / "conf/edit/arms_forward_walking.yaml").read_text())
-    edit = Edit.from_config("arms_forward_walking", config, "skeleton")
-    segments = [clips[0].frames(280, 830), clips[1].frames(500, 1050)]
-    pairs = [(subject.source(s), edit.apply(s, cm)) for s in segments]
+    subject, _, pairs, scale, _ = takes_131()
     load_before = os.getloadavg()[0]
     start, cpu = time.perf_counter(), time.process_time()
-    model = CountingModel(subject.joints, residual=True).fit(pairs, ChannelScale.fit(clips))
+    model = CountingModel(subject.joints, residual=True).fit(pairs, scale)
     refit = {"wall_s": time.perf_counter() - start, "cpu_s": time.process_time() - cpu}
     report = {"refit": refit, "load_average_1min": [load_before, os.getloadavg()[0]]}
     with threadpool_limits(limits=1, user_api="blas"):
