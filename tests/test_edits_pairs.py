@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from cli_errors import fails_in_one_line
 from rigmap.animation import read_bvh
 from rigmap.animation.bvh import ROTATION_CHANNELS
 from rigmap.animation.bvh_write import write_bvh
@@ -248,15 +249,6 @@ def test_a_glitch_frame_is_named_and_repaired_or_refused(tmp_path, capsys):
     assert "glitch frames [1]" in printed and "frames [1, 2] (from 0) left out" in printed
 
 
-def _fails(argv, capsys, *words) -> str:
-    assert main(argv) == 2
-    message = capsys.readouterr().err.strip()
-    assert len(message.splitlines()) == 1, message
-    for word in words:
-        assert word in message, message
-    return message
-
-
 def test_bad_pairs_are_one_line_errors_and_write_nothing(tmp_path, capsys):
     source = read_bvh(MOCAP / TRAIN)
     shorter = tmp_path / "shorter.bvh"
@@ -286,7 +278,7 @@ def test_bad_pairs_are_one_line_errors_and_write_nothing(tmp_path, capsys):
     ]
     for (src, edited, *rest), words in cases:
         argv = ["edits", "learn", "--source", src, "--edited", edited, *rest, "--out", str(out)]
-        _fails(argv, capsys, *words)
+        fails_in_one_line(argv, capsys, *words)
         assert not out.exists()
 
 
@@ -298,10 +290,10 @@ def test_apply_checks_every_clip_before_writing_any(learned, tmp_path, capsys):
     (clips / "b_other_skeleton.bvh").symlink_to(MOCAP / "cmu_131_02_walk.bvh")
     out = tmp_path / "out"
     argv = ["edits", "apply", "--model", str(model), "--input", str(clips), "--out", str(out)]
-    _fails(argv, capsys, "b_other_skeleton.bvh")
+    fails_in_one_line(argv, capsys, "b_other_skeleton.bvh")
     assert not out.exists()
-    _fails(["edits", "apply", "--input", str(clips)], capsys, "--model")
-    _fails(
+    fails_in_one_line(["edits", "apply", "--input", str(clips)], capsys, "--model")
+    fails_in_one_line(
         ["edits", "apply", "--model", str(tmp_path / "none"), "--input", str(clips)], capsys, "none"
     )
 
@@ -374,7 +366,7 @@ def test_a_fix_handed_in_as_a_file_is_learned_and_the_next_frames_suggested(
             "--frames",
             frames,
         ]
-        _fails(argv, capsys, word)
+        fails_in_one_line(argv, capsys, word)
         assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
         assert sorted(p.name for p in (model / "fixes").iterdir()) == ["fix_0.bvh"]
     # a second fix, at the first suggestion: the refit re-reads the first from the folder

@@ -19,6 +19,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from cli_errors import fails_in_one_line
 from rigmap.app.edits import load_settings
 from rigmap.cli import main
 from rigmap.edits.artist import MODEL_STEM, new_model, read_track
@@ -198,15 +199,6 @@ def test_a_learned_timing_edit_gives_a_longer_clip_at_a_fixed_rate(tmp_path):
     assert read_track(out / "walk.npz").fps == 24.0
 
 
-def _fails(argv, capsys, *words) -> str:
-    assert main(argv) == 2
-    message = capsys.readouterr().err.strip()
-    assert len(message.splitlines()) == 1, message
-    for word in words:
-        assert word in message, message
-    return message
-
-
 def _bad_files(mode: RigMode, folder: Path, source: Path) -> list[tuple[str, list[str]]]:
     """Edited files each wrong in one way, and the words their error must hold."""
     table = pd.read_parquet(source)
@@ -236,7 +228,7 @@ def test_bad_parquets_are_one_line_errors_and_write_nothing(learned_biped, tmp_p
     source = examples[1][0]  # the used controls only
     out = tmp_path / "model"
     for edited, words in _bad_files(mode, tmp_path, source):
-        _fails(learn_argv([(source, edited)], out, "--rig", "biped"), capsys, *words)
+        fails_in_one_line(learn_argv([(source, edited)], out, "--rig", "biped"), capsys, *words)
         assert not out.exists()
     good = examples[1][1]
     bvh = MOCAP / "cmu_07_05.bvh"
@@ -250,7 +242,7 @@ def test_bad_parquets_are_one_line_errors_and_write_nothing(learned_biped, tmp_p
         (learn_argv([(bvh, bvh)], out, "--fps", "30"), ["--fps goes with --rig"]),
     ]
     for argv, words in cases:
-        _fails(argv, capsys, *words)
+        fails_in_one_line(argv, capsys, *words)
         assert not out.exists()
 
 
@@ -263,8 +255,10 @@ def test_apply_refuses_the_other_mode_and_checks_every_clip_first(learned_biped,
     table.to_parquet(clips / "b_missing.parquet", index=False)
     out = tmp_path / "out"
     apply = ["edits", "apply", "--model", str(model), "--out", str(out), "--input"]
-    _fails([*apply, str(clips)], capsys, "b_missing.parquet", "hips.rx")
-    _fails([*apply, str(MOCAP / "cmu_07_05.bvh")], capsys, "cmu_07_05.bvh", "not a .parquet")
+    fails_in_one_line([*apply, str(clips)], capsys, "b_missing.parquet", "hips.rx")
+    fails_in_one_line(
+        [*apply, str(MOCAP / "cmu_07_05.bvh")], capsys, "cmu_07_05.bvh", "not a .parquet"
+    )
     assert not out.exists()
     # a skeleton-mode model (learned on a BVH pair) refuses parquets, to apply or as a fix
     bvh_model = tmp_path / "bvh_model"
@@ -275,9 +269,9 @@ def test_apply_refuses_the_other_mode_and_checks_every_clip_first(learned_biped,
     assert json.loads((bvh_model / "learned.json").read_text())["mode"] == "skeleton"
     parquet = str(examples[0][0])
     apply = ["edits", "apply", "--model", str(bvh_model), "--out", str(out), "--input"]
-    _fails([*apply, parquet], capsys, "controls parquet", "skeleton-mode")
+    fails_in_one_line([*apply, parquet], capsys, "controls parquet", "skeleton-mode")
     fix = ["edits", "fix", "--model", str(bvh_model), "--source", bvh, "--fixed", parquet]
-    _fails([*fix, "--frames", "40:60"], capsys, "controls parquet", "skeleton-mode")
+    fails_in_one_line([*fix, "--frames", "40:60"], capsys, "controls parquet", "skeleton-mode")
     assert not out.exists()
 
 
@@ -318,9 +312,13 @@ def test_a_rig_fix_is_learned_and_the_next_frames_suggested(learned_biped, tmp_p
     assert after < 0.5 * before
     # a fix numbered other than --frames, or a BVH: one line, the model folder unchanged
     stored = {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()}
-    _fails([*fix, str(fixed), "--frames", "10:30"], capsys, "fixed.parquet", "30:50", "10:30")
+    fails_in_one_line(
+        [*fix, str(fixed), "--frames", "10:30"], capsys, "fixed.parquet", "30:50", "10:30"
+    )
     bvh = str(MOCAP / "cmu_07_05.bvh")
-    _fails([*fix, bvh, "--frames", f"{start}:{stop}"], capsys, "cmu_07_05.bvh", "rig-mode edit")
+    fails_in_one_line(
+        [*fix, bvh, "--frames", f"{start}:{stop}"], capsys, "cmu_07_05.bvh", "rig-mode edit"
+    )
     assert {p.name: p.read_bytes() for p in model.iterdir() if p.is_file()} == stored
     assert [p.name for p in (model / "fixes").iterdir()] == ["fix_0.parquet"]
 
@@ -337,7 +335,7 @@ def test_a_model_learned_with_other_root_controls_is_refused(learned_biped, tmp_
     out = tmp_path / "out"
     argv = ["edits", "apply", "--model", str(model), "--input", str(examples[1][0])]
     write_json_atomic(model / "learned.json", {**learned, "root_signs": [1.0, -1.0, 1.0]})
-    _fails([*argv, "--out", str(out)], capsys, "root_signs", "[1.0, -1.0, 1.0]", "learn")
+    fails_in_one_line([*argv, "--out", str(out)], capsys, "root_signs", "[1.0, -1.0, 1.0]", "learn")
     assert not out.exists()
     older = {k: v for k, v in learned.items() if k != "root_signs"}
     write_json_atomic(model / "learned.json", older)
