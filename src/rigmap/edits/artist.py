@@ -319,7 +319,6 @@ def apply_rig_folder(model: EditModel, model_dir: Path, mode: RigMode, inputs, o
     results = []
     for path in files:  # everything computed and checked before anything is written
         clip = read_controls(path, mode)
-        model.scale.check(clip.track)
         track = propagate(model, mode.subject.source(clip.track), fps)
         table = controls_table(rig_controls(track, mode.channels), mode.used, clip.first_frame)
         results.append((path, clip, track, table))
