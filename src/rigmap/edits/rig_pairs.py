@@ -189,6 +189,11 @@ def read_controls(path, mode: RigMode, frames: tuple[int, int] | None = None) ->
     """One controls parquet, checked (module docstring); ``frames`` ``START:STOP`` are its
     ``frame`` column's numbers (STOP excluded), None the whole file."""
     values, first, notes = read_control_values(path, mode.rig)
+    return _clip(path, mode, values, first, notes, frames)
+
+
+def _clip(path, mode: RigMode, values, first: int, notes, frames) -> RigClip:
+    """``frames`` (or all) of a file's checked controls as a clip."""
     start, stop = first, first + len(values)
     if frames is not None:
         start, stop = (int(v) for v in frames)
@@ -313,19 +318,23 @@ def _listed(names: list[str], shown: int = 8) -> str:
 def read_rig_pair(source, edited, frames, mode: RigMode) -> RigPair:
     """One example pair (§3: "the source and target clips are assumed to have the same
     number of frames"): the same frame numbers in both files, then ``frames`` of both."""
-    whole = [read_controls(p, mode) for p in (source, edited)]
-    if len(whole[1].controls) != len(whole[0].controls):
+    (a, a_first, a_notes), (b, b_first, b_notes) = (
+        read_control_values(p, mode.rig) for p in (source, edited)
+    )
+    if len(b) != len(a):
         raise PairError(
-            f"{edited}: {len(whole[1].controls)} frames, but its source {source} has "
-            f"{len(whole[0].controls)} (§3: a source and its edit have the same number of frames)"
+            f"{edited}: {len(b)} frames, but its source {source} has "
+            f"{len(a)} (§3: a source and its edit have the same number of frames)"
         )
-    if whole[1].first_frame != whole[0].first_frame:
-        a, b = whole[1].frames, whole[0].frames
+    if b_first != a_first:
         raise PairError(
-            f"{edited}: frames {a[0]}:{a[1]}, its source {source} {b[0]}:{b[1]} (a pair's "
-            "frame columns must match)"
+            f"{edited}: frames {b_first}:{b_first + len(b)}, its source {source} "
+            f"{a_first}:{a_first + len(a)} (a pair's frame columns must match)"
         )
-    return RigPair(read_controls(source, mode, frames), read_controls(edited, mode, frames))
+    return RigPair(
+        _clip(source, mode, a, a_first, a_notes, frames),
+        _clip(edited, mode, b, b_first, b_notes, frames),
+    )
 
 
 def learn_rig_pairs(
