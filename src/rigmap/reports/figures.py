@@ -35,6 +35,13 @@ class FigureFile:
     caption: str
 
 
+def stage_figures(figures_folder: str | Path, prefix: str, caption: str) -> list[FigureFile]:
+    """The figure a stage drew for each rig it ran on (``<prefix>_<rig>.png``), each captioned
+    ``<rig label>: <caption>``; none when the stage did not run."""
+    found = sorted(Path(figures_folder).glob(f"{prefix}_*.png"))
+    return [FigureFile(p, f"{rig_label(p.stem[len(prefix) + 1 :])}: {caption}") for p in found]
+
+
 def _method_colors(methods, catalogue) -> dict[str, tuple]:
     """A colour per method, fixed by its place in the catalogue (uncatalogued ones after)."""
     from matplotlib import colormaps

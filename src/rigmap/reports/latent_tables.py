@@ -11,9 +11,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from rigmap.reports.catalog import rig_label
 from rigmap.reports.csv_tables import read_table_specs, tables_from_csvs
-from rigmap.reports.figures import FigureFile
+from rigmap.reports.figures import FigureFile, stage_figures
 from rigmap.reports.table import Table
 
 OWN = (
@@ -23,6 +22,10 @@ OWN = (
 )
 #: name → (csv, title, [(column, label, format)], note), from reports/data/latent_tables.yaml
 TABLES = read_table_specs("latent_tables.yaml")
+FIGURE_CAPTION = (
+    "GPLVM latent spaces (first two dimensions), takes coloured, with and without the "
+    "connectivity prior (cf. Fig 2 of Bailey et al. 2016; rigmap's fit)."
+)
 
 
 def latent_tables(metrics_root: str | Path) -> list[Table]:
@@ -57,12 +60,4 @@ def knee_note(data: pd.DataFrame) -> str:
 
 def latent_figures(figures_folder: str | Path) -> list[FigureFile]:
     """Fig 2 of each rig the latent stages ran on (``latent_<rig>.png``)."""
-    return [
-        FigureFile(
-            path,
-            f"{rig_label(path.stem.removeprefix('latent_'))}: GPLVM latent spaces (first two "
-            "dimensions), takes coloured, with and without the connectivity prior (cf. Fig 2 "
-            "of Bailey et al. 2016; rigmap's fit).",
-        )
-        for path in sorted(Path(figures_folder).glob("latent_*.png"))
-    ]
+    return stage_figures(figures_folder, "latent", FIGURE_CAPTION)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from rigmap.reports.catalog import rig_label
-from rigmap.reports.figures import FigureFile
+from rigmap.reports.figures import FigureFile, stage_figures
 from rigmap.reports.table import MISSING, Column, Table
 
 PREFIX = "map_path"  # rigmap.app.map_path.MAP_PATH: the stage's metrics set and figure prefix
@@ -76,6 +76,4 @@ def path_table(metrics_root: str | Path) -> Table | None:
 
 def path_figures(figures_folder: str | Path) -> list[FigureFile]:
     """The stage's figure of each rig it ran on (``map_path_<rig>.png``)."""
-    found = sorted(Path(figures_folder).glob(f"{PREFIX}_*.png"))
-    labels = [rig_label(path.stem[len(PREFIX) + 1 :]) for path in found]
-    return [FigureFile(p, f"{label}: {CAPTION}") for p, label in zip(found, labels, strict=True)]
+    return stage_figures(figures_folder, PREFIX, CAPTION)
