@@ -93,11 +93,11 @@ def test_every_rig_with_a_motion_library_is_in_one_family(params):
 def test_the_planned_work_per_stage_kind(stages, params):
     """The 95 stages the hand-written 664-line dvc.yaml planned, counted by kind, plus the
     check_params stage every stage depends on, the mean predictor's fits, the held-out takes
-    and their evaluations, the joint-space network's fits and samples sweeps, the three
-    edit-propagation stages per edits subject,
+    and their evaluations, the joint-space network's fits and samples sweeps, the
+    edit-propagation stage (fit, apply, evaluate) per edits subject,
     the mocap maps, the corpus and poses of the Blender rigs only mapped (rigify_human)
     and the two map_partial stages (issue 14)."""
-    edited = sorted(name.split("@")[1] for name in stages if name.startswith("edit_fit@"))
+    edited = sorted(name.split("@")[1] for name in stages if name.startswith("edits@"))
     assert edited == EDIT_SUBJECTS
     rigs, blender = params["pipeline"]["sweep_rigs"], params["pipeline"]["blender_rigs"]
     map_only = params["pipeline"]["blender_map_rigs"]
@@ -126,9 +126,9 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn_joint_space": 2,
         "report": 1,
         # one per subject conf/edits defines (the motion library, CMU 131, CMU 07 and 08)
-        **{f"edit_{step}": len(EDIT_SUBJECTS) for step in ("fit", "apply", "evaluate")},
-        # latent synthesis (issue #18): four stages per rig of latent.rigs (quick: the face)
-        **{f"latent_{step}": len(params["latent"]["rigs"]) for step in LATENT_STEPS},
+        "edits": len(EDIT_SUBJECTS),
+        # latent synthesis (issue #18): one stage per rig of latent.rigs (quick: the faces)
+        "latent": len(params["latent"]["rigs"]),
         "map_mocap": len(params["pipeline"]["map_rigs"]),
         "map_partial": 2,
         "map_path": 1,  # Fig. 7 on the biped (issue #42)
@@ -148,41 +148,30 @@ def test_the_planned_work_per_stage_kind(stages, params):
         "fit_nn_joint_space_seed": len(table1) * seeds,
     }
     assert len(stages) == (
-        24 + 3 * len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
+        24 + len(EDIT_SUBJECTS) + 2 * len(params["pipeline"]["rigs"]) + 19 * len(rigs)
         + 3 * len(mesh_fit) + 2 * len(mesh)
         + len(params["pipeline"]["map_rigs"]) + 2 * len(map_only) + 7 * len(blender)
-        + len(LATENT_STEPS) * len(params["latent"]["rigs"])
+        + len(params["latent"]["rigs"])
         + (3 * len(table1) + 2 * len(blender)) * seeds
     )  # fmt: skip
     assert blender == ["rigify_wolf", "blend_file:hero"]
 
 
-LATENT_STEPS = ("fit", "match", "synthesize", "evaluate")
-
-
 def test_the_latent_stages_run_on_the_face_in_quick_and_add_the_squirrel_in_paper(stages, params):
-    """latent_* (issue #18) run per rig of latent.rigs: the face, which is no sweep rig, and
-    the ARKit face on captured takes (issue #41), in experiment=quick; each reads the step
-    before it and writes under the rig's folders."""
+    """The latent stage (issue #18) runs per rig of latent.rigs: the face, which is no sweep
+    rig, and the ARKit face on captured takes (issue #41), in experiment=quick; its four steps
+    (no +latent_step: all of them, in order) write under the rig's folders."""
     assert params["latent"]["rigs"] == ["face", "arkit_face"]
-    for step in ("fit", "evaluate"):  # the captured takes are an input
-        assert "../shared/face" in paths(stages[f"latent_{step}@arkit_face"].deps)
+    assert "../shared/face" in paths(stages["latent@arkit_face"].deps)  # the captured takes
     assert "face" not in params["pipeline"]["sweep_rigs"]
-    fit, match = stages["latent_fit@face"], stages["latent_match@face"]
-    synth, evaluate = stages["latent_synthesize@face"], stages["latent_evaluate@face"]
-    for step, stage in zip(LATENT_STEPS, (fit, match, synth, evaluate), strict=True):
-        assert f"rig=face +latent_step={step}" in filled(stage)
-        assert {"pipelines/latent.py", "src/rigmap", "conf/latent"} <= set(paths(stage.deps))
-    assert "latent.max_iter=100" in filled(fit) and "latent.size=quick" in filled(fit)
-    assert paths(fit.outs) == ["models/face/latent/fit"]
-    assert paths(match.outs) == ["models/face/latent/match"]
-    assert "models/face/latent/fit" in paths(match.deps)
-    assert paths(synth.outs) == ["data/face/latent"]
-    assert {"models/face/latent/fit", "models/face/latent/match", "data/face/latent"} <= set(
-        paths(evaluate.deps)
-    )  # the seed repeats are the synthesize stage's runs
-    assert [o.def_path for o in evaluate.outs if o.metric] == ["metrics/face/latent/summary.json"]
-    assert "reports/figures/latent_face.png" in paths(evaluate.outs)
+    latent = stages["latent@face"]
+    assert "rig=face" in filled(latent) and "latent_step" not in filled(latent)
+    assert {"pipelines/latent.py", "src/rigmap", "conf/latent"} <= set(paths(latent.deps))
+    assert "latent.max_iter=100" in filled(latent) and "latent.size=quick" in filled(latent)
+    assert {"models/face/latent", "data/face/latent", "reports/figures/latent_face.png"} <= set(
+        paths(latent.outs)
+    )
+    assert [o.def_path for o in latent.outs if o.metric] == ["metrics/face/latent/summary.json"]
     paper = yaml.safe_load(compose_params(ROOT / "conf", ["experiment=paper"]))["latent"]
     assert paper["rigs"] == ["face", "squirrel", "arkit_face"]
     assert paper["max_iter"] == 300 and paper["size"] == "paper"
@@ -229,7 +218,7 @@ def test_built_in_rigs_run_every_sampler_and_kernel(stages, params):
     for rig in set(params["pipeline"]["rigs"]) - set(params["pipeline"]["sweep_rigs"]):
         assert f"pose@{rig}" in stages
         assert not [name for name in stages if name.endswith((f"@{rig}", f"@{rig}-gmm"))
-                    and not name.startswith(("animate@", "pose@", "latent_", "simulate@",
+                    and not name.startswith(("animate@", "pose@", "latent@", "simulate@",
                                              "fit_mean_mesh@",
                                              "evaluate_mesh@", "map_partial_face@"))]  # fmt: skip
     for rig in params["pipeline"]["sweep_rigs"]:

@@ -1,8 +1,9 @@
-"""One latent stage from a composed config: the step, the rig, the layout, MLflow.
+"""The latent stage from a composed config: the steps, the rig, the layout, MLflow.
 
-``run_step(cfg)`` is what ``pipelines/latent.py`` and ``rigmap synth fit|match`` call:
+``run_steps(cfg)`` is what ``pipelines/latent.py`` calls (the four steps in order, or the one
+``cfg.latent_step`` names), ``run_step(cfg)`` what ``rigmap synth fit|match`` calls:
 ``cfg.latent_step`` (fit, match, synthesize, evaluate) picks the function of
-:mod:`rigmap.latent.steps`; with ``latent.log_to_mlflow`` the step is a parent run
+:mod:`rigmap.latent.steps`; with ``latent.log_to_mlflow`` each step is a parent run
 ``latent-<step>`` in the rig's experiment (:mod:`rigmap.tracking`) with the latent
 config as params, the step's numbers as metrics and its JSON as an artifact.
 """
@@ -51,13 +52,24 @@ def fitted_models_config(overrides, config_dir, compose_config):
     return cfg
 
 
+def run_steps(cfg) -> list[Path]:
+    """Every step in order (the DVC stage: they share their inputs), or ``+latent_step``'s."""
+    if cfg.get("latent_step") is not None:
+        return [run_step(cfg)]
+    from rigmap.app.inputs import layout_of, rig_from_config
+
+    config, layout, rig = latent_config(cfg), layout_of(cfg), rig_from_config(cfg.rig)
+    return [_run(cfg, step, config, rig, layout) for step in STEPS]
+
+
 def run_step(cfg) -> Path:
     from rigmap.app.inputs import layout_of, rig_from_config
 
     step = step_of(cfg)
-    config = latent_config(cfg)
-    layout = layout_of(cfg)
-    rig = rig_from_config(cfg.rig)
+    return _run(cfg, step, latent_config(cfg), rig_from_config(cfg.rig), layout_of(cfg))
+
+
+def _run(cfg, step: str, config: dict, rig, layout) -> Path:
     started = time.perf_counter()
     path = getattr(steps, f"run_{step}")(config, rig, layout)
     seconds = time.perf_counter() - started
