@@ -176,29 +176,17 @@ def fit_set(
     )
 
 
-def face_expression_sets(
-    rig,
-    *,
-    seed: int = 0,
-    size: str = "quick",
-    labels=None,
-    takes: int | None = None,
-    heldout: bool = False,
-    coordinated: int | None = None,
-) -> dict[str, LabelledSet]:
-    """The face's expression library as labelled sets (training, or held out);
-    ``coordinated``: how takes vary (:mod:`rigmap.animation.library.face_expressions`)."""
+def face_expression_sets(rig, *, labels=None, **take) -> dict[str, LabelledSet]:
+    """The face's expression library as labelled sets (training, or held out).
+
+    ``labels``: which expressions (all when None); ``take`` is the keywords of
+    :func:`rigmap.animation.library.face_expressions.build_takes` (``seed``, ``size``,
+    ``takes``, ``heldout``, ``coordinated``: how takes vary), passed on as they are.
+    """
     from rigmap.animation.library import face_expressions as fx
 
     chosen = fx.LABELS if labels is None else tuple(labels)
-    built = fx.build_takes(
-        seed=seed,
-        size=size,
-        labels=chosen,
-        takes=takes,
-        heldout=heldout,
-        coordinated=coordinated,
-    )
+    built = fx.build_takes(labels=chosen, **take)
     return labelled_sets(
         [Take(t.label, t.name, fx.take_values(t, rig)) for t in built],
         n_controls=len(rig.controls.used_indices),

@@ -154,22 +154,14 @@ def _builder(rig_name, motion, seed, variation, sides=None) -> ClipBuilder:
     )
 
 
-def build_clips(
-    rig_name: str,
-    split: str,
-    *,
-    seed: int,
-    fps: int = AUTHORED_FPS,
-    variation: Variation = DEFAULT_VARIATION,
-    sides_of_seed: int | None = None,
-) -> list[Clip]:
-    """Every clip of one split of a rig's library (``sides_of_seed``: see :func:`build_clip`)."""
-    library = motion_library(rig_name)
+def build_clips(rig_name: str, split: str, **take) -> list[Clip]:
+    """Every clip of one split of a rig's library, each keyed by :func:`build_clip`.
+
+    ``take`` is :func:`build_clip`'s keywords (``seed``, ``fps``, ``variation``,
+    ``sides_of_seed``), passed on as they are so that their defaults live in one place.
+    """
     return [
-        build_clip(
-            rig_name, motion, seed=seed, fps=fps, variation=variation, sides_of_seed=sides_of_seed
-        )
-        for motion in library.motions(split)
+        build_clip(rig_name, motion, **take) for motion in motion_library(rig_name).motions(split)
     ]
 
 
