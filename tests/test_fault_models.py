@@ -143,7 +143,7 @@ def test_latent_old_models_pkl_alone_is_never_read(latent, tmp_path):
     for name in ("models.json", "models.npz"):
         (folder / "fit" / name).unlink()
     (folder / "fit" / "models.pkl").write_bytes(pickle.dumps(_Touch(marker)))
-    with pytest.raises(FileNotFoundError, match="run the latent_fit stage first") as error:
+    with pytest.raises(FileNotFoundError, match="run the latent fit step first") as error:
         steps.load_fitted(layout, "face")
     _one_line(error, "models.json")
     assert not marker.exists()

@@ -199,7 +199,7 @@ def test_synth_demo_plays_a_game_through_the_controller(project, tmp_path, capsy
 
 
 def test_missing_models_and_bad_steps_are_clear_errors(tmp_path):
-    with pytest.raises(FileNotFoundError, match="run the latent_fit stage first"):
+    with pytest.raises(FileNotFoundError, match="run the latent fit step first"):
         steps.load_fitted(layout(tmp_path), "face")
     with pytest.raises(LatentInputError, match=r"\+latent_step: expected one of"):
         run_step(compose(tmp_path, "+latent_step=bake"))

@@ -250,7 +250,7 @@ def _add_evaluate(commands) -> None:
 
 
 def _add_edits(commands) -> None:
-    """``rigmap edits fit|apply|evaluate``: the edit-propagation stages (002) in this process;
+    """``rigmap edits fit|apply|evaluate``: the edits stage's steps (002), one at a time, here;
     ``rigmap edits add``: incremental refinement (§3) played with the edits' ground truth;
     ``rigmap edits learn`` and ``apply --model``: an artist's own pairs (BVH files, or a
     rig's controls parquets) (:mod:`rigmap.app.edits`)."""
@@ -282,7 +282,7 @@ def _add_edits(commands) -> None:
             verb,
             help=what,
             description=(
-                f"Runs the edit_{verb} stage (pipelines/edits.py +edits_step={verb}) on "
+                f"Runs the edits stage's {verb} step (pipelines/edits.py +edits_step={verb}) on "
                 if verb != "add"
                 else "Incremental refinement (rigmap.edits.incremental; not a stage): each "
                 "round fixes the highest-variance (or random) frames of the held-out clips to "

@@ -1,6 +1,6 @@
 """``rigmap synth fit|match|run|demo``: latent synthesis (Bailey et al. 2016) from the shell.
 
-``fit`` and ``match`` run the ``latent_fit`` / ``latent_match`` stages in this process
+``fit`` and ``match`` run the latent stage's ``fit`` / ``match`` steps in this process
 with Hydra overrides; ``run`` plays a timed YAML command script with the fitted models
 into a controls parquet; ``demo`` is the headless interactive demo, a small game loop
 (noughts and crosses, as the paper's Tic-Tac-Toe) whose events each submit an emotion's

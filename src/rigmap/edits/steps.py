@@ -1,7 +1,7 @@
-"""What the three edit stages do, from a plain config dict and a :class:`rigmap.store.Layout`.
+"""What the ``edits`` stage's steps do, from a plain config dict and a :class:`Layout`.
 
 Each runs over the subjects ``edits.run`` names, in one process (each stage's start-up,
-torch and the rigs, costs more than the edits of a subject).
+torch and the rigs, costs more than the edits of a subject); the stage runs the three.
 
 - :func:`run_fit`: every edit's model on the subject's examples →
   ``models/<subject>/edits/<edit>.npz`` and ``fit.json`` (hyper-parameters, iterations, s);

@@ -1,4 +1,4 @@
-"""The edit-propagation study behind the ``edit_fit``/``edit_apply``/``edit_evaluate`` stages.
+"""The edit-propagation study behind the ``edits`` stage (its fit, apply and evaluate steps).
 
 A subject (the biped in rig mode, or CMU takes in skeleton mode) gives example clips (a
 subject's own frame range of one take: the paper's were 550 + 74 frames) and held-out clips;

@@ -1,13 +1,13 @@
-"""What the four latent stages do, from a plain config dict, a rig and a :class:`Layout`.
+"""What the latent stage's four steps do, from a plain config dict, a rig and a :class:`Layout`.
 
-- :func:`run_fit` (``latent_fit``): the rig's labelled sets, one scaling → PCA → GPLVM
+- :func:`run_fit` (step ``fit``): the rig's labelled sets, one scaling → PCA → GPLVM
   model per label → ``models/<rig>/latent/fit/models.{json,npz}`` and ``fit.json``;
-- :func:`run_match` (``latent_match``): matching points of every model pair (§5.2) →
+- :func:`run_match` (step ``match``): matching points of every model pair (§5.2) →
   ``models/<rig>/latent/match/transitions.{json,npz}`` and ``match.json``;
-- :func:`run_synthesize` (``latent_synthesize``): every command script of the rig played
+- :func:`run_synthesize` (step ``synthesize``): every command script of the rig played
   by the controller once per seed → ``data/<rig>/latent/<script>-seed<k>.parquet``
   (frame, one column per used control) and ``log.json`` (each command's frames, success);
-- :func:`run_evaluate` (``latent_evaluate``): the measurements of
+- :func:`run_evaluate` (step ``evaluate``): the measurements of
   :mod:`rigmap.latent.measures` → ``metrics/<rig>/latent/summary.json`` and one CSV per
   table, and Fig 2 → ``reports/figures/latent_<rig>.png``.
 
@@ -60,10 +60,10 @@ def n_pca_of(config: dict, rig=None) -> int | None:
     return None if n is None else int(n)
 
 
-def _written(path: Path, stage: str) -> Path:
-    """``path``'s folder, or the error that says which stage writes it."""
+def _written(path: Path, step: str) -> Path:
+    """``path``'s folder, or the error that says which step writes it."""
     if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist; run the {stage} stage first")
+        raise FileNotFoundError(f"{path} does not exist; run the latent {step} step first")
     return path.parent
 
 
@@ -135,13 +135,13 @@ def run_fit(config: dict, rig, layout: Layout) -> Path:
 
 
 def load_fitted(layout: Layout, rig: str) -> FittedModels:
-    """The ``latent_fit`` stage's models (arrays + JSON, checked; never unpickled)."""
-    return files.load_fitted(_written(layout.latent_fit(rig) / "models.json", "latent_fit"))
+    """The ``fit`` step's models (arrays + JSON, checked; never unpickled)."""
+    return files.load_fitted(_written(layout.latent_fit(rig) / "models.json", "fit"))
 
 
 def load_table(layout: Layout, rig: str) -> TransitionTable:
-    """The ``latent_match`` stage's matching points (arrays + JSON, checked)."""
-    folder = _written(layout.latent_match(rig) / "transitions.json", "latent_match")
+    """The ``match`` step's matching points (arrays + JSON, checked)."""
+    folder = _written(layout.latent_match(rig) / "transitions.json", "match")
     return files.load_table(folder)
 
 
@@ -237,12 +237,12 @@ def write_controls(path: Path, rig, P: np.ndarray, metadata: dict) -> Path:
 
 
 def read_controls(layout: Layout, rig, script: str, seed: int) -> np.ndarray:
-    """Used-control values ``(F, C)`` of one script's run by ``latent_synthesize``."""
+    """Used-control values ``(F, C)`` of one script's run by the ``synthesize`` step."""
     from rigmap.store.table_file import read_table_file
 
     path = layout.app_data(rig.name, LATENT) / f"{Path(script).stem}-seed{seed}.parquet"
     if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist; run the latent_synthesize stage first")
+        raise FileNotFoundError(f"{path} does not exist; run the latent synthesize step first")
     table, _ = read_table_file(path, CONTROLS_KEY, what="controls")
     return table[list(rig.used_controls)].to_numpy(np.float64)
 

@@ -1,6 +1,6 @@
 """The report's tables of edit propagation (Ikemoto, Arikan & Forsyth 2009; #17).
 
-``edit_evaluate`` writes ``metrics/<subject>/edits/edits.csv`` (each edit's scores on the
+The ``edits`` stage writes ``metrics/<subject>/edits/edits.csv`` (each edit's scores on the
 held-out clips) and ``ablation.csv`` (the combined solve against its parts, §1 and §4);
 each table appears when the stage ran. Every number is rigmap's own measurement: the
 paper judged its results by eye.

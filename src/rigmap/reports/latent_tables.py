@@ -1,6 +1,6 @@
 """The report's tables and figure of latent synthesis (Bailey, Watt & O'Brien 2016; #18).
 
-``latent_evaluate`` writes ``metrics/<rig>/latent/*.csv`` and ``summary.json`` and draws
+The ``latent`` stage writes ``metrics/<rig>/latent/*.csv`` and ``summary.json`` and draws
 ``reports/figures/latent_<rig>.png`` (Fig 2); each table appears when the stage ran.
 Every number is rigmap's own measurement: the paper reports settings, not results.
 """

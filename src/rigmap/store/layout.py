@@ -258,11 +258,11 @@ class Layout:
         return self.app_metrics(rig, EDITS) / "refinement"
 
     def latent_fit(self, rig: str) -> Path:
-        """The latent_fit stage's GPLVMs: ``models/<rig>/latent/fit/``."""
+        """The latent stage's GPLVMs (its fit step): ``models/<rig>/latent/fit/``."""
         return self.app_models(rig, LATENT) / "fit"
 
     def latent_match(self, rig: str) -> Path:
-        """The latent_match stage's transition table: ``models/<rig>/latent/match/``."""
+        """The latent stage's transition table (its match step): ``models/<rig>/latent/match/``."""
         return self.app_models(rig, LATENT) / "match"
 
     def map_model(self, rig: str, subset: str) -> Path:
