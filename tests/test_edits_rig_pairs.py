@@ -340,3 +340,68 @@ def test_a_model_learned_with_other_root_controls_is_refused(learned_biped, tmp_
     older = {k: v for k, v in learned.items() if k != "root_signs"}
     write_json_atomic(model / "learned.json", older)
     assert main([*argv, "--out", str(out)]) == 0
+
+
+def _mapped_walk(biped, folder: Path) -> Path:
+    """12 frames of CMU 131_02 mapped onto the biped by the map path (GPR, no refinement),
+    written as ``rigmap map`` writes a clip (rigmap.map.outputs)."""
+    import dataclasses
+
+    from rigmap.animation.library import build_corpus
+    from rigmap.map import JointMap, tracks_from_bvh
+    from rigmap.map.clip import MapSettings, map_clip
+    from rigmap.map.outputs import write_map_outputs
+    from rigmap.map.partial import JointSubset, SubsetMapping
+    from rigmap.regression import GaussianProcessRegressor
+    from rigmap.regression.features import inverse_features
+    from rigmap.regression.kernels import MultiquadricKernel
+
+    Y = build_corpus(biped, "train", seed=0).values()
+    pose = biped.pose(biped.expand_used(Y))
+    X = inverse_features(
+        pose.positions, pose.cog, pose.cog_rotation, n_joints=biped.n_joints, where="corpus"
+    )
+    retarget = JointMap.from_yaml(ROOT / "conf/retarget/cmu_biped.yaml")
+    subset = JointSubset("cmu", "biped", tuple(retarget.joints), "pelvis", "thigh_l", "thigh_r")
+    regressor = GaussianProcessRegressor(
+        MultiquadricKernel(), n_points=150, n_length_scales=3, cv_splits=2, progress=False
+    )
+    mapping = SubsetMapping.fit(biped, subset, X, Y, regressor)
+    targets = retarget.apply(biped, tracks_from_bvh(MOCAP / "cmu_131_02_walk.bvh"))
+    short = dataclasses.replace(targets, positions=targets.positions[240:264:2], fps=60.0)
+    result = map_clip(
+        biped, short, mapping, MapSettings(refine_iterations=0), control_std=Y.std(axis=0),
+        hold_values=np.median(Y, axis=0),
+    )  # fmt: skip
+    return write_map_outputs(folder, result, biped).folder
+
+
+def test_a_rigmap_map_output_folder_is_an_input(learned_biped, biped, tmp_path):
+    """``rigmap map`` writes a folder per clip (controls, per-frame errors, targets, keys,
+    summary): ``--input`` takes such a folder, or a folder of them, by its
+    ``controls.parquet``, named after the folder; the result is the controls' own."""
+    _, model, _ = learned_biped
+    mapped = tmp_path / "mapped"
+    walk = _mapped_walk(biped, mapped / "cmu_131_02_walk")
+    shutil.copytree(walk, mapped / "second_take")
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    shutil.copy(walk / "controls.parquet", plain / "cmu_131_02_walk.parquet")
+    outs = {}
+    for name, given in (("one", walk), ("several", mapped), ("plain", plain)):
+        outs[name] = tmp_path / f"out_{name}"
+        argv = ["edits", "apply", "--model", str(model), "--input", str(given)]
+        assert main([*argv, "--out", str(outs[name])]) == 0
+    applied = json.loads((outs["several"] / "applied.json").read_text())
+    assert [Path(row["parquet"]).name for row in applied["clips"]] == [
+        "cmu_131_02_walk.parquet",
+        "second_take.parquet",
+    ]
+    assert {Path(row["input"]).name for row in applied["clips"]} == {"controls.parquet"}
+    want = pd.read_parquet(outs["plain"] / "cmu_131_02_walk.parquet")
+    for name in ("one", "several"):
+        got = pd.read_parquet(outs[name] / "cmu_131_02_walk.parquet")
+        pd.testing.assert_frame_equal(got, want)
+    assert not list(outs["one"].glob("frames*")) and not list(outs["one"].glob("targets*"))
+    source = pd.read_parquet(walk / "controls.parquet")
+    assert not np.allclose(want[list(biped.used_controls)], source[list(biped.used_controls)])

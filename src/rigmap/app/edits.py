@@ -168,7 +168,9 @@ def add_apply_options(command) -> None:
     command.description += (
         " With --model DIR (a folder `rigmap edits learn` wrote) it instead applies that "
         "edit to --input (a file or a folder of them: BVH files, or controls parquets for "
-        "a model learned with --rig; a file of the other mode is refused) and writes, per "
+        "a model learned with --rig, where a `rigmap map` output folder, or a folder of "
+        "them, gives its controls.parquet under the folder's name; a file of the other "
+        "mode is refused) and writes, per "
         "clip, <name>.npz (the edited track) and: for BVH, <name>.bvh (the clip's own "
         "hierarchy, at --fps or the clip's rate); for a parquet, <name>.parquet (frame and "
         "every used control of the rig, at --fps or the model's rate; the input is read at "

@@ -45,7 +45,7 @@ from rigmap.edits.representation import TargetTrack
 from rigmap.edits.rig_mode import rig_controls
 from rigmap.edits.rig_pairs import (
     RigMode,
-    controls_files,
+    controls_inputs,
     controls_table,
     learn_rig_pairs,
     read_controls,
@@ -244,7 +244,7 @@ def apply_folder(model_dir, inputs, out, fps: float | None = None, glitch: str =
     if Path(inputs).is_file():
         check_mode_files([inputs], "skeleton", model_dir)
     files = bvh_files(inputs)
-    _check_stems(files, inputs)
+    _check_names([f.stem for f in files], inputs)
     results = []
     for path in files:  # everything computed and checked before anything is written
         clip = read_clip(path, None, glitch)
@@ -267,9 +267,8 @@ def apply_folder(model_dir, inputs, out, fps: float | None = None, glitch: str =
     return written, summary
 
 
-def _check_stems(files: list[Path], inputs) -> None:
-    stems = [f.stem for f in files]
-    if len(set(stems)) != len(stems):
+def _check_names(names: list[str], inputs) -> None:
+    if len(set(names)) != len(names):
         raise PairError(f"{inputs}: two inputs share a name; their outputs would collide")
 
 
@@ -313,29 +312,29 @@ def apply_rig_folder(model: EditModel, model_dir: Path, mode: RigMode, inputs, o
     """Rig mode's :func:`apply_folder`: controls parquets in (read at the model's frame
     rate), ``<name>.parquet`` (``frame`` and every used control, at ``fps`` or the model's
     rate), ``<name>.npz`` and a ``<name>.blend`` action (or why not) out."""
-    files = controls_files(inputs)
-    _check_stems(files, inputs)
+    files = controls_inputs(inputs)
+    _check_names([name for name, _ in files], inputs)
     writer, no_blend = _blend_writer(mode.rig)
     results = []
-    for path in files:  # everything computed and checked before anything is written
+    for name, path in files:  # everything computed and checked before anything is written
         clip = read_controls(path, mode)
         track = propagate(model, mode.subject.source(clip.track), fps)
         table = controls_table(rig_controls(track, mode.channels), mode.used, clip.first_frame)
-        results.append((path, clip, track, table))
+        results.append((name, path, clip, track, table))
     out, written, rows = Path(out), [], []
-    for path, clip, track, table in results:
-        written.append(write_controls(out / f"{path.stem}.parquet", table))
-        written.append(write_track(out / f"{path.stem}.npz", track))
+    for name, path, clip, track, table in results:
+        written.append(write_controls(out / f"{name}.parquet", table))
+        written.append(write_track(out / f"{name}.npz", track))
         blend = None
         if writer is not None:
-            blend = out / f"{path.stem}.blend"
+            blend = out / f"{name}.blend"
             with atomic_file(blend, suffix=".blend") as temporary:
-                writer(mode.rig, table, temporary, fps=track.fps, action_name=f"{path.stem}_edit")
+                writer(mode.rig, table, temporary, fps=track.fps, action_name=f"{name}_edit")
             written.append(blend)
         rows.append(
             {
                 "input": str(path),
-                "parquet": str(out / f"{path.stem}.parquet"),
+                "parquet": str(out / f"{name}.parquet"),
                 "blend": None if blend is None else str(blend),
                 **({"no_blend": no_blend} if blend is None else {}),
                 **_frames_row(clip.track, track),

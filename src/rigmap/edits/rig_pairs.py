@@ -1,7 +1,8 @@
 """An artist's own edits in rig mode: controls parquets of a built-in rig in and out.
 
 A controls parquet is what ``rigmap map`` writes (``controls.parquet``): a ``frame``
-column and one column per control of the rig. Rig mode edits the rig's used controls
+column and one column per control of the rig; a clip's ``rigmap map`` output folder is an
+input by that file (:func:`controls_inputs`). Rig mode edits the rig's used controls
 (:mod:`rigmap.edits.rig_mode`: the root's ``root.tx``, ``root.tz``, ``root.ry`` become
 per-frame steps and turns, §4.5), so :func:`read_controls` checks a file with one-line
 errors naming it: a ``frame`` column of consecutive whole numbers, every used control of
@@ -23,6 +24,7 @@ and ``DEF-thigh.L``/``DEF-thigh.R``).
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +40,8 @@ from rigmap.edits.subjects import Subject, rig_subject
 from rigmap.store import atomic_file
 
 FRAME_COLUMN = "frame"
+#: what ``rigmap map`` writes for one clip (:mod:`rigmap.map.outputs`): its controls, its summary
+MAP_CONTROLS, MAP_SUMMARY = "controls.parquet", "summary.json"
 
 
 @dataclass(frozen=True)
@@ -350,25 +354,48 @@ def learn_rig_pairs(
     return model.fit([*examples, *extra], scale)
 
 
-def controls_files(path) -> list[Path]:
-    """A controls parquet, or the ``*.parquet`` files of a folder (sorted); none is an error."""
+def controls_inputs(path) -> list[tuple[str, Path]]:
+    """``(name, controls parquet)`` of every clip ``path`` holds, sorted by name.
+
+    ``path`` is a controls parquet (named by its stem); a ``rigmap map`` output folder (its
+    ``controls.parquet``, named by the folder: its other parquets are per-frame errors and
+    targets, not controls); or a folder of either. None is an error.
+    """
     path = Path(path)
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".parquet" and p.is_file())
-        if not files:
+    if path.is_file():
+        if path.suffix.lower() != ".parquet":
             raise PairError(
-                f"{path}: the folder holds no .parquet file (a rig-mode edit takes controls "
-                "parquets)"
+                f"{path}: not a .parquet; a rig-mode edit takes controls parquets (a BVH goes "
+                "with a model learned on BVH pairs)"
             )
-        return files
-    if not path.is_file():
+        return [(path.stem, path)]
+    if not path.is_dir():
         raise PairError(f"{path}: no such controls parquet or folder")
-    if path.suffix.lower() != ".parquet":
+    if is_map_output(path):
+        return [(path.name, path / MAP_CONTROLS)]
+    entries = sorted(path.iterdir())
+    found = [(p.stem, p) for p in entries if p.is_file() and p.suffix.lower() == ".parquet"]
+    found += [(p.name, p / MAP_CONTROLS) for p in entries if p.is_dir() and is_map_output(p)]
+    if not found:
         raise PairError(
-            f"{path}: not a .parquet; a rig-mode edit takes controls parquets (a BVH goes with "
-            "a model learned on BVH pairs)"
+            f"{path}: the folder holds no .parquet file and no `rigmap map` output folder (a "
+            "rig-mode edit takes controls parquets)"
         )
-    return [path]
+    return sorted(found)
+
+
+def is_map_output(folder: Path) -> bool:
+    """Whether ``folder`` is one clip's ``rigmap map`` output: its controls and its summary."""
+    from rigmap.map.outputs import SUMMARY_FORMAT
+
+    summary = folder / MAP_SUMMARY
+    if not ((folder / MAP_CONTROLS).is_file() and summary.is_file()):
+        return False
+    try:
+        record = json.loads(summary.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and record.get("format") == SUMMARY_FORMAT
 
 
 def controls_table(controls: np.ndarray, used, first_frame: int = 0) -> pd.DataFrame:
