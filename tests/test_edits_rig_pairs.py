@@ -369,10 +369,9 @@ def _mapped_walk(biped, folder: Path) -> Path:
     mapping = SubsetMapping.fit(biped, subset, X, Y, regressor)
     targets = retarget.apply(biped, tracks_from_bvh(MOCAP / "cmu_131_02_walk.bvh"))
     short = dataclasses.replace(targets, positions=targets.positions[240:264:2], fps=60.0)
-    result = map_clip(
-        biped, short, mapping, MapSettings(refine_iterations=0), control_std=Y.std(axis=0),
-        hold_values=np.median(Y, axis=0),
-    )  # fmt: skip
+    settings = MapSettings(refine_iterations=0)
+    spread, median = Y.std(axis=0), np.median(Y, axis=0)
+    result = map_clip(biped, short, mapping, settings, control_std=spread, hold_values=median)
     return write_map_outputs(folder, result, biped).folder
 
 
