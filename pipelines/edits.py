@@ -14,29 +14,14 @@ runs them (each step a stage of its own cost three start-ups and nothing else).
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
+from rigmap.app.edits import run_edits_steps
 from rigmap.app.stage import run_stage
-from rigmap.edits import steps
-from rigmap.edits.representation import TargetError
-from rigmap.store import Layout
-
-STEPS = ("fit", "apply", "evaluate")
 
 
 def run(cfg: DictConfig):
-    if "edits" not in cfg:
-        raise TargetError("no edits config: add +edits=default to the command")
-    step = cfg.get("edits_step")
-    if step is not None and step not in STEPS:
-        raise TargetError(f"+edits_step: expected one of {STEPS}, got {step!r}")
-    config = OmegaConf.to_container(cfg.edits, resolve=True)
-    subject = cfg.get("edits_subject")
-    if subject is not None:
-        config["run"] = [str(subject)]
-    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
-    chosen = STEPS if step is None else (step,)
-    return [path for name in chosen for path in getattr(steps, f"run_{name}")(config, layout)]
+    return run_edits_steps(cfg)
 
 
 if __name__ == "__main__":

@@ -23,18 +23,45 @@ def load_settings(config_dir=None) -> dict:
     return OmegaConf.to_container(cfg.edits, resolve=True)
 
 
-def run_edits_stage(verb: str, overrides: list[str], config_dir=None) -> list[Path]:
-    """``rigmap edits <verb>``: the edits stage ``verb`` (``rigmap.edits.steps.run_<verb>``)
-    on ``conf/edits/default.yaml`` with ``overrides``."""
-    from omegaconf import OmegaConf
+#: the edits stage's steps, in the order the stage runs them (rigmap.edits.steps.run_<step>)
+EDIT_STEPS = ("fit", "apply", "evaluate")
 
+
+def run_edits_steps(cfg) -> list[Path]:
+    """The edits stage from a composed config (``pipelines/edits.py``): every step in order,
+    or the one ``+edits_step`` names; ``+edits_subject`` runs one subject of ``edits.run``."""
+    from rigmap.edits import steps
+    from rigmap.edits.representation import TargetError
+
+    if "edits" not in cfg:
+        raise TargetError("no edits config: add +edits=default to the command")
+    step = cfg.get("edits_step")
+    if step is not None and step not in EDIT_STEPS:
+        raise TargetError(f"+edits_step: expected one of {EDIT_STEPS}, got {step!r}")
+    config, layout = _edits_inputs(cfg)
+    subject = cfg.get("edits_subject")
+    if subject is not None:
+        config["run"] = [str(subject)]
+    chosen = EDIT_STEPS if step is None else (step,)
+    return [path for name in chosen for path in getattr(steps, f"run_{name}")(config, layout)]
+
+
+def run_edits_stage(verb: str, overrides: list[str], config_dir=None) -> list[Path]:
+    """``rigmap edits <verb>``: ``rigmap.edits.steps.run_<verb>`` (a step of the edits stage,
+    or ``add``) on ``conf/edits/default.yaml`` with ``overrides``."""
     from rigmap.app.config import compose_config
     from rigmap.edits import steps
 
-    cfg = compose_config(["+edits=default", *overrides], config_dir)
-    config = OmegaConf.to_container(cfg.edits, resolve=True)
-    layout = Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
+    config, layout = _edits_inputs(compose_config(["+edits=default", *overrides], config_dir))
     return list(getattr(steps, f"run_{verb}")(config, layout))
+
+
+def _edits_inputs(cfg) -> tuple[dict, Layout]:
+    """The composed ``edits`` settings as a plain dict, and the layout of ``paths``."""
+    from omegaconf import OmegaConf
+
+    config = OmegaConf.to_container(cfg.edits, resolve=True)
+    return config, Layout.from_paths(OmegaConf.to_container(cfg.paths, resolve=True))
 
 
 GLITCH_HELP = (
